@@ -1,0 +1,50 @@
+#pragma once
+/// @file capacities.hpp
+/// Every compile-time capacity of the core, in one place.
+///
+/// Storage in `core/` is fixed-capacity; these numbers size it. A build may override any of them
+/// with a compile definition of the same name (e.g. `-DAGV_MAX_SCAN_BEAMS=1081` for a smaller MCU),
+/// and the values in force are those compiled into the library *and* the caller, so set them
+/// project-wide (the CMake cache variables `AGVNAV_MAX_*` do that for consumers of `agv::core`).
+
+#include <cstddef>
+
+#ifndef AGV_MAX_SCAN_BEAMS
+#define AGV_MAX_SCAN_BEAMS 2048
+#endif
+#ifndef AGV_MAX_KEYPOINTS
+#define AGV_MAX_KEYPOINTS 256
+#endif
+#ifndef AGV_MAX_REFLECTORS
+#define AGV_MAX_REFLECTORS 64
+#endif
+#ifndef AGV_MAX_OBSERVATIONS
+#define AGV_MAX_OBSERVATIONS 128
+#endif
+#ifndef AGV_MAX_LANDMARKS
+#define AGV_MAX_LANDMARKS 4096
+#endif
+#ifndef AGV_MAX_CALIB_SEGMENTS
+#define AGV_MAX_CALIB_SEGMENTS 64
+#endif
+
+namespace agv {
+
+/// Beams in one 2D laser scan (a 360 deg scan at 0.25 deg has 1440; 2048 leaves head-room).
+inline constexpr std::size_t kMaxScanBeams = AGV_MAX_SCAN_BEAMS;
+/// FALKO keypoints kept per scan.
+inline constexpr std::size_t kMaxKeypoints = AGV_MAX_KEYPOINTS;
+/// Reflector detections one navigation laser reports per scan.
+inline constexpr std::size_t kMaxReflectors = AGV_MAX_REFLECTORS;
+/// Point observations (reflectors + keypoints) fed to one EKF correction.
+inline constexpr std::size_t kMaxObservations = AGV_MAX_OBSERVATIONS;
+/// Landmarks held by the landmark map.
+inline constexpr std::size_t kMaxLandmarks = AGV_MAX_LANDMARKS;
+/// Constant-steering path segments used by one calibration solve.
+inline constexpr std::size_t kMaxCalibSegments = AGV_MAX_CALIB_SEGMENTS;
+
+static_assert(kMaxScanBeams >= 16, "a scan needs at least 16 beams of capacity");
+static_assert(kMaxKeypoints >= 1 && kMaxReflectors >= 1 && kMaxObservations >= 1, "capacities must be positive");
+static_assert(kMaxLandmarks >= 1 && kMaxCalibSegments >= 2, "capacities must be positive");
+
+}  // namespace agv

@@ -1,0 +1,26 @@
+#include "semihosting.h"
+
+#define SYS_WRITE0 0x04
+#define SYS_CLOCK 0x10
+#define SYS_EXIT 0x18
+#define ADP_STOPPED_APPLICATION_EXIT 0x20026
+#define ADP_STOPPED_RUNTIME_ERROR_UNKNOWN 0x20023
+
+static int semihosting_call(int op, const void* arg) {
+  register int r0 __asm__("r0") = op;
+  register const void* r1 __asm__("r1") = arg;
+  __asm__ volatile("bkpt 0xAB" : "+r"(r0) : "r"(r1) : "memory");
+  return r0;
+}
+
+void semihosting_write0(const char* text) { (void)semihosting_call(SYS_WRITE0, text); }
+
+int semihosting_clock_cs(void) { return semihosting_call(SYS_CLOCK, 0); }
+
+void semihosting_exit(int status) {
+  /* AArch32 SYS_EXIT takes the reason code itself: ApplicationExit -> host exit 0, else 1. */
+  (void)semihosting_call(SYS_EXIT, (const void*)(status == 0 ? ADP_STOPPED_APPLICATION_EXIT
+                                                             : ADP_STOPPED_RUNTIME_ERROR_UNKNOWN));
+  for (;;) {
+  }
+}
