@@ -28,8 +28,8 @@ bool intersectCircle(const Point2& o, const Point2& d, const Circle& c, double* 
 ///
 /// The obstacles are binned into square cells; a ray walks the cells it crosses in order
 /// (Amanatides-Woo) and stops at the first cell that contains a hit closer than the cell's exit,
-/// so a ray tests only the primitives near its path: a 1440-beam scan of the default warehouse
-/// costs about a hundred microseconds instead of a full test of every primitive per beam.
+/// so a ray tests only the primitives near its path: a 1440-beam sweep of the built-in warehouse
+/// costs about 0.4 ms instead of 3.3 ms by brute force (BM_SimLaserScan, BM_SimRayCastBruteForce).
 class RayCaster {
  public:
   /// `cellSize` [m] > 0: the grid's cell side (about the typical obstacle spacing works best).
