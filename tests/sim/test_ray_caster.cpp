@@ -152,3 +152,15 @@ TEST_CASE("Degenerate rays return no hit", "[sim][raycast]") {
   CHECK_FALSE(caster.cast(Point2{0.0, 0.0}, 0.0, 0.0).hit);
   CHECK_FALSE(caster.cast(Point2{0.0, 0.0}, 0.0, -1.0).hit);
 }
+
+TEST_CASE("A huge world gets a coarser grid and still casts exactly", "[sim][raycast]") {
+  World w;
+  w.segments.push_back(Segment{{0.0, 0.0}, {100000.0, 0.0}, ObstacleKind::Wall});
+  w.segments.push_back(Segment{{100000.0, 0.0}, {100000.0, 50000.0}, ObstacleKind::Wall});
+  const RayCaster caster(w, 0.5);
+  CHECK(static_cast<double>(caster.cellsX()) * caster.cellsY() <= 4.0e6);
+  CHECK(caster.cellSize() > 0.5);
+  const agv::sim::RayHit h = caster.cast(Point2{99000.0, 10.0}, 0.0, 5000.0);
+  REQUIRE(h.hit);
+  CHECK(h.range == Approx(1000.0));
+}

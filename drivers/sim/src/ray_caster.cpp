@@ -88,6 +88,12 @@ RayCaster::RayCaster(const World& world, double cellSize) : world_(&world), cell
   Point2 lo;
   Point2 hi;
   world.bounds(&lo, &hi);
+  // Bound the grid's memory for huge worlds: coarser cells rather than more of them.
+  constexpr double kMaxCells = 4.0e6;
+  const double area = (hi.x - lo.x + cell_) * (hi.y - lo.y + cell_);
+  if (area / (cell_ * cell_) > kMaxCells) {
+    cell_ = std::sqrt(area / kMaxCells) * 1.01;
+  }
   lo_ = {lo.x - 0.5 * cell_, lo.y - 0.5 * cell_};
   nx_ = std::max(1, static_cast<int>(std::ceil((hi.x - lo_.x) / cell_ + 0.5)));
   ny_ = std::max(1, static_cast<int>(std::ceil((hi.y - lo_.y) / cell_ + 0.5)));

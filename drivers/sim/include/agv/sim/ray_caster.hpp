@@ -33,6 +33,7 @@ bool intersectCircle(const Point2& o, const Point2& d, const Circle& c, double* 
 class RayCaster {
  public:
   /// `cellSize` [m] > 0: the grid's cell side (about the typical obstacle spacing works best).
+  /// The grid never exceeds 4 million cells: for a larger world the cells are made coarser.
   explicit RayCaster(const World& world, double cellSize = 1.0);
 
   /// First obstacle hit by the ray from `origin` at world angle `angle` [rad] closer than
@@ -45,6 +46,7 @@ class RayCaster {
   /// Grid size (cells along x and y) and the number of (cell, primitive) entries.
   int cellsX() const noexcept { return nx_; }
   int cellsY() const noexcept { return ny_; }
+  double cellSize() const noexcept { return cell_; }
   std::size_t entries() const noexcept { return items_.size(); }
 
  private:
