@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Installs the Debian packages agvnav needs (idempotent: only what is missing is installed).
+#   scripts/install-deps.sh          build + run the library, apps and native tests
+#   scripts/install-deps.sh --all    also the ARM cross compilers, qemu and the bare-metal toolchain
+#                                    (~2 GB; what scripts/test-all.sh needs)
+set -euo pipefail
+
+base=(cmake make g++ pkg-config libeigen3-dev catch2 libbenchmark-dev zlib1g-dev libcli11-dev clang-format clang-tidy)
+cross=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user qemu-system-arm
+       gcc-arm-none-eabi binutils-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib)
+
+want=("${base[@]}")
+case "${1:-}" in
+  --all) want+=("${cross[@]}") ;;
+  "") ;;
+  *) echo "usage: $0 [--all]" >&2; exit 2 ;;
+esac
+
+missing=()
+for p in "${want[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#want[@]} packages present"
+  exit 0
+fi
+
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get -o DPkg::Lock::Timeout=900 update -q
+$sudo apt-get -o DPkg::Lock::Timeout=900 install -y -q --no-install-recommends "${missing[@]}"
