@@ -202,7 +202,7 @@ while ! grep -q '7F0#A5' /tmp/candump.log; do
 done
 
 args=$(cat /test/args 2>/dev/null)
-echo "AGV-VCAN: running /test/test_vcan_socketcan $args"
+echo "AGV-VCAN: $(cut -d' ' -f1 /proc/uptime) s after boot: CAN up, running /test/test_vcan_socketcan $args"
 cd /test
 AGV_VCAN_IF=vcan0 AGV_VCAN_IF2=vcan1 AGV_CANSEND=cansend ./test_vcan_socketcan --use-colour no $args
 rc=$?
@@ -214,6 +214,7 @@ missing=""
 for f in 201#11223344 1ABCDE01#01 202#R; do
   grep -q " vcan0 $f\$" /tmp/candump.log || missing="$missing $f"
 done
+echo "AGV-VCAN: $(cut -d' ' -f1 /proc/uptime) s after boot: test done, exit $rc"
 echo "AGV-VCAN: candump recorded $(wc -l < /tmp/candump.log) frames on vcan0"
 if [ $rc -eq 0 ] && [ -z "$missing" ]; then
   result "PASS (test exit 0, candump saw the transmitted frames)"
