@@ -206,14 +206,21 @@ echo "AGV-VCAN: $(cut -d' ' -f1 /proc/uptime) s after boot: CAN up, running /tes
 cd /test
 AGV_VCAN_IF=vcan0 AGV_VCAN_IF2=vcan1 AGV_CANSEND=cansend ./test_vcan_socketcan --use-colour no $args
 rc=$?
-sleep 0.1
-kill $candump_pid 2>/dev/null
 
-# The frames the test transmitted on vcan0, as candump -L prints them.
-missing=""
-for f in 201#11223344 1ABCDE01#01 202#R; do
-  grep -q " vcan0 $f\$" /tmp/candump.log || missing="$missing $f"
+# The frames the test transmitted on vcan0, as candump -L prints them. candump may still be
+# writing: give it up to 5 s before calling a frame missing.
+n=0
+while :; do
+  missing=""
+  for f in 201#11223344 1ABCDE01#01 202#R; do
+    grep -q " vcan0 $f\$" /tmp/candump.log || missing="$missing $f"
+  done
+  [ -z "$missing" ] && break
+  n=$((n + 1))
+  [ $n -gt 50 ] && break
+  sleep 0.1
 done
+kill $candump_pid 2>/dev/null
 echo "AGV-VCAN: $(cut -d' ' -f1 /proc/uptime) s after boot: test done, exit $rc"
 echo "AGV-VCAN: candump recorded $(wc -l < /tmp/candump.log) frames on vcan0"
 if [ $rc -eq 0 ] && [ -z "$missing" ]; then
