@@ -53,6 +53,7 @@ need qemu-system-x86_64
 need cpio
 need cansend
 need candump
+need cangen
 need ldd
 need timeout
 busybox="${AGV_VCAN_BUSYBOX:-}"
@@ -115,10 +116,11 @@ libs_of() {  # absolute paths of the shared libraries (and the loader) of a prog
 }
 cansend_bin="$(command -v cansend)"
 candump_bin="$(command -v candump)"
-mapfile -t libs < <( (libs_of "$cansend_bin"; libs_of "$candump_bin") | sort -u)
+cangen_bin="$(command -v cangen)"
+mapfile -t libs < <( (libs_of "$cansend_bin"; libs_of "$candump_bin"; libs_of "$cangen_bin") | sort -u)
 modules=()
 for rel in "${module_rel[@]}"; do modules+=("$(module_path "$kver" "$rel")"); done
-key="$( (echo "kernel $kver"; fingerprint "$kernel" "$busybox" "$cansend_bin" "$candump_bin" "${libs[@]}" "${modules[@]}";
+key="$( (echo "kernel $kver"; fingerprint "$kernel" "$busybox" "$cansend_bin" "$candump_bin" "$cangen_bin" "${libs[@]}" "${modules[@]}";
          sha256sum "${BASH_SOURCE[0]}" | cut -d' ' -f1) | sha256sum | cut -d' ' -f1)"
 
 base_cpio="$work_dir/base.cpio"
@@ -161,7 +163,7 @@ build_base() {
       *) cp "$m" "$root/lib/agv-modules/$name.ko" ;;
     esac
   done
-  cp "$cansend_bin" "$candump_bin" "$root/bin/"
+  cp "$cansend_bin" "$candump_bin" "$cangen_bin" "$root/bin/"
   local lib
   for lib in "${libs[@]}"; do
     mkdir -p "$root$(dirname "$lib")"

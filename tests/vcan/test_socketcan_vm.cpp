@@ -5,28 +5,17 @@
 //
 // Environment: AGV_VCAN_IF (default vcan0), AGV_VCAN_IF2 (default vcan1, taken down and up by
 // the link-loss test so that candump on vcan0 keeps recording), AGV_CANSEND (default cansend).
-#include <arpa/inet.h>
 #include <linux/can.h>
 #include <linux/can/error.h>
-#include <net/if.h>
-#include <spawn.h>
-#include <sys/ioctl.h>
-#include <sys/socket.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cerrno>
-#include <cstdlib>
-#include <cstring>
-#include <ctime>
 #include <string>
 #include <vector>
 
 #include "agv/drivers/socketcan_bus.hpp"
 #include "agv_test.hpp"
+#include "vcan_peer.hpp"
 #include "vm_alloc_count.hpp"
-
-extern char** environ;
 
 using agv::Duration;
 using agv::Status;
@@ -36,31 +25,14 @@ using agv::drivers::CanFrame;
 using agv::drivers::CanLinkState;
 using agv::drivers::SocketCanBus;
 using agv::drivers::SocketCanConfig;
+using agv::test::cansend;
+using agv::test::realtimeNow;
+using agv::test::setLinkUp;
 
 namespace {
 
-std::string envOr(const char* name, const char* fallback) {
-  const char* v = std::getenv(name);
-  return (v != nullptr && v[0] != '\0') ? std::string(v) : std::string(fallback);
-}
-std::string busName() { return envOr("AGV_VCAN_IF", "vcan0"); }
-std::string flapBusName() { return envOr("AGV_VCAN_IF2", "vcan1"); }
-
-/// Runs `cansend <interface> <frame>` and returns its exit status (-1 when it could not run).
-int cansend(const std::string& interface, const std::string& frame) {
-  const std::string tool = envOr("AGV_CANSEND", "cansend");
-  std::vector<char*> argv{const_cast<char*>(tool.c_str()), const_cast<char*>(interface.c_str()),
-                          const_cast<char*>(frame.c_str()), nullptr};
-  pid_t pid = 0;
-  if (posix_spawnp(&pid, tool.c_str(), nullptr, nullptr, argv.data(), environ) != 0) {
-    return -1;
-  }
-  int status = 0;
-  if (waitpid(pid, &status, 0) != pid) {
-    return -1;
-  }
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+std::string busName() { return agv::test::vcanInterface(); }
+std::string flapBusName() { return agv::test::vcanSpareInterface(); }
 
 SocketCanConfig config(const std::string& name) {
   SocketCanConfig c;
@@ -88,27 +60,6 @@ bool sameBytes(const CanFrame& f, std::initializer_list<std::uint8_t> bytes) {
     if (f.data[i++] != b) return false;
   }
   return true;
-}
-
-Timestamp realtimeNow() {
-  timespec t{};
-  clock_gettime(CLOCK_REALTIME, &t);
-  return Timestamp::fromNanoseconds(static_cast<std::int64_t>(t.tv_sec) * 1000000000LL + t.tv_nsec);
-}
-
-/// Sets or clears IFF_UP of an interface (root in the VM).
-bool setLinkUp(const std::string& name, bool up) {
-  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  if (fd < 0) return false;
-  ifreq ifr{};
-  std::strncpy(ifr.ifr_name, name.c_str(), IFNAMSIZ - 1);
-  bool ok = ::ioctl(fd, SIOCGIFFLAGS, &ifr) == 0;
-  if (ok) {
-    ifr.ifr_flags = static_cast<short>(up ? (ifr.ifr_flags | IFF_UP) : (ifr.ifr_flags & ~IFF_UP));
-    ok = ::ioctl(fd, SIOCSIFFLAGS, &ifr) == 0;
-  }
-  ::close(fd);
-  return ok;
 }
 
 }  // namespace
@@ -165,6 +116,28 @@ TEST_CASE("frames sent by a peer are received with monotonic kernel timestamps",
   CHECK(bus.health().counters.framesReceived == 4U);
   CHECK(bus.health().counters.rxDroppedByKernel == 0U);
   CHECK(bus.health().counters.errorFramesReceived == 0U);
+}
+
+TEST_CASE("stamps are the kernel's receive times, not the read times", "[vcan]") {
+  const std::string name = busName();
+  SocketCanBus bus;
+  REQUIRE(bus.open(config(name)) == Status::Ok);
+  // A periodic peer: 20 frames, at least 5 ms apart (cangen sleeps between them), with an
+  // incrementing payload. They are all read after cangen has finished, within a short time.
+  REQUIRE(agv::test::runPeer({"cangen", name, "-I", "181", "-L", "8", "-D", "i", "-g", "5", "-n", "20"}) == 0);
+  CanFrame f;
+  CanFrame previous;
+  for (int i = 0; i < 20; ++i) {
+    REQUIRE(bus.receive(f, kWait) == Status::Ok);
+    CHECK(f.id == 0x181U);
+    if (i > 0) {
+      CHECK(f.data[0] == static_cast<std::uint8_t>(previous.data[0] + 1U));
+      // Send times are >= 5 ms apart; allow 1 ms for the path from the send call to the stamp.
+      CHECK(f.stamp - previous.stamp >= Duration::fromMilliseconds(4));
+    }
+    previous = f;
+  }
+  CHECK(bus.receive(f, kSilence) == Status::Timeout);
 }
 
 TEST_CASE("receive timestamps on the wall clock when asked", "[vcan]") {
