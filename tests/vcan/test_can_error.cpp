@@ -23,7 +23,8 @@ CanFrame errorFrame(std::uint32_t classes, std::uint8_t d0 = 0, std::uint8_t d1 
   f.id = classes;
   f.dlc = CAN_ERR_DLC;
   const std::uint8_t d[8] = {d0, d1, d2, d3, d4, 0, d6, d7};
-  for (int i = 0; i < 8; ++i) f.data[i] = d[i];
+  for (int i = 0; i < 8; ++i)
+    f.data[i] = d[i];
   return f;
 }
 }  // namespace
@@ -94,10 +95,10 @@ TEST_CASE("overflows, no-ACK and restart are reported without inventing a state"
 
 TEST_CASE("protocol, arbitration, transceiver and counter details", "[socketcan]") {
   CanErrorReport r;
-  REQUIRE(decodeCanError(errorFrame(CAN_ERR_PROT | CAN_ERR_LOSTARB | CAN_ERR_TRX | CAN_ERR_CNT, 7, 0,
-                                    CAN_ERR_PROT_STUFF | CAN_ERR_PROT_TX, CAN_ERR_PROT_LOC_ACK,
-                                    CAN_ERR_TRX_CANH_NO_WIRE, 130, 12),
-                         r) == Status::Ok);
+  REQUIRE(decodeCanError(
+              errorFrame(CAN_ERR_PROT | CAN_ERR_LOSTARB | CAN_ERR_TRX | CAN_ERR_CNT, 7, 0,
+                         CAN_ERR_PROT_STUFF | CAN_ERR_PROT_TX, CAN_ERR_PROT_LOC_ACK, CAN_ERR_TRX_CANH_NO_WIRE, 130, 12),
+              r) == Status::Ok);
   CHECK(r.protocolViolation);
   CHECK(r.protocolType == (CAN_ERR_PROT_STUFF | CAN_ERR_PROT_TX));
   CHECK(r.protocolLocation == CAN_ERR_PROT_LOC_ACK);
@@ -136,7 +137,8 @@ TEST_CASE("decoding does not allocate", "[socketcan]") {
 TEST_CASE("state names are distinct", "[socketcan]") {
   using agv::drivers::CanLinkState;
   CHECK(std::string(toString(CanControllerState::BusOff)) == "bus-off");
-  CHECK(std::string(toString(CanControllerState::ErrorActive)) != std::string(toString(CanControllerState::ErrorPassive)));
+  CHECK(std::string(toString(CanControllerState::ErrorActive)) !=
+        std::string(toString(CanControllerState::ErrorPassive)));
   CHECK(std::string(toString(CanLinkState::Down)) == "down");
 }
 

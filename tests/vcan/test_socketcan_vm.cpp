@@ -31,8 +31,12 @@ using agv::test::setLinkUp;
 
 namespace {
 
-std::string busName() { return agv::test::vcanInterface(); }
-std::string flapBusName() { return agv::test::vcanSpareInterface(); }
+std::string busName() {
+  return agv::test::vcanInterface();
+}
+std::string flapBusName() {
+  return agv::test::vcanSpareInterface();
+}
 
 SocketCanConfig config(const std::string& name) {
   SocketCanConfig c;
@@ -40,7 +44,7 @@ SocketCanConfig config(const std::string& name) {
   return c;
 }
 
-const Duration kWait = Duration::fromSeconds(2.0);     // a frame on vcan arrives within microseconds
+const Duration kWait = Duration::fromSeconds(2.0);          // a frame on vcan arrives within microseconds
 const Duration kSilence = Duration::fromMilliseconds(200);  // "nothing more comes"
 
 CanFrame frame(std::uint32_t id, std::initializer_list<std::uint8_t> bytes, bool extended = false) {
@@ -49,15 +53,18 @@ CanFrame frame(std::uint32_t id, std::initializer_list<std::uint8_t> bytes, bool
   f.extended = extended;
   f.dlc = static_cast<std::uint8_t>(bytes.size());
   std::uint8_t i = 0;
-  for (std::uint8_t b : bytes) f.data[i++] = b;
+  for (std::uint8_t b : bytes)
+    f.data[i++] = b;
   return f;
 }
 
 bool sameBytes(const CanFrame& f, std::initializer_list<std::uint8_t> bytes) {
-  if (f.dlc != bytes.size()) return false;
+  if (f.dlc != bytes.size())
+    return false;
   std::uint8_t i = 0;
   for (std::uint8_t b : bytes) {
-    if (f.data[i++] != b) return false;
+    if (f.data[i++] != b)
+      return false;
   }
   return true;
 }
@@ -208,7 +215,10 @@ TEST_CASE("steady-state send and receive do not allocate", "[vcan]") {
   REQUIRE(rx.open(config(name)) == Status::Ok);
   // The counter must see an allocation, or a zero below would prove nothing.
   const std::uint64_t probe = agv::test::vmAllocationCalls();
-  { std::vector<int> v(16, 1); CHECK(v.size() == 16U); }
+  {
+    std::vector<int> v(16, 1);
+    CHECK(v.size() == 16U);
+  }
   REQUIRE(agv::test::vmAllocationCalls() > probe);
 
   int received = 0;

@@ -23,19 +23,27 @@ std::string envOr(const char* name, const char* fallback) {
 }
 }  // namespace
 
-std::string vcanInterface() { return envOr("AGV_VCAN_IF", "vcan0"); }
-std::string vcanSpareInterface() { return envOr("AGV_VCAN_IF2", "vcan1"); }
+std::string vcanInterface() {
+  return envOr("AGV_VCAN_IF", "vcan0");
+}
+std::string vcanSpareInterface() {
+  return envOr("AGV_VCAN_IF2", "vcan1");
+}
 
 int runPeer(std::initializer_list<std::string> args) {
   std::vector<std::string> storage(args);
-  if (storage.empty()) return -1;
+  if (storage.empty())
+    return -1;
   std::vector<char*> argv;
-  for (std::string& a : storage) argv.push_back(a.data());
+  for (std::string& a : storage)
+    argv.push_back(a.data());
   argv.push_back(nullptr);
   pid_t pid = 0;
-  if (posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0) return -1;
+  if (posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0)
+    return -1;
   int status = 0;
-  if (waitpid(pid, &status, 0) != pid) return -1;
+  if (waitpid(pid, &status, 0) != pid)
+    return -1;
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
@@ -45,7 +53,8 @@ int cansend(const std::string& interface, const std::string& frame) {
 
 bool setLinkUp(const std::string& interface, bool up) {
   const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  if (fd < 0) return false;
+  if (fd < 0)
+    return false;
   ifreq ifr{};
   std::strncpy(ifr.ifr_name, interface.c_str(), IFNAMSIZ - 1);
   bool ok = ::ioctl(fd, SIOCGIFFLAGS, &ifr) == 0;

@@ -41,5 +41,7 @@ void* __wrap_aligned_alloc(std::size_t alignment, std::size_t n) {
 }
 
 namespace agv::test {
-std::uint64_t vmAllocationCalls() noexcept { return g_calls.load(std::memory_order_relaxed); }
+std::uint64_t vmAllocationCalls() noexcept {
+  return g_calls.load(std::memory_order_relaxed);
+}
 }  // namespace agv::test

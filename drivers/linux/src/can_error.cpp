@@ -7,17 +7,25 @@ namespace agv::drivers {
 
 const char* toString(CanControllerState state) noexcept {
   switch (state) {
-    case CanControllerState::ErrorActive: return "error-active";
-    case CanControllerState::ErrorWarning: return "error-warning";
-    case CanControllerState::ErrorPassive: return "error-passive";
-    case CanControllerState::BusOff: return "bus-off";
+    case CanControllerState::ErrorActive:
+      return "error-active";
+    case CanControllerState::ErrorWarning:
+      return "error-warning";
+    case CanControllerState::ErrorPassive:
+      return "error-passive";
+    case CanControllerState::BusOff:
+      return "bus-off";
   }
   return "unknown";
 }
 
 namespace {
-constexpr bool has(std::uint32_t bits, std::uint32_t flag) noexcept { return (bits & flag) != 0U; }
-constexpr bool has8(std::uint8_t bits, unsigned flag) noexcept { return (static_cast<unsigned>(bits) & flag) != 0U; }
+constexpr bool has(std::uint32_t bits, std::uint32_t flag) noexcept {
+  return (bits & flag) != 0U;
+}
+constexpr bool has8(std::uint8_t bits, unsigned flag) noexcept {
+  return (static_cast<unsigned>(bits) & flag) != 0U;
+}
 }  // namespace
 
 Status decodeCanError(const CanFrame& frame, CanErrorReport& out) noexcept {

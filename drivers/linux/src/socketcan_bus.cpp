@@ -17,9 +17,12 @@ namespace agv::drivers {
 
 const char* toString(CanLinkState state) noexcept {
   switch (state) {
-    case CanLinkState::Closed: return "closed";
-    case CanLinkState::Up: return "up";
-    case CanLinkState::Down: return "down";
+    case CanLinkState::Closed:
+      return "closed";
+    case CanLinkState::Up:
+      return "up";
+    case CanLinkState::Down:
+      return "down";
   }
   return "unknown";
 }
@@ -70,9 +73,13 @@ Status fromErrno(int err) noexcept {
 
 }  // namespace
 
-Timestamp monotonicNow() noexcept { return clockNow(CLOCK_MONOTONIC); }
+Timestamp monotonicNow() noexcept {
+  return clockNow(CLOCK_MONOTONIC);
+}
 
-SocketCanBus::~SocketCanBus() { closeSocket(); }
+SocketCanBus::~SocketCanBus() {
+  closeSocket();
+}
 
 Status SocketCanBus::open(const SocketCanConfig& config) noexcept {
   close();
@@ -318,7 +325,8 @@ Status SocketCanBus::readOne(CanFrame& out) noexcept {
   f.error = (raw.can_id & CAN_ERR_FLAG) != 0U;
   f.extended = !f.error && (raw.can_id & CAN_EFF_FLAG) != 0U;
   f.rtr = !f.error && (raw.can_id & CAN_RTR_FLAG) != 0U;
-  f.id = f.error ? (raw.can_id & CAN_ERR_MASK) : (f.extended ? (raw.can_id & CAN_EFF_MASK) : (raw.can_id & CAN_SFF_MASK));
+  f.id =
+      f.error ? (raw.can_id & CAN_ERR_MASK) : (f.extended ? (raw.can_id & CAN_EFF_MASK) : (raw.can_id & CAN_SFF_MASK));
   f.dlc = raw.can_dlc;
   std::memcpy(f.data, raw.data, sizeof(f.data));
   if (!stamped) {
