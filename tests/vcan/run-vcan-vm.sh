@@ -43,7 +43,7 @@ fail() {
 [[ -x "$test_binary" ]] || fail "test binary '$test_binary' not found or not executable"
 [[ "$timeout_s" =~ ^[0-9]+$ ]] || fail "--timeout must be a whole number of seconds"
 
-install_hint="install the packages with scripts/install-vcan-deps.sh (qemu-system-x86 linux-image-amd64 busybox-static can-utils cpio xz-utils)"
+install_hint="install the packages with scripts/install-deps.sh --all (qemu-system-x86 linux-image-amd64 busybox-static can-utils cpio xz-utils)"
 
 # ---- tools -----------------------------------------------------------------------------------
 need() {
