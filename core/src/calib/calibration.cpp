@@ -1,7 +1,8 @@
 #include "agv/calib/calibration.hpp"
 
+#include "agv/calib/equal_norm_fit.hpp"
+
 #include <Eigen/Core>
-#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <complex>
 #include <limits>
@@ -122,63 +123,6 @@ bool validOptions(const CalibrationOptions& opt) noexcept {
          opt.minTicks >= 1 && opt.minSteeringSeparation > 0.0 && opt.minSteeringSeparation < kPi<double> / 2.0 &&
          opt.minRotation > 0.0 && opt.minRotation < kPi<double> && opt.minTranslation > 0.0 &&
          opt.maxConditionNumber > 1.0;
-}
-
-/// Spectral data of one ATC block: M = U diag(d) U^T, c = U^T g with signs fixed so c >= 0.
-struct Block {
-  Eigen::Vector2d d;  // ascending
-  Eigen::Matrix2d u;  // columns: eigenvectors, flipped where c was negative
-  Eigen::Vector2d c;  // >= 0
-};
-
-Block diagonalise(const Eigen::Matrix2d& m, const Eigen::Vector2d& g) noexcept {
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es;
-  es.computeDirect(m);
-  Block b{es.eigenvalues(), es.eigenvectors(), Eigen::Vector2d::Zero()};
-  b.c = b.u.transpose() * g;
-  for (int i = 0; i < 2; ++i) {
-    if (b.c(i) < 0.0) {  // sign fix: flip the eigenvector together with its coefficient
-      b.c(i) = -b.c(i);
-      b.u.col(i) = -b.u.col(i);
-    }
-  }
-  return b;
-}
-
-/// psi of one block for multiplier `shift` (the block matrix is M + shift*I), leaving out the
-/// components whose denominator vanishes (their coefficient is zero in the degenerate case).
-Eigen::Vector2d blockSolution(const Block& b, double shift, double tiny) noexcept {
-  Eigen::Vector2d psi = Eigen::Vector2d::Zero();
-  for (int i = 0; i < 2; ++i) {
-    const double den = b.d(i) + shift;
-    if (den > tiny) {
-      psi += (b.c(i) / den) * b.u.col(i);
-    }
-  }
-  return psi;
-}
-
-/// f(lambda) = |psi_F|^2 - |psi_B|^2 and its derivative, with psi_F = (M_F + lambda)^-1 g_F and
-/// psi_B = (M_B - lambda)^-1 g_B; strictly decreasing on (A, B).
-void secular(const Block& f, const Block& b, double lambda, double tiny, double* value, double* slope) noexcept {
-  double v = 0.0;
-  double dv = 0.0;
-  for (int i = 0; i < 2; ++i) {
-    const double df = f.d(i) + lambda;
-    if (df > tiny) {
-      const double q = f.c(i) / df;
-      v += q * q;
-      dv -= 2.0 * q * q / df;
-    }
-    const double db = b.d(i) - lambda;
-    if (db > tiny) {
-      const double q = b.c(i) / db;
-      v -= q * q;
-      dv -= 2.0 * q * q / db;
-    }
-  }
-  *value = v;
-  *slope = dv;
 }
 
 }  // namespace
@@ -413,77 +357,13 @@ Status calibrateAtc(Span<const CalibSegment> segs, const CalibrationOptions& opt
   // min ||A_F psi_F - theta_F||^2 + ||A_B psi_B - theta_B||^2  s.t.  |psi_F|^2 - |psi_B|^2 = 0.
   // Stationarity: (M_F + lambda) psi_F = g_F, (M_B - lambda) psi_B = g_B; the minimiser has both
   // matrices positive semi-definite, i.e. lambda in [A, B], A = -min eig M_F, B = min eig M_B.
-  const Block bf = diagonalise(mf, gf);
-  const Block bb = diagonalise(mb, gb);
-  const double scale = std::fmax(bf.d(1), bb.d(1));
-  const double tiny = 1e-13 * scale;
-  const double lowEnd = -bf.d(0);
-  const double highEnd = bb.d(0);
-  // A coefficient below this relative size counts as zero: f then stays finite at that end.
-  const double cTiny = 1e-14 * std::fmax(gf.norm(), gb.norm());
-  const bool poleLow = bf.c(0) > cTiny;
-  const bool poleHigh = bb.c(0) > cTiny;
-  double lambda = 0.0;
-  Eigen::Vector2d psiF;
-  Eigen::Vector2d psiB;
-  double fLow = 0.0;
-  double fHigh = 0.0;
-  double slope = 0.0;
-  if (!poleLow) {
-    secular(bf, bb, lowEnd, tiny, &fLow, &slope);
+  EqualNormFit fit;
+  if (solveEqualNormFit(mf, gf, mb, gb, fit) != Status::Ok) {
+    return refuse(report, Status::Unobservable, CalibCondition::PositiveScale);
   }
-  if (!poleHigh) {
-    secular(bf, bb, highEnd, tiny, &fHigh, &slope);
-  }
-  if (!poleLow && fLow <= 0.0) {
-    // Degenerate ("hard") case at A: psi_F gains a free component along its null direction.
-    lambda = lowEnd;
-    psiB = blockSolution(bb, -lambda, tiny);
-    psiF = blockSolution(bf, lambda, tiny);
-    const double t2 = psiB.squaredNorm() - psiF.squaredNorm();
-    psiF += std::sqrt(std::fmax(0.0, t2)) * bf.u.col(0);
-  } else if (!poleHigh && fHigh >= 0.0) {
-    lambda = highEnd;
-    psiF = blockSolution(bf, lambda, tiny);
-    psiB = blockSolution(bb, -lambda, tiny);
-    const double t2 = psiF.squaredNorm() - psiB.squaredNorm();
-    psiB += std::sqrt(std::fmax(0.0, t2)) * bb.u.col(0);
-  } else {
-    // f is strictly decreasing on (A, B) from > 0 to < 0: safeguarded Newton inside a bisection
-    // bracket, bounded iterations.
-    double lo = lowEnd;
-    double hi = highEnd;
-    lambda = 0.0;
-    if (!(lambda > lo && lambda < hi)) {
-      lambda = 0.5 * (lo + hi);
-    }
-    constexpr int kMaxIterations = 200;
-    for (int it = 0; it < kMaxIterations; ++it) {
-      double value = 0.0;
-      secular(bf, bb, lambda, 0.0, &value, &slope);
-      if (value == 0.0) {
-        break;
-      }
-      if (value > 0.0) {
-        lo = lambda;
-      } else {
-        hi = lambda;
-      }
-      if (hi - lo <= 4.0 * std::numeric_limits<double>::epsilon() * std::fmax(std::fabs(lo), std::fabs(hi))) {
-        break;
-      }
-      double next = slope < 0.0 ? lambda - value / slope : 0.5 * (lo + hi);
-      if (!(next > lo && next < hi)) {
-        next = 0.5 * (lo + hi);
-      }
-      if (next == lambda) {
-        break;
-      }
-      lambda = next;
-    }
-    psiF = blockSolution(bf, lambda, 0.0);
-    psiB = blockSolution(bb, -lambda, 0.0);
-  }
+  const double lambda = fit.lambda;
+  const Eigen::Vector2d& psiF = fit.psiF;
+  const Eigen::Vector2d& psiB = fit.psiB;
   report.lambda = lambda;
   TricycleParams& p = result.params;
   p.wheelbase = opt.nominal.wheelbase;
