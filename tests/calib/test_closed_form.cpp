@@ -1,5 +1,6 @@
 // Closed-form STC / ATC / laser pose on simulated ground truth: exact recovery, refusals, heap use.
 #include <cmath>
+#include <complex>
 #include <limits>
 #include <random>
 #include <string>
@@ -230,4 +231,66 @@ TEST_CASE("closed-form solves do not allocate", "[calib][alloc]") {
   AGV_CHECK_NO_ALLOCATIONS(s1 = agv::calibrateStc(span(segs), opt, stc); s2 = agv::calibrateAtc(span(segs), opt, atc));
   CHECK(s1 == Status::Ok);
   CHECK(s2 == Status::Ok);
+}
+
+TEST_CASE("the l_x >= 0 rule would pick the maximising stationary point for a rear laser", "[calib]") {
+  // Independent evaluation of the two stationary points u = +-H/|H| of the laser-pose problem
+  // (docs/calibration.md), from the noise-free segments and the true odometry.
+  CalibSimConfig cfg;
+  cfg.laser = kRearLaser;
+  std::mt19937_64 rng(8);
+  const auto segs = simulateCalibration(cfg, rng);
+  using C = std::complex<double>;
+  double a = 0.0;
+  C p{}, q{}, sr{};
+  std::vector<agv::Pose2d> arcs;
+  for (const CalibSegment& s : segs) {
+    const double off = s.ticks > 0 ? cfg.truth.steerOffsetForward : cfg.truth.steerOffsetBackward;
+    const Pose2d r = agv::tricycleArc(cfg.truth.driveScale * static_cast<double>(s.ticks), s.steering + off,
+                                      cfg.truth.wheelbase);
+    arcs.push_back(r);
+    const C w = 1.0 - std::polar(1.0, r.theta);
+    const C st(s.egomotion.x, s.egomotion.y);
+    a += std::norm(w);
+    p += std::conj(w) * C(r.x, r.y);
+    q += std::conj(w) * st;
+    sr += std::conj(st) * C(r.x, r.y);
+  }
+  const C h = sr - std::conj(q) * p / a;
+  double costs[2];
+  double lx[2];
+  for (int i = 0; i < 2; ++i) {
+    const C u = (i == 0 ? 1.0 : -1.0) * h / std::abs(h);
+    const C l = (p - u * q) / a;
+    lx[i] = l.real();
+    costs[i] = 0.0;
+    for (std::size_t k = 0; k < segs.size(); ++k) {
+      const C e = (1.0 - std::polar(1.0, arcs[k].theta)) * l + u * C(segs[k].egomotion.x, segs[k].egomotion.y) -
+                  C(arcs[k].x, arcs[k].y);
+      costs[i] += std::norm(e);
+    }
+  }
+  CHECK(costs[0] < 1e-20);  // +H/|H| is the exact solution
+  CHECK(costs[1] > 1.0);    // -H/|H| is the maximum
+  CHECK(lx[0] < 0.0);       // the true rear mounting
+  CHECK(lx[1] >= 0.0);      // what "l_x >= 0" would choose
+  Pose2d l;
+  agv::CalibrationReport rep;
+  REQUIRE(agv::estimateLaserPose(span(segs), cfg.truth, agv::test::nominalOptions(cfg), l, rep) == Status::Ok);
+  AGV_CHECK_NEAR(l.x, lx[0], 1e-12);
+}
+
+TEST_CASE("an ill-conditioned laser-pose problem is refused as such", "[calib]") {
+  CalibSimConfig cfg;
+  std::mt19937_64 rng(9);
+  const auto segs = simulateCalibration(cfg, rng);
+  CalibrationOptions opt = agv::test::nominalOptions(cfg);
+  CalibrationResult r;
+  REQUIRE(agv::calibrateAtc(span(segs), opt, r) == Status::Ok);
+  const double odo = std::fmax(r.report.conditionForward, r.report.conditionBackward);
+  const double laser = r.report.conditionLaser;
+  REQUIRE(laser > odo);  // these data: the laser problem is the worse conditioned one
+  opt.maxConditionNumber = 0.5 * (odo + laser);
+  CHECK(agv::calibrateAtc(span(segs), opt, r) == Status::IllConditioned);
+  CHECK(r.report.failed == CalibCondition::LaserConditioning);
 }
