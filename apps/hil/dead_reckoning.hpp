@@ -24,8 +24,7 @@ class DeadReckoning {
   void update(const hal::EncoderSample& sample) noexcept {
     const double ds = static_cast<double>(sample.driveTicks - prev_.driveTicks) * params_.driveScale;
     const double offset = ds >= 0.0 ? params_.steerOffsetForward : params_.steerOffsetBackward;
-    pose_ = tricycleRk2Step(pose_, ds, prev_.steeringAngle + offset, sample.steeringAngle + offset,
-                            params_.wheelbase);
+    pose_ = tricycleRk2Step(pose_, ds, prev_.steeringAngle + offset, sample.steeringAngle + offset, params_.wheelbase);
     travel_ += ds;
     prev_ = sample;
   }

@@ -22,7 +22,7 @@
 
 namespace {
 
-constexpr double kPositionRequirement = 0.02;  // [m]
+constexpr double kPositionRequirement = 0.02;   // [m]
 constexpr double kHeadingRequirementDeg = 0.1;  // [deg]
 
 // Stages of the full HIL and whether this build runs them.
@@ -57,11 +57,12 @@ std::string jsonString(const std::string& s) {
 }
 
 void writeParams(std::FILE* f, const agv::TricycleParams& k, const agv::Pose2d& laser) {
-  std::fprintf(f,
-               "{\"wheelbase_m\": %.6f, \"drive_scale_m_per_tick\": %.9e, \"steer_offset_forward_deg\": %.6f, "
-               "\"steer_offset_backward_deg\": %.6f, \"laser_x_m\": %.6f, \"laser_y_m\": %.6f, \"laser_theta_deg\": %.6f}",
-               k.wheelbase, k.driveScale, agv::rad2deg(k.steerOffsetForward), agv::rad2deg(k.steerOffsetBackward),
-               laser.x, laser.y, agv::rad2deg(laser.theta));
+  std::fprintf(
+      f,
+      "{\"wheelbase_m\": %.6f, \"drive_scale_m_per_tick\": %.9e, \"steer_offset_forward_deg\": %.6f, "
+      "\"steer_offset_backward_deg\": %.6f, \"laser_x_m\": %.6f, \"laser_y_m\": %.6f, \"laser_theta_deg\": %.6f}",
+      k.wheelbase, k.driveScale, agv::rad2deg(k.steerOffsetForward), agv::rad2deg(k.steerOffsetBackward), laser.x,
+      laser.y, agv::rad2deg(laser.theta));
 }
 
 bool meets(const agv::Pose2d& est, const agv::Pose2d& truth) {
@@ -144,8 +145,9 @@ int main(int argc, char** argv) {
   const agv::Status ws = worldFile.empty() ? agv::sim::parseWorld(agv::sim::defaultWorldText(), world, perr)
                                            : agv::sim::loadWorldFile(worldFile, world, perr);
   if (ws != agv::Status::Ok) {
-    std::fprintf(stderr, "agvnav-hil: world %s: line %d: %s (%s)\n", worldFile.empty() ? "(built-in)" : worldFile.c_str(),
-                 perr.line, perr.message.c_str(), agv::toString(ws));
+    std::fprintf(stderr, "agvnav-hil: world %s: line %d: %s (%s)\n",
+                 worldFile.empty() ? "(built-in)" : worldFile.c_str(), perr.line, perr.message.c_str(),
+                 agv::toString(ws));
     return 2;
   }
 
@@ -187,14 +189,15 @@ int main(int argc, char** argv) {
   const bool ok = agv::hil::runScenario(
       world, cfg,
       [](const agv::hil::RunResult& r, int index, int total) {
-        std::printf("[%2d/%2d] %-4s run %d: %5.2f m in %5.1f s%s | DR true params %6.1f mm %6.3f deg | "
-                    "DR nominal %7.1f mm %6.3f deg | reflectors/scan %.1f (min %zu), PLC reports %zu\n",
-                    index, total, r.path.c_str(), r.run, r.distance, r.simSeconds, r.finished ? "" : " (NOT FINISHED)",
-                    1000.0 * agv::hil::positionError(r.finalWithTruth, r.finalTruth),
-                    agv::rad2deg(agv::hil::headingError(r.finalWithTruth, r.finalTruth)),
-                    1000.0 * agv::hil::positionError(r.finalWithEstimate, r.finalTruth),
-                    agv::rad2deg(agv::hil::headingError(r.finalWithEstimate, r.finalTruth)), r.meanReflectorsPerScan,
-                    r.minReflectorsPerScan, r.plcReports);
+        std::printf(
+            "[%2d/%2d] %-4s run %d: %5.2f m in %5.1f s%s | DR true params %6.1f mm %6.3f deg | "
+            "DR nominal %7.1f mm %6.3f deg | reflectors/scan %.1f (min %zu), PLC reports %zu\n",
+            index, total, r.path.c_str(), r.run, r.distance, r.simSeconds, r.finished ? "" : " (NOT FINISHED)",
+            1000.0 * agv::hil::positionError(r.finalWithTruth, r.finalTruth),
+            agv::rad2deg(agv::hil::headingError(r.finalWithTruth, r.finalTruth)),
+            1000.0 * agv::hil::positionError(r.finalWithEstimate, r.finalTruth),
+            agv::rad2deg(agv::hil::headingError(r.finalWithEstimate, r.finalTruth)), r.meanReflectorsPerScan,
+            r.minReflectorsPerScan, r.plcReports);
         std::fflush(stdout);
       },
       &results, &error);

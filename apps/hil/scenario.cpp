@@ -25,8 +25,8 @@ namespace {
 
 /// One run of `path`: place the vehicle near the start, steer at rest, follow the path to its end
 /// and stop; the navigation side integrates the encoders and publishes to the PLC peer.
-RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run,
-                 const ScenarioConfig& cfg, std::uint64_t seed) {
+RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, const ScenarioConfig& cfg,
+                 std::uint64_t seed) {
   RunResult r;
   r.path = path.name;
   r.run = run;

@@ -26,33 +26,33 @@ struct NominalVehicle {
 struct ScenarioConfig {
   int runsPerPath = 6;
   std::uint64_t seed = 1;
-  sim::SimVehicleParams vehicle;            ///< the truth
-  NominalVehicle nominal;                   ///< what the estimators start from
+  sim::SimVehicleParams vehicle;  ///< the truth
+  NominalVehicle nominal;         ///< what the estimators start from
   sim::SimLaserParams laser;
-  double startPositionStdDev = 0.01;        ///< [m] how precisely the vehicle is placed at a path start
-  double startHeadingStdDev = 0.002;        ///< [rad]
+  double startPositionStdDev = 0.01;  ///< [m] how precisely the vehicle is placed at a path start
+  double startHeadingStdDev = 0.002;  ///< [rad]
   Duration controlPeriod = Duration::fromMilliseconds(20);
-  double maxRunSeconds = 120.0;             ///< a run not finished by then is an error
+  double maxRunSeconds = 120.0;  ///< a run not finished by then is an error
 };
 
 /// One sample of a run's history (every control period).
 struct TrajectorySample {
-  double distance = 0.0;   ///< [m] travelled by the logical point
+  double distance = 0.0;  ///< [m] travelled by the logical point
   Pose2d truth;
-  Pose2d withTruth;        ///< dead reckoning with the true parameters
-  Pose2d withEstimate;     ///< dead reckoning with the parameters the navigation has (nominal today)
+  Pose2d withTruth;     ///< dead reckoning with the true parameters
+  Pose2d withEstimate;  ///< dead reckoning with the parameters the navigation has (nominal today)
 };
 
 /// Result of one run along one path.
 struct RunResult {
   std::string path;
   int run = 0;
-  bool finished = false;      ///< reached the end point and stopped
+  bool finished = false;  ///< reached the end point and stopped
   double simSeconds = 0.0;
-  double distance = 0.0;      ///< [m] logical-point travel
+  double distance = 0.0;  ///< [m] logical-point travel
   Pose2d finalTruth;
   Pose2d finalWithTruth;
-  Pose2d finalWithEstimate;   ///< the last pose published to the PLC
+  Pose2d finalWithEstimate;  ///< the last pose published to the PLC
   std::size_t plcReports = 0;
   std::size_t scans = 0;
   double meanReflectorsPerScan = 0.0;

@@ -15,11 +15,16 @@ constexpr double kMargin = 30.0;  // [px]
 
 const char* colourOf(sim::ObstacleKind k) {
   switch (k) {
-    case sim::ObstacleKind::Wall: return "#444";
-    case sim::ObstacleKind::Pallet: return "#a0522d";
-    case sim::ObstacleKind::Rack: return "#3060a0";
-    case sim::ObstacleKind::Pillar: return "#777";
-    case sim::ObstacleKind::Reflector: return "#e00000";
+    case sim::ObstacleKind::Wall:
+      return "#444";
+    case sim::ObstacleKind::Pallet:
+      return "#a0522d";
+    case sim::ObstacleKind::Rack:
+      return "#3060a0";
+    case sim::ObstacleKind::Pillar:
+      return "#777";
+    case sim::ObstacleKind::Reflector:
+      return "#e00000";
   }
   return "#000";
 }
@@ -58,7 +63,8 @@ bool writeMapSvg(const std::string& file, const sim::World& world, const std::ve
   auto X = [&](double x) { return num(kMargin + (x - lo.x) * kScale); };
   auto Y = [&](double y) { return num(kMargin + (hi.y - y) * kScale); };
   std::ostringstream s;
-  s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << num(w) << "' height='" << num(h) << "' font-family='sans-serif' font-size='12'>\n";
+  s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << num(w) << "' height='" << num(h)
+    << "' font-family='sans-serif' font-size='12'>\n";
   s << "<rect width='100%' height='100%' fill='white'/>\n";
   for (const sim::Segment& g : world.segments) {
     s << "<line x1='" << X(g.a.x) << "' y1='" << Y(g.a.y) << "' x2='" << X(g.b.x) << "' y2='" << Y(g.b.y)
@@ -120,13 +126,14 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
     return num(top + (logHi - l) / (logHi - logLo) * (h - top - bottom));
   };
   std::ostringstream s;
-  s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << num(w) << "' height='" << num(h) << "' font-family='sans-serif' font-size='12'>\n";
+  s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << num(w) << "' height='" << num(h)
+    << "' font-family='sans-serif' font-size='12'>\n";
   s << "<rect width='100%' height='100%' fill='white'/>\n";
   for (int e = static_cast<int>(logLo); e <= static_cast<int>(logHi); ++e) {
     const double v = std::pow(10.0, e);
     s << "<line x1='" << num(left) << "' x2='" << num(w - right) << "' y1='" << Y(v) << "' y2='" << Y(v)
-      << "' stroke='#ddd'/><text x='" << num(left - 6) << "' y='" << Y(v) << "' dy='4' text-anchor='end'>"
-      << label(v) << "</text>\n";
+      << "' stroke='#ddd'/><text x='" << num(left - 6) << "' y='" << Y(v) << "' dy='4' text-anchor='end'>" << label(v)
+      << "</text>\n";
   }
   for (int d = 0; d <= static_cast<int>(maxDist); d += 2) {
     s << "<line y1='" << num(top) << "' y2='" << num(h - bottom) << "' x1='" << X(d) << "' x2='" << X(d)
@@ -135,11 +142,12 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
   }
   s << "<text x='" << num(left + (w - left - right) / 2) << "' y='" << num(h - bottom + 34)
     << "' text-anchor='middle'>distance travelled [m]</text>\n";
-  s << "<text transform='translate(16," << num(top + (h - top - bottom) / 2) << ") rotate(-90)' text-anchor='middle'>position error (log)</text>\n";
+  s << "<text transform='translate(16," << num(top + (h - top - bottom) / 2)
+    << ") rotate(-90)' text-anchor='middle'>position error (log)</text>\n";
   s << "<line x1='" << num(left) << "' x2='" << num(w - right) << "' y1='" << Y(requirement) << "' y2='"
     << Y(requirement) << "' stroke='#d73027' stroke-dasharray='6,4'/>\n";
-  s << "<text x='" << num(w - right - 4) << "' y='" << Y(requirement) << "' dy='-4' text-anchor='end' fill='#d73027'>requirement "
-    << num(requirement * 100.0) << " cm</text>\n";
+  s << "<text x='" << num(w - right - 4) << "' y='" << Y(requirement)
+    << "' dy='-4' text-anchor='end' fill='#d73027'>requirement " << num(requirement * 100.0) << " cm</text>\n";
   for (const RunResult& r : runs) {
     for (int k = 0; k < 2; ++k) {
       s << "<polyline fill='none' stroke-opacity='0.6' stroke='" << (k == 0 ? "#1a9850" : "#f46d43") << "' points='";
@@ -154,7 +162,8 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
       s << "'/>\n";
     }
   }
-  s << "<text x='" << num(left + 8) << "' y='" << num(top + 14) << "'><tspan fill='#1a9850'>dead reckoning, true parameters</tspan>   "
+  s << "<text x='" << num(left + 8) << "' y='" << num(top + 14)
+    << "'><tspan fill='#1a9850'>dead reckoning, true parameters</tspan>   "
     << "<tspan fill='#f46d43'>dead reckoning, nominal parameters (calibration not wired)</tspan></text>\n";
   s << "</svg>\n";
   return save(file, s.str());

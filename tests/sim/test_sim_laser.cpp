@@ -33,10 +33,14 @@ double roomRange(double px, double py, double a) {
   const double c = std::cos(a);
   const double s = std::sin(a);
   double t = 1e300;
-  if (c > 1e-12) t = std::min(t, (10.0 - px) / c);
-  if (c < -1e-12) t = std::min(t, (-10.0 - px) / c);
-  if (s > 1e-12) t = std::min(t, (5.0 - py) / s);
-  if (s < -1e-12) t = std::min(t, (-5.0 - py) / s);
+  if (c > 1e-12)
+    t = std::min(t, (10.0 - px) / c);
+  if (c < -1e-12)
+    t = std::min(t, (-10.0 - px) / c);
+  if (s > 1e-12)
+    t = std::min(t, (5.0 - py) / s);
+  if (s < -1e-12)
+    t = std::min(t, (-5.0 - py) / s);
   return t;
 }
 
@@ -81,7 +85,8 @@ TEST_CASE("Range noise has the injected mean and standard deviation", "[sim][las
   for (int k = 0; k < 20; ++k) {
     REQUIRE(laser.scan(pose, Timestamp{}, m) == Status::Ok);
     for (std::size_t i = 0; i < m.scan.size(); ++i) {
-      const double err = m.scan.ranges[i] - roomRange(pose.x, pose.y, pose.theta + static_cast<double>(m.scan.angle(i)));
+      const double err =
+          m.scan.ranges[i] - roomRange(pose.x, pose.y, pose.theta + static_cast<double>(m.scan.angle(i)));
       sum += err;
       sum2 += err * err;
       ++n;
@@ -214,13 +219,13 @@ TEST_CASE("Reflector centres are reported with the injected noise", "[sim][laser
 
 TEST_CASE("Reflectors hidden, out of range or out of view are not reported", "[sim][laser][reflector]") {
   World w = room();
-  w.circles.push_back(Circle{{4.0, 0.0}, 0.25, ObstacleKind::Pillar});     // pillar on the x axis
-  w.circles.push_back(Circle{{8.0, 0.0}, 0.04, ObstacleKind::Reflector});  // 0: hidden behind it
-  w.circles.push_back(Circle{{0.0, 3.0}, 0.04, ObstacleKind::Reflector});  // 1: visible, at +90 deg
-  w.circles.push_back(Circle{{0.0, 4.5}, 0.04, ObstacleKind::Reflector});  // 2: behind reflector 1
-  w.circles.push_back(Circle{{-9.0, 0.0}, 0.04, ObstacleKind::Reflector}); // 3: behind the sensor
-  w.segments.push_back({{-0.5, -2.0}, {0.5, -2.0}, ObstacleKind::Wall});   // wall in front of 4
-  w.circles.push_back(Circle{{0.0, -4.0}, 0.04, ObstacleKind::Reflector}); // 4: hidden by the wall
+  w.circles.push_back(Circle{{4.0, 0.0}, 0.25, ObstacleKind::Pillar});      // pillar on the x axis
+  w.circles.push_back(Circle{{8.0, 0.0}, 0.04, ObstacleKind::Reflector});   // 0: hidden behind it
+  w.circles.push_back(Circle{{0.0, 3.0}, 0.04, ObstacleKind::Reflector});   // 1: visible, at +90 deg
+  w.circles.push_back(Circle{{0.0, 4.5}, 0.04, ObstacleKind::Reflector});   // 2: behind reflector 1
+  w.circles.push_back(Circle{{-9.0, 0.0}, 0.04, ObstacleKind::Reflector});  // 3: behind the sensor
+  w.segments.push_back({{-0.5, -2.0}, {0.5, -2.0}, ObstacleKind::Wall});    // wall in front of 4
+  w.circles.push_back(Circle{{0.0, -4.0}, 0.04, ObstacleKind::Reflector});  // 4: hidden by the wall
   const RayCaster caster(w);
   SimLaserParams p;
   p.reflectorNoiseStdDev = 0.0;

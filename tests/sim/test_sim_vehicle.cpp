@@ -185,7 +185,7 @@ TEST_CASE("Wheel slip spreads the ground travel as a random walk", "[sim][vehicl
   }
   const double n = static_cast<double>(err.size());
   const double sd = std::sqrt(s2 / n - (s1 / n) * (s1 / n));
-  const double expected = p.slipNoise * std::sqrt(dist);  // 12 mm
+  const double expected = p.slipNoise * std::sqrt(dist);            // 12 mm
   CHECK(std::fabs(s1 / n) < 4.0 * expected / std::sqrt(n) + 2e-4);  // + ticks sampled every 10 ms
   CHECK(sd > 0.6 * expected);  // chi distribution with 59 dof: +-40 % is beyond 4 sigma
   CHECK(sd < 1.4 * expected);
@@ -200,7 +200,7 @@ TEST_CASE("Drive commands are validated and servos ramp", "[sim][vehicle]") {
   CHECK(v.command(agv::hal::DriveCommand{Timestamp{}, 0.5, 2.0}) == Status::InvalidArgument);
   CHECK(v.command(agv::hal::DriveCommand{Timestamp{}, 1.0, agv::deg2rad(45.0)}) == Status::Ok);
   v.advanceTo(Timestamp::fromSeconds(0.5));
-  CHECK(v.speed() == Approx(0.25));                    // 0.5 m/s^2
+  CHECK(v.speed() == Approx(0.25));                     // 0.5 m/s^2
   CHECK(v.servoAngle() == Approx(agv::deg2rad(22.5)));  // 45 deg/s
   CHECK_FALSE(v.isStandstill());
   REQUIRE(v.stop() == Status::Ok);

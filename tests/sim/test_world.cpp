@@ -30,8 +30,8 @@ TEST_CASE("The built-in warehouse parses with its four reference paths", "[sim][
     double endY;
   };
   // End points from the geometry of the pieces (docs/world-format.md), not from the sampler.
-  const Expected expected[] = {{"P1", 12.0, 30.0, 10.0}, {"P2", 12.0, 30.0, 14.0}, {"P3", 12.0, 30.0, 6.0},
-                               {"P4", 7.0, 30.0, 18.0}};
+  const Expected expected[] = {
+      {"P1", 12.0, 30.0, 10.0}, {"P2", 12.0, 30.0, 14.0}, {"P3", 12.0, 30.0, 6.0}, {"P4", 7.0, 30.0, 18.0}};
   for (const Expected& x : expected) {
     const agv::sim::Path* p = w.findPath(x.name);
     REQUIRE(p != nullptr);

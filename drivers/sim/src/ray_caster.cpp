@@ -11,7 +11,9 @@ namespace {
 constexpr std::uint32_t kCircleBit = 0x80000000U;
 constexpr double kParallel = 1e-12;
 
-double cross(double ax, double ay, double bx, double by) noexcept { return ax * by - ay * bx; }
+double cross(double ax, double ay, double bx, double by) noexcept {
+  return ax * by - ay * bx;
+}
 
 /// True when segment a-b touches the axis-aligned box [x0,x1]x[y0,y1] (Liang-Barsky clip).
 bool segmentTouchesBox(const Point2& a, const Point2& b, double x0, double y0, double x1, double y1) noexcept {
@@ -111,8 +113,8 @@ RayCaster::RayCaster(const World& world, double cellSize) : world_(&world), cell
     int j0 = 0;
     int i1 = 0;
     int j1 = 0;
-    cellRange(std::min(s.a.x, s.b.x), std::min(s.a.y, s.b.y), std::max(s.a.x, s.b.x), std::max(s.a.y, s.b.y), &i0,
-              &j0, &i1, &j1);
+    cellRange(std::min(s.a.x, s.b.x), std::min(s.a.y, s.b.y), std::max(s.a.x, s.b.x), std::max(s.a.y, s.b.y), &i0, &j0,
+              &i1, &j1);
     for (int j = j0; j <= j1; ++j) {
       for (int i = i0; i <= i1; ++i) {
         const double x0 = lo_.x + i * cell_;
@@ -131,8 +133,8 @@ RayCaster::RayCaster(const World& world, double cellSize) : world_(&world), cell
     int j0 = 0;
     int i1 = 0;
     int j1 = 0;
-    cellRange(c.centre.x - c.radius, c.centre.y - c.radius, c.centre.x + c.radius, c.centre.y + c.radius, &i0, &j0,
-              &i1, &j1);
+    cellRange(c.centre.x - c.radius, c.centre.y - c.radius, c.centre.x + c.radius, c.centre.y + c.radius, &i0, &j0, &i1,
+              &j1);
     for (int j = j0; j <= j1; ++j) {
       for (int i = i0; i <= i1; ++i) {
         bins[static_cast<std::size_t>(j * nx_ + i)].push_back(static_cast<std::uint32_t>(k) | kCircleBit);
@@ -155,8 +157,8 @@ void RayCaster::testCell(int cell, const Point2& o, const Point2& d, RayHit* bes
     double t = 0.0;
     const bool isCircle = (item & kCircleBit) != 0U;
     const std::uint32_t idx = item & ~kCircleBit;
-    const bool hit = isCircle ? intersectCircle(o, d, world_->circles[idx], &t)
-                              : intersectSegment(o, d, world_->segments[idx], &t);
+    const bool hit =
+        isCircle ? intersectCircle(o, d, world_->circles[idx], &t) : intersectSegment(o, d, world_->segments[idx], &t);
     if (hit && t < best->range) {
       best->hit = true;
       best->range = t;

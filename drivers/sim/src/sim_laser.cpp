@@ -6,8 +6,8 @@
 namespace agv::sim {
 
 Status SimLaserParams::validate() const noexcept {
-  const double v[] = {fieldOfView,      angularResolution,    scanRate,         rangeNoiseStdDev,
-                      rangeMin,         rangeMax,             reflectorNoiseStdDev, reflectorMaxRange};
+  const double v[] = {fieldOfView, angularResolution,    scanRate,         rangeNoiseStdDev, rangeMin,
+                      rangeMax,    reflectorNoiseStdDev, reflectorMaxRange};
   for (double x : v) {
     if (!std::isfinite(x)) {
       return Status::NonFiniteInput;
@@ -43,7 +43,9 @@ std::size_t SimLaserParams::beamCount() const noexcept {
 SimLaser::SimLaser(const RayCaster& caster, const SimLaserParams& params, std::uint64_t seed)
     : caster_(&caster), params_(params), status_(params.validate()), rng_(seed) {}
 
-Duration SimLaser::period() const noexcept { return Duration::fromSeconds(1.0 / params_.scanRate); }
+Duration SimLaser::period() const noexcept {
+  return Duration::fromSeconds(1.0 / params_.scanRate);
+}
 
 Duration SimLaser::sweepDuration() const noexcept {
   const double n = static_cast<double>(params_.beamCount());
@@ -52,7 +54,8 @@ Duration SimLaser::sweepDuration() const noexcept {
 }
 
 Pose2d SimLaser::poseAt(const Pose2d& a, const Pose2d& b, double f) const noexcept {
-  return Pose2d{a.x + f * (b.x - a.x), a.y + f * (b.y - a.y), normalizeAngle(a.theta + f * angleDiff(b.theta, a.theta))};
+  return Pose2d{a.x + f * (b.x - a.x), a.y + f * (b.y - a.y),
+                normalizeAngle(a.theta + f * angleDiff(b.theta, a.theta))};
 }
 
 Status SimLaser::scan(const Pose2d& poseFirstBeam, const Pose2d& poseLastBeam, Timestamp stamp,

@@ -41,7 +41,9 @@ Status SimVehicle::stop() noexcept {
   return Status::Ok;
 }
 
-bool SimVehicle::isStandstill() const noexcept { return std::fabs(speed_) < params_.standstillSpeed; }
+bool SimVehicle::isStandstill() const noexcept {
+  return std::fabs(speed_) < params_.standstillSpeed;
+}
 
 void SimVehicle::advanceTo(Timestamp t) noexcept {
   // Bounded: each pass advances by at least 1 ns and at most one sub-step.

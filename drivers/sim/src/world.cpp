@@ -14,7 +14,7 @@ namespace agv::sim {
 
 namespace {
 
-constexpr double kMinLength = 1e-6;  // [m] shorter walls, boxes and path pieces are degenerate
+constexpr double kMinLength = 1e-6;    // [m] shorter walls, boxes and path pieces are degenerate
 constexpr double kRackUpright = 0.10;  // [m] side of a rack upright's square section
 
 /// Splits a line at whitespace, dropping a trailing comment.
@@ -75,9 +75,8 @@ struct LineParser {
         names += ' ';
         names += f;
       }
-      return fail(Status::Malformed, std::string(tok[0]) + " needs " + std::to_string(fields.size()) +
-                                         " numbers (" + names.substr(1) + "), got " +
-                                         std::to_string(tok.size() - 1));
+      return fail(Status::Malformed, std::string(tok[0]) + " needs " + std::to_string(fields.size()) + " numbers (" +
+                                         names.substr(1) + "), got " + std::to_string(tok.size() - 1));
     }
     std::size_t i = 0;
     for (const char* f : fields) {
@@ -156,8 +155,8 @@ void World::bounds(Point2* lo, Point2* hi) const noexcept {
 }
 
 std::size_t World::reflectorCount() const noexcept {
-  return static_cast<std::size_t>(std::count_if(circles.begin(), circles.end(),
-                                                [](const Circle& c) { return c.kind == ObstacleKind::Reflector; }));
+  return static_cast<std::size_t>(
+      std::count_if(circles.begin(), circles.end(), [](const Circle& c) { return c.kind == ObstacleKind::Reflector; }));
 }
 
 Status parseWorld(std::string_view text, World& out, WorldParseError& error) {
@@ -239,7 +238,8 @@ Status parseWorld(std::string_view text, World& out, WorldParseError& error) {
       w.circles.push_back({{v[0], v[1]}, v[2], key == "pillar" ? ObstacleKind::Pillar : ObstacleKind::Reflector});
     } else if (key == "path") {
       if (tok.size() < 7) {
-        return p.fail(Status::Malformed, "path needs NAME x y heading_deg and at least one piece (S len | L r deg | R r deg)");
+        return p.fail(Status::Malformed,
+                      "path needs NAME x y heading_deg and at least one piece (S len | L r deg | R r deg)");
       }
       Path path;
       path.name = std::string(tok[1]);
@@ -274,7 +274,8 @@ Status parseWorld(std::string_view text, World& out, WorldParseError& error) {
           i += 2;
         } else if (piece == "L" || piece == "R") {
           if (i + 2 >= tok.size()) {
-            return p.fail(Status::Malformed, std::string("path piece ") + std::string(piece) + " needs radius and angle_deg");
+            return p.fail(Status::Malformed,
+                          std::string("path piece ") + std::string(piece) + " needs radius and angle_deg");
           }
           s = p.number(tok[i + 1], "arc radius", v);
           if (s == Status::Ok) {

@@ -16,10 +16,10 @@ namespace agv::hal {
 ///
 /// Float: the reported centre has cm-level noise, far above float resolution at 100 m.
 struct ReflectorObservation {
-  float x = 0.0F;              ///< [m] centre, sensor frame
-  float y = 0.0F;              ///< [m] centre, sensor frame
-  float positionStdDev = 0.0F; ///< [m] the device's stated 1-sigma of each coordinate (0 = unknown)
-  std::uint16_t id = 0;        ///< device-assigned reflector id (0 = none; not a map association)
+  float x = 0.0F;               ///< [m] centre, sensor frame
+  float y = 0.0F;               ///< [m] centre, sensor frame
+  float positionStdDev = 0.0F;  ///< [m] the device's stated 1-sigma of each coordinate (0 = unknown)
+  std::uint16_t id = 0;         ///< device-assigned reflector id (0 = none; not a map association)
 };
 
 /// The reflectors of one scan (at most `kMaxReflectors`; a driver that sees more pushes until the

@@ -14,13 +14,13 @@ namespace agv::sim {
 
 /// Pure-pursuit and speed-profile settings.
 struct PathFollowerParams {
-  double lookahead = 1.0;         ///< [m] distance of the pursued point ahead along the path
-  double cruiseSpeed = 1.0;       ///< [m/s]
-  double deceleration = 0.3;      ///< [m/s^2] planned braking to the end point
-  double creepSpeed = 0.03;       ///< [m/s] minimum speed until the end point
-  double stopTolerance = 0.002;   ///< [m] remaining path length at which the stop is commanded
-  double wheelbase = 1.5;         ///< [m] L used to turn curvature into a steering angle
-  double steerOffset = 0.0;       ///< [rad] offset the controller believes in (nominal)
+  double lookahead = 1.0;              ///< [m] distance of the pursued point ahead along the path
+  double cruiseSpeed = 1.0;            ///< [m/s]
+  double deceleration = 0.3;           ///< [m/s^2] planned braking to the end point
+  double creepSpeed = 0.03;            ///< [m/s] minimum speed until the end point
+  double stopTolerance = 0.002;        ///< [m] remaining path length at which the stop is commanded
+  double wheelbase = 1.5;              ///< [m] L used to turn curvature into a steering angle
+  double steerOffset = 0.0;            ///< [rad] offset the controller believes in (nominal)
   double maxSteering = deg2rad(80.0);  ///< [rad]
 };
 
@@ -49,7 +49,7 @@ class PathFollower {
   PathFollowerParams params_;
   std::vector<double> cumulative_;  // arc length at each sample
   double total_ = 0.0;
-  std::size_t index_ = 0;           // segment [index_, index_+1] the vehicle is on
+  std::size_t index_ = 0;  // segment [index_, index_+1] the vehicle is on
   double progress_ = 0.0;
   bool finished_ = false;
 };

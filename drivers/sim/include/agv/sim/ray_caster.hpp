@@ -11,10 +11,10 @@ namespace agv::sim {
 
 /// First intersection of a ray with the world.
 struct RayHit {
-  bool hit = false;           ///< false: nothing within the range asked for
-  double range = 0.0;         ///< [m] distance from the ray origin to the hit
-  bool circle = false;        ///< true: `index` is into World::circles, else into World::segments
-  std::uint32_t index = 0;    ///< primitive that was hit
+  bool hit = false;         ///< false: nothing within the range asked for
+  double range = 0.0;       ///< [m] distance from the ray origin to the hit
+  bool circle = false;      ///< true: `index` is into World::circles, else into World::segments
+  std::uint32_t index = 0;  ///< primitive that was hit
 };
 
 /// Distance t >= 0 along the ray o + t*d (d unit) to segment s, if they intersect. A ray parallel

@@ -17,17 +17,17 @@ namespace agv::sim {
 /// Sensor model. Defaults: a 360 deg navigation laser at 0.25 deg and 12.5 Hz with 1 cm range
 /// noise and 1 cm reflector-centre noise.
 struct SimLaserParams {
-  double fieldOfView = kTwoPi<double>;          ///< [rad] (0, 2*pi], centred on the sensor's x axis
-  double angularResolution = deg2rad(0.25);     ///< [rad] beam spacing (0.25..1 deg for the usual devices)
-  double scanRate = 12.5;                       ///< [Hz] sweeps per second (one revolution per sweep)
-  double rangeNoiseStdDev = 0.01;               ///< [m] Gaussian noise added to every range
-  double rangeMin = 0.05;                       ///< [m] closer returns are reported as no-return
-  double rangeMax = 50.0;                       ///< [m] farther returns are reported as no-return
-  float noReturnValue = 50.0F;                  ///< [m] value written for a beam without return;
-                                                ///< must be invalid for LaserScan (>= rangeMax, < rangeMin or non-finite)
-  bool reportsReflectors = true;                ///< a navigation laser reports reflector centres
-  double reflectorNoiseStdDev = 0.01;           ///< [m] Gaussian noise on each centre coordinate
-  double reflectorMaxRange = 30.0;              ///< [m] reflectors farther (to the surface) are not detected
+  double fieldOfView = kTwoPi<double>;       ///< [rad] (0, 2*pi], centred on the sensor's x axis
+  double angularResolution = deg2rad(0.25);  ///< [rad] beam spacing (0.25..1 deg for the usual devices)
+  double scanRate = 12.5;                    ///< [Hz] sweeps per second (one revolution per sweep)
+  double rangeNoiseStdDev = 0.01;            ///< [m] Gaussian noise added to every range
+  double rangeMin = 0.05;                    ///< [m] closer returns are reported as no-return
+  double rangeMax = 50.0;                    ///< [m] farther returns are reported as no-return
+  float noReturnValue = 50.0F;               ///< [m] value written for a beam without return;
+                                             ///< must be invalid for LaserScan (>= rangeMax, < rangeMin or non-finite)
+  bool reportsReflectors = true;             ///< a navigation laser reports reflector centres
+  double reflectorNoiseStdDev = 0.01;        ///< [m] Gaussian noise on each centre coordinate
+  double reflectorMaxRange = 30.0;           ///< [m] reflectors farther (to the surface) are not detected
 
   /// `Ok` or the first problem: `InvalidArgument` / `NonFiniteInput` for a value out of its domain,
   /// `CapacityExceeded` when the beam count exceeds kMaxScanBeams.

@@ -22,18 +22,18 @@ struct SimVehicleParams {
   /// the offset depending on the direction of travel).
   TricycleParams truth{1.5, 1.0085e-4, deg2rad(0.55), deg2rad(0.35)};
   Pose2d laserMount{1.62, 0.025, deg2rad(0.7)};  ///< true laser pose in the logical-point frame
-  double slipBias = 0.0;          ///< relative ground-vs-wheel travel bias (0.01 = ground 1 % farther)
-  double slipNoise = 0.002;       ///< [m/sqrt(m)] random-walk std of ground travel vs wheel travel
-  double steerEncoderBits = 14.0; ///< steering encoder resolution: 2^bits counts per revolution
-  double steerNoiseStdDev = 2e-4; ///< [rad] Gaussian noise of the measured steering angle (before quantisation)
-  double maxSpeed = 2.0;          ///< [m/s] |speed set-point| limit
-  double acceleration = 0.5;      ///< [m/s^2] drive ramp
-  double maxSteering = deg2rad(85.0);  ///< [rad] |steering set-point| limit (measured angle)
-  double steeringRate = deg2rad(45.0); ///< [rad/s] steering servo slew rate
-  double standstillSpeed = 1e-3;  ///< [m/s] below this the drive reports standstill
-  Duration substep = Duration::fromMilliseconds(1);        ///< integration step
-  Duration encoderPeriod = Duration::fromMilliseconds(10); ///< encoder sample period (CAN SYNC)
-  std::size_t encoderQueue = 4096;  ///< unread samples kept; older ones are dropped and counted
+  double slipBias = 0.0;                         ///< relative ground-vs-wheel travel bias (0.01 = ground 1 % farther)
+  double slipNoise = 0.002;                      ///< [m/sqrt(m)] random-walk std of ground travel vs wheel travel
+  double steerEncoderBits = 14.0;                ///< steering encoder resolution: 2^bits counts per revolution
+  double steerNoiseStdDev = 2e-4;       ///< [rad] Gaussian noise of the measured steering angle (before quantisation)
+  double maxSpeed = 2.0;                ///< [m/s] |speed set-point| limit
+  double acceleration = 0.5;            ///< [m/s^2] drive ramp
+  double maxSteering = deg2rad(85.0);   ///< [rad] |steering set-point| limit (measured angle)
+  double steeringRate = deg2rad(45.0);  ///< [rad/s] steering servo slew rate
+  double standstillSpeed = 1e-3;        ///< [m/s] below this the drive reports standstill
+  Duration substep = Duration::fromMilliseconds(1);         ///< integration step
+  Duration encoderPeriod = Duration::fromMilliseconds(10);  ///< encoder sample period (CAN SYNC)
+  std::size_t encoderQueue = 4096;                          ///< unread samples kept; older ones are dropped and counted
 };
 
 /// The simulated vehicle: integrates the true motion of the logical point with `tricycleArc` over

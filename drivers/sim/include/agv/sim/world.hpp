@@ -44,9 +44,9 @@ struct Circle {
 /// sequence of straight and circular pieces, sampled densely into `points` on load.
 struct Path {
   std::string name;
-  Pose2d start;                  ///< start pose of the logical point (heading along the path)
-  double length = 0.0;           ///< [m] exact length of the pieces
-  std::vector<Pose2d> points;    ///< samples every <= `kPathSampleStep` m, first = start, last = end
+  Pose2d start;                ///< start pose of the logical point (heading along the path)
+  double length = 0.0;         ///< [m] exact length of the pieces
+  std::vector<Pose2d> points;  ///< samples every <= `kPathSampleStep` m, first = start, last = end
 };
 
 /// Spacing of the path samples [m].
@@ -68,8 +68,8 @@ struct World {
 
 /// Where and why a world text failed to parse.
 struct WorldParseError {
-  int line = 0;          ///< 1-based line number (0 = not a line-specific problem)
-  std::string message;   ///< what is wrong, naming the keyword or field
+  int line = 0;         ///< 1-based line number (0 = not a line-specific problem)
+  std::string message;  ///< what is wrong, naming the keyword or field
 };
 
 /// Parses the text format of docs/world-format.md into `out` (replacing its content).
