@@ -48,8 +48,8 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   Timestamp t{};
   vehicle.reset(start, t);
   sim::PathFollowerParams fp;
-  fp.wheelbase = cfg.nominal.kinematics.wheelbase;
-  fp.steerOffset = cfg.nominal.kinematics.steerOffsetForward;
+  fp.wheelbase = cfg.estimate.kinematics.wheelbase;
+  fp.steerOffset = cfg.estimate.kinematics.steerOffsetForward;
   sim::PathFollower follower(path, fp);
 
   // At rest: turn the steering to the first command, take the reference encoder sample.
@@ -67,11 +67,13 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
     have = true;
   }
   DeadReckoning withTruth(cfg.vehicle.truth);
-  DeadReckoning withEstimate(cfg.nominal.kinematics);
+  DeadReckoning withNominal(cfg.nominal.kinematics);
+  DeadReckoning withEstimate(cfg.estimate.kinematics);
   if (!have) {
     return r;
   }
   withTruth.reset(vehicle.truePose(), latest);
+  withNominal.reset(vehicle.truePose(), latest);
   withEstimate.reset(vehicle.truePose(), latest);
 
   static hal::LaserMeasurement scan;  // ~8.5 KiB, reused
@@ -98,6 +100,7 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
 
     while (encoders.read(sample) == Status::Ok) {
       withTruth.update(sample);
+      withNominal.update(sample);
       withEstimate.update(sample);
       hal::PoseReport report;
       report.stamp = sample.stamp;
@@ -125,7 +128,8 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
       laserPoseAtScanStart = laserPoseNow;
       nextScan = t;
     }
-    r.history.push_back(TrajectorySample{r.distance, vehicle.truePose(), withTruth.pose(), withEstimate.pose()});
+    r.history.push_back(
+        TrajectorySample{r.distance, vehicle.truePose(), withTruth.pose(), withNominal.pose(), withEstimate.pose()});
     if (follower.finished() && drive.isStandstill()) {
       r.finished = true;
       break;
@@ -134,6 +138,7 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   r.simSeconds = (t - tStart).seconds();
   r.finalTruth = vehicle.truePose();
   r.finalWithTruth = withTruth.pose();
+  r.finalWithNominal = withNominal.pose();
   r.plcReports = plc.reports().size();
   r.finalWithEstimate = plc.reports().empty() ? withEstimate.pose() : plc.reports().back().pose;
   if (r.scans > 0) {

@@ -27,7 +27,8 @@ struct ScenarioConfig {
   int runsPerPath = 6;
   std::uint64_t seed = 1;
   sim::SimVehicleParams vehicle;  ///< the truth
-  NominalVehicle nominal;         ///< what the estimators start from
+  NominalVehicle nominal;         ///< what the estimators start from (drawing values)
+  NominalVehicle estimate;        ///< what the navigation uses: the calibration result, else nominal
   sim::SimLaserParams laser;
   double startPositionStdDev = 0.01;  ///< [m] how precisely the vehicle is placed at a path start
   double startHeadingStdDev = 0.002;  ///< [rad]
@@ -40,7 +41,8 @@ struct TrajectorySample {
   double distance = 0.0;  ///< [m] travelled by the logical point
   Pose2d truth;
   Pose2d withTruth;     ///< dead reckoning with the true parameters
-  Pose2d withEstimate;  ///< dead reckoning with the parameters the navigation has (nominal today)
+  Pose2d withNominal;   ///< dead reckoning with the nominal (uncalibrated) parameters
+  Pose2d withEstimate;  ///< dead reckoning with the parameters the navigation has (calibrated)
 };
 
 /// Result of one run along one path.
@@ -52,6 +54,7 @@ struct RunResult {
   double distance = 0.0;  ///< [m] logical-point travel
   Pose2d finalTruth;
   Pose2d finalWithTruth;
+  Pose2d finalWithNominal;
   Pose2d finalWithEstimate;  ///< the last pose published to the PLC
   std::size_t plcReports = 0;
   std::size_t scans = 0;

@@ -83,15 +83,15 @@ bool writeMapSvg(const std::string& file, const sim::World& world, const std::ve
     s << "'/>\n<text x='" << X(p.start.x) << "' y='" << Y(p.start.y) << "' dx='-18' dy='4'>" << p.name << "</text>\n";
   }
   // First run of each path.
-  const char* colours[3] = {"#000", "#1a9850", "#f46d43"};
+  const char* colours[4] = {"#000", "#1a9850", "#f46d43", "#2166ac"};
   for (const RunResult& r : runs) {
     if (r.run != 1) {
       continue;
     }
-    for (int k = 0; k < 3; ++k) {
+    for (int k = 0; k < 4; ++k) {
       s << "<polyline fill='none' stroke='" << colours[k] << "' stroke-width='1.2' points='";
       for (const TrajectorySample& t : r.history) {
-        const Pose2d& q = k == 0 ? t.truth : (k == 1 ? t.withTruth : t.withEstimate);
+        const Pose2d& q = k == 0 ? t.truth : (k == 1 ? t.withTruth : (k == 2 ? t.withNominal : t.withEstimate));
         s << X(q.x) << ',' << Y(q.y) << ' ';
       }
       s << "'/>\n";
@@ -100,7 +100,8 @@ bool writeMapSvg(const std::string& file, const sim::World& world, const std::ve
   const double ly = h - 18.0;
   s << "<text x='" << num(kMargin) << "' y='" << num(ly) << "'>"
     << "<tspan fill='#000'>truth</tspan>  <tspan fill='#1a9850'>dead reckoning, true parameters</tspan>  "
-    << "<tspan fill='#f46d43'>dead reckoning, nominal parameters</tspan>  <tspan fill='#e00000'>reflectors</tspan>  "
+    << "<tspan fill='#f46d43'>dead reckoning, nominal parameters</tspan>  "
+    << "<tspan fill='#2166ac'>dead reckoning, estimated parameters</tspan>  <tspan fill='#e00000'>reflectors</tspan>  "
     << "<tspan fill='#a0522d'>pallet blocks</tspan>  <tspan fill='#3060a0'>racks</tspan>  (1 px = 5 cm)</text>\n";
   s << "</svg>\n";
   return save(file, s.str());
@@ -149,22 +150,24 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
   s << "<text x='" << num(w - right - 4) << "' y='" << Y(requirement)
     << "' dy='-4' text-anchor='end' fill='#d73027'>requirement " << num(requirement * 100.0) << " cm</text>\n";
   for (const RunResult& r : runs) {
-    for (int k = 0; k < 2; ++k) {
-      s << "<polyline fill='none' stroke-opacity='0.6' stroke='" << (k == 0 ? "#1a9850" : "#f46d43") << "' points='";
+    const char* colours[3] = {"#1a9850", "#f46d43", "#2166ac"};
+    for (int k = 0; k < 3; ++k) {
+      s << "<polyline fill='none' stroke-opacity='0.6' stroke='" << colours[k] << "' points='";
       double lastD = -1.0;
       for (const TrajectorySample& t : r.history) {
         if (t.distance - lastD < 0.05) {
           continue;
         }
         lastD = t.distance;
-        s << X(t.distance) << ',' << Y(positionError(k == 0 ? t.withTruth : t.withEstimate, t.truth)) << ' ';
+        const Pose2d& q = k == 0 ? t.withTruth : (k == 1 ? t.withNominal : t.withEstimate);
+        s << X(t.distance) << ',' << Y(positionError(q, t.truth)) << ' ';
       }
       s << "'/>\n";
     }
   }
   s << "<text x='" << num(left + 8) << "' y='" << num(top + 14)
-    << "'><tspan fill='#1a9850'>dead reckoning, true parameters</tspan>   "
-    << "<tspan fill='#f46d43'>dead reckoning, nominal parameters (calibration not wired)</tspan></text>\n";
+    << "'>dead reckoning with: <tspan fill='#1a9850'>true parameters</tspan>   "
+    << "<tspan fill='#f46d43'>nominal parameters</tspan>   <tspan fill='#2166ac'>estimated parameters</tspan></text>\n";
   s << "</svg>\n";
   return save(file, s.str());
 }

@@ -2,7 +2,8 @@
 #   {"calibration": {"truth": {...}, "estimate": {...}}, "runs": [{"mode", "path", "run",
 #    "final_position_error_m", "final_heading_error_deg"}], "requirement_met": bool}
 # plus: every path of the built-in world has a run; requirement_met agrees with the runs of the
-# pose sent to the PLC; dead reckoning with the true parameters beats the nominal parameters.
+# pose sent to the PLC; dead reckoning with the true parameters beats the nominal parameters; the
+# calibration (when it ran) is closer to the truth than the nominal values in every parameter.
 # Usage: cmake -DHIL=<agvnav-hil> -DWORK_DIR=<dir> -P check_hil_json.cmake
 cmake_minimum_required(VERSION 3.25)
 file(REMOVE_RECURSE "${WORK_DIR}")
@@ -30,7 +31,9 @@ endfunction()
 
 expect_type("${j}" OBJECT calibration truth)
 expect_type("${j}" OBJECT calibration estimate)
-foreach(side truth estimate)
+expect_type("${j}" OBJECT calibration nominal)
+expect_type("${j}" STRING calibration estimate_source)
+foreach(side truth estimate nominal)
   foreach(key wheelbase_m drive_scale_m_per_tick steer_offset_forward_deg steer_offset_backward_deg
               laser_x_m laser_y_m laser_theta_deg)
     expect_type("${j}" NUMBER calibration ${side} ${key})
@@ -70,6 +73,8 @@ foreach(i RANGE ${last})
   set(key "${path}_${run}")
   if(params STREQUAL "truth")
     set(truth_pos_${key} "${pos}")
+  elseif(params STREQUAL "nominal")
+    set(nominal_pos_${key} "${pos}")
   elseif(params STREQUAL "estimate")
     set(est_pos_${key} "${pos}")
     if(pos GREATER req_pos OR head GREATER req_head)
@@ -90,14 +95,32 @@ if((met AND NOT all_estimates_meet) OR (NOT met AND all_estimates_meet))
   message(FATAL_ERROR "JSON: requirement_met=${met} disagrees with the runs (all within requirement: ${all_estimates_meet})")
 endif()
 
-# Calibration matters: with the nominal parameters (2 % of heading per metre from the 0.55 deg
-# steering offset alone) dead reckoning ends far worse than with the true ones on every run.
+# Calibration matters: with the nominal parameters (the 0.55 deg steering offset alone turns the
+# heading by ~0.36 deg per metre) dead reckoning ends far worse than with the true ones.
 foreach(p P1 P2 P3 P4)
-  if(NOT DEFINED truth_pos_${p}_1 OR NOT DEFINED est_pos_${p}_1)
-    message(FATAL_ERROR "JSON: run 1 of ${p} lacks a truth or estimate entry")
+  if(NOT DEFINED truth_pos_${p}_1 OR NOT DEFINED est_pos_${p}_1 OR NOT DEFINED nominal_pos_${p}_1)
+    message(FATAL_ERROR "JSON: run 1 of ${p} lacks a truth, nominal or estimate entry")
   endif()
-  if(NOT est_pos_${p}_1 GREATER truth_pos_${p}_1)
-    message(FATAL_ERROR "JSON: ${p}: nominal dead reckoning (${est_pos_${p}_1} m) not worse than true (${truth_pos_${p}_1} m)")
+  if(NOT nominal_pos_${p}_1 GREATER truth_pos_${p}_1)
+    message(FATAL_ERROR "JSON: ${p}: nominal dead reckoning (${nominal_pos_${p}_1} m) not worse than true (${truth_pos_${p}_1} m)")
   endif()
 endforeach()
+
+# The calibration, when it ran, is closer to the truth than the nominal value in every parameter
+# (estimate_error / nominal_error = value - truth; CMake compares the magnitudes as numbers).
+string(JSON source GET "${j}" calibration estimate_source)
+if(source STREQUAL "calibration_atc")
+  foreach(key drive_scale_m_per_tick steer_offset_forward_deg steer_offset_backward_deg laser_x_m laser_y_m
+              laser_theta_deg)
+    string(JSON de GET "${j}" calibration estimate_error ${key})
+    string(JSON dn GET "${j}" calibration nominal_error ${key})
+    string(REGEX REPLACE "^-" "" de_abs "${de}")
+    string(REGEX REPLACE "^-" "" dn_abs "${dn}")
+    if(NOT de_abs LESS dn_abs)
+      message(FATAL_ERROR "JSON: calibration ${key}: estimate error ${de} not smaller than nominal error ${dn}")
+    endif()
+  endforeach()
+elseif(NOT source STREQUAL "nominal")
+  message(FATAL_ERROR "JSON: unknown calibration estimate_source '${source}'")
+endif()
 message(STATUS "agvnav-hil JSON ok: ${n} entries, requirement_met=${met}")
