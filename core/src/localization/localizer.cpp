@@ -198,7 +198,7 @@ void Localizer::associate(const ScanObservations& scan, const LandmarkMap& map) 
   }
 }
 
-void Localizer::applyUpdates(const ScanObservations& scan) noexcept {
+void Localizer::orderMatches(const ScanObservations& scan) noexcept {
   // Orders the matched observations by Mahalanobis distance (insertion sort, n <= kMaxObservations)
   // so that the sequential updates apply the most certain association first.
   std::size_t m = 0;
@@ -338,7 +338,7 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
   health_.expectedInView = countExpectedInView(scan.kindsDetected, map, false, nullptr);
 
   // --- Sequential gated updates, most certain first.
-  applyUpdates(scan);
+  orderMatches(scan);
   std::size_t matched = 0;
   const std::size_t nObs = scan.points.size();
   for (std::size_t i = 0; i < nObs; ++i) {

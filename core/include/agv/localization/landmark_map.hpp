@@ -140,6 +140,9 @@ class LandmarkMap {
   bool paramsValid() const noexcept { return paramsValid_; }
   MapMode mode() const noexcept { return params_.mode; }
   void setMode(MapMode mode) noexcept { params_.mode = mode; }
+  /// Counts `n` inserts refused for lack of space without attempting them (a loader that checks
+  /// the free space up front refuses a whole file at once).
+  void countRefusedFull(std::uint32_t n) noexcept { counters_.refusedFull += n; }
   /// Finds a live landmark by id (O(capacity)). kNoLandmark when absent.
   LandmarkIndex findById(std::uint32_t id) const noexcept;
 

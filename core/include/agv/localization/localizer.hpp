@@ -184,7 +184,7 @@ class Localizer {
 
   HistoryEntry& entry(std::size_t k) noexcept { return history_[(historyStart_ + k) % kMaxOdometryHistory]; }
   void associate(const ScanObservations& scan, const LandmarkMap& map) noexcept;
-  void applyUpdates(const ScanObservations& scan) noexcept;  // sorts the matches into order_
+  void orderMatches(const ScanObservations& scan) noexcept;  // sorts the matches into order_
   void maintainMap(const ScanObservations& scan, LandmarkMap& map) noexcept;
   std::uint16_t countExpectedInView(std::uint8_t kinds, const LandmarkMap& map, bool weakenUnmatched,
                                     LandmarkMap* mutableMap) noexcept;
