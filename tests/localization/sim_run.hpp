@@ -25,6 +25,8 @@ struct RunConfig {
   double initialSigmaXY = 0.01;
   double initialSigmaTheta = 0.5 * kPi<double> / 180.0;
   double standstillSeconds = 0.3;  // after the path, so the last lagged scans arrive
+  bool clearMap = true;            // false: keep the map of a previous run (e.g. a mapping run)
+  bool cornerWorld = false;        // the block-storage corridor with FALKO corners instead of reflectors
   bool stampAtDelivery = false;    // ignore the lag: stamp scans with their delivery time (wrong on purpose)
 };
 
@@ -73,10 +75,11 @@ inline RunResult runOnce(const RunConfig& cfg, LandmarkMap& map, LocalizerParams
   lp.laser.mounting = laser.mounting;
   lp.laser.rangeSigma = cfg.noise.rangeSigma;
   lp.laser.bearingSigma = cfg.noise.bearingSigma;
-  const auto world = reflectorWorld();
+  lp.laser.kindSigma[static_cast<std::size_t>(LandmarkKind::Corner)] = cfg.noise.cornerSigma;
+  const auto world = cfg.cornerWorld ? cornerWorld() : reflectorWorld();
   Simulator sim(veh, laser, cfg.noise, world, cfg.seed);
   sim.lagSeconds = cfg.lagSeconds;
-  map.clear();
+  if (cfg.clearMap) map.clear();
   map.setMode(cfg.mapMode);
   if (cfg.surveyedMap) loadSurveyed(map, world);
 

@@ -28,6 +28,7 @@ struct SimNoise {
   double bearingSigma = 0.0005;
   double missProbability = 0.0;
   double spuriousFraction = 0.0;       // spurious points per real detection
+  double cornerSigma = 0.01;           // extra isotropic noise of a corner (FALKO keypoint) position
 };
 
 /// Path: steering angle as a function of distance along the path, and a trapezoidal speed profile.
@@ -80,6 +81,21 @@ inline std::vector<WorldLandmark> reflectorWorld() {
   for (double y = -2.0; y <= 14.0; y += 4.0) {
     w.push_back({-8.0, y, LandmarkKind::Reflector});
     w.push_back({14.0, y + 1.0, LandmarkKind::Reflector});
+  }
+  return w;
+}
+
+/// Block-storage corridor: rack posts every 2.7 m on both sides of a 4 m aisle (one FALKO corner
+/// each) and the hall's wall corners further out.
+inline std::vector<WorldLandmark> cornerWorld() {
+  std::vector<WorldLandmark> w;
+  for (double x = -4.0; x <= 24.0; x += 2.7) {
+    w.push_back({x, -2.0, LandmarkKind::Corner});
+    w.push_back({x + 1.2, 2.6, LandmarkKind::Corner});
+  }
+  for (double x = -6.0; x <= 26.0; x += 5.0) {
+    w.push_back({x, -8.0, LandmarkKind::Corner});
+    w.push_back({x + 2.5, 9.0, LandmarkKind::Corner});
   }
   return w;
 }
@@ -188,7 +204,9 @@ class Simulator {
       if (noise_.missProbability > 0.0 && uniform(0.0, 1.0) < noise_.missProbability) continue;
       const double rn = r + gauss(noise_.rangeSigma);
       const double bn = b + gauss(noise_.bearingSigma);
-      (void)s.points.push_back(PointObservation{rn * std::cos(bn), rn * std::sin(bn), lm.kind});
+      const double extra = lm.kind == LandmarkKind::Corner ? noise_.cornerSigma : 0.0;
+      (void)s.points.push_back(
+          PointObservation{rn * std::cos(bn) + gauss(extra), rn * std::sin(bn) + gauss(extra), lm.kind});
       ++real;
     }
     if (noise_.spuriousFraction > 0.0) {
