@@ -27,7 +27,11 @@ struct RunConfig {
   double standstillSeconds = 0.3;  // after the path, so the last lagged scans arrive
   bool clearMap = true;            // false: keep the map of a previous run (e.g. a mapping run)
   bool cornerWorld = false;        // the block-storage corridor with FALKO corners instead of reflectors
-  bool stampAtDelivery = false;    // ignore the lag: stamp scans with their delivery time (wrong on purpose)
+  bool stampAtDelivery = false;
+  /// Feed the filter through the unicycle input: the encoders' RK2 increments, re-integrated over
+  /// each 100 ms like a recorded log's ODOM lines, with the generic odometry motion-model noise.
+  bool unicycleOdometry = false;
+  UnicycleNoiseParams unicycleNoise{};    // ignore the lag: stamp scans with their delivery time (wrong on purpose)
 };
 
 struct CycleRecord {
@@ -92,13 +96,22 @@ inline RunResult runOnce(const RunConfig& cfg, LandmarkMap& map, LocalizerParams
   TricycleOdometry odo(veh, filterNoise(cfg.noise));
   (void)odo.step(sim.encoder());
   auto scan = std::make_unique<ScanObservations>();
+  Pose2d logDelta{};
   int cycle = 0;
   int extra = static_cast<int>(cfg.standstillSeconds / sim.dt);
   for (int guard = 0; guard < 100000; ++guard) {
     const bool moving = sim.advance(cfg.path);
     if (!moving && extra-- <= 0) break;
     const auto inc = odo.step(sim.encoder());
-    if (inc.ok()) (void)loc->predict(inc.value());
+    if (cfg.unicycleOdometry) {
+      if (inc.ok()) logDelta = logDelta.compose(inc.value().delta);
+      if (sim.isScanStep()) {
+        (void)loc->predict(unicycleIncrement(sim.now, logDelta, cfg.unicycleNoise));
+        logDelta = Pose2d{};
+      }
+    } else if (inc.ok()) {
+      (void)loc->predict(inc.value());
+    }
     while (sim.takeScan(*scan)) {
       if (cfg.stampAtDelivery) scan->stamp = sim.now;
       const LocalizerHealth h = loc->correct(*scan, map);

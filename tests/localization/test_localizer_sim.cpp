@@ -36,6 +36,10 @@ TEST_CASE("localizer: end-of-path accuracy with a reflector map (12 m and 7 m pa
     cfg.path = p == 0 ? path12m() : path7m();
     cfg.seed = 100;
     const EndStats s = endStats(cfg, 20, *map);
+    const RunResult one = runOnce(cfg, *map);
+    double inView = 0.0;
+    for (const auto& c : one.cycles) inView += c.health.used;
+    std::printf("landmarks used per cycle (mean): %.1f\n", inView / one.cycles.size());
     std::printf("accuracy %s path: RMS position %.2f mm, heading %.2f cdeg (20 runs)\n", p == 0 ? "12 m" : "7 m",
                 s.rmsPos * 1e3, rad2deg(s.rmsHeading) * 100.0);
     CHECK(s.rmsPos <= 0.005);
@@ -133,6 +137,8 @@ TEST_CASE("localizer: a kidnapped vehicle is flagged lost within 5 cycles", "[lo
     cfg.kidnapOffset = off;
     const RunResult res = runOnce(cfg, *map);
     INFO("offset " << off.x << " " << off.y << " " << off.theta << " lost at cycle " << res.lostAtCycle);
+    std::printf("kidnap by (%.1f m, %.1f m, %.2f rad): lost %d cycles after\n", off.x, off.y, off.theta,
+                res.lostAtCycle - cfg.kidnapAtCycle);
     REQUIRE(res.lostAtCycle > cfg.kidnapAtCycle);
     CHECK(res.lostAtCycle - cfg.kidnapAtCycle <= 5);
     // Not lost before the kidnap.
@@ -199,5 +205,22 @@ TEST_CASE("localizer: FALKO-corner maps: dynamic with no prior map, and static f
     std::printf("FALKO static map from a mapping run, 12 m: RMS %.2f mm / %.2f cdeg (%d runs)\n", rp * 1e3, rh, runs);
     CHECK(rp <= 0.01);
     CHECK(rh <= 10.0);
+  }
+}
+
+TEST_CASE("localizer: driven through the unicycle odometry input (log-style increments)", "[localization][sim]") {
+  auto map = makeMap();
+  RunConfig cfg;
+  cfg.unicycleOdometry = true;
+  cfg.lagSeconds = 0.0;  // log increments arrive at the scan instants
+  cfg.seed = 1500;
+  const EndStats s = endStats(cfg, 20, *map);
+  std::printf("unicycle input, reflector map, 12 m: RMS %.2f mm / %.2f cdeg\n", s.rmsPos * 1e3, rad2deg(s.rmsHeading) * 100.0);
+  CHECK(s.rmsPos <= 0.005);
+  CHECK(rad2deg(s.rmsHeading) * 100.0 <= 5.0);
+  const RunResult res = runOnce(cfg, *map);
+  for (const auto& c : res.cycles) {
+    CHECK_FALSE(c.health.lost);
+    CHECK(c.health.used >= 10U);
   }
 }
