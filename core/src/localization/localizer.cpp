@@ -317,7 +317,15 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
   while (k > 0 && entry(k).stamp > scan.stamp) {
     --k;
   }
-  (void)ekf_.reset(entry(k).pose, entry(k).cov);
+  const PoseEkf atNewest = ekf_;
+  if (ekf_.reset(entry(k).pose, entry(k).cov) != Status::Ok) {
+    // A stored state that does not validate cannot be rewound to; keep the newest state.
+    ekf_ = atNewest;
+    health_.flags |= bit(LocalizerFlag::ScanRejected);
+    health_.status = Status::Rejected;
+    finishHealth();
+    return health_;
+  }
   bool split = false;
   double f = 0.0;
   Pose2d part{};
