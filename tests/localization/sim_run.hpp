@@ -25,6 +25,7 @@ struct RunConfig {
   double initialSigmaXY = 0.01;
   double initialSigmaTheta = 0.5 * kPi<double> / 180.0;
   double standstillSeconds = 0.3;  // after the path, so the last lagged scans arrive
+  double surveySigma = 0.0;        // surveyed positions are off by N(0, sigma) and declared with sigma
   bool clearMap = true;            // false: keep the map of a previous run (e.g. a mapping run)
   bool cornerWorld = false;        // the block-storage corridor with FALKO corners instead of reflectors
   bool stampAtDelivery = false;
@@ -65,10 +66,15 @@ inline TricycleNoiseParams filterNoise(const SimNoise& n) {
   return p;
 }
 
-inline void loadSurveyed(LandmarkMap& map, const std::vector<WorldLandmark>& world) {
+inline void loadSurveyed(LandmarkMap& map, const std::vector<WorldLandmark>& world, double sigma = 0.0,
+                         std::uint32_t seed = 0) {
+  std::mt19937_64 rng(seed ^ 0x5eedULL);
+  std::normal_distribution<double> n(0.0, sigma > 0.0 ? sigma : 1.0);
   std::uint32_t id = 1;
   for (const auto& w : world) {
-    (void)map.addSurveyed(w.kind, w.x, w.y, 0.0, id++);
+    const double ex = sigma > 0.0 ? n(rng) : 0.0;
+    const double ey = sigma > 0.0 ? n(rng) : 0.0;
+    (void)map.addSurveyed(w.kind, w.x + ex, w.y + ey, sigma, id++);
   }
 }
 
@@ -85,7 +91,7 @@ inline RunResult runOnce(const RunConfig& cfg, LandmarkMap& map, LocalizerParams
   sim.lagSeconds = cfg.lagSeconds;
   if (cfg.clearMap) map.clear();
   map.setMode(cfg.mapMode);
-  if (cfg.surveyedMap) loadSurveyed(map, world);
+  if (cfg.surveyedMap) loadSurveyed(map, world, cfg.surveySigma, cfg.seed);
 
   auto loc = std::make_unique<Localizer>(lp);
   Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();

@@ -226,3 +226,14 @@ TEST_CASE("localizer: driven through the unicycle odometry input (log-style incr
     CHECK(c.health.used >= 10U);
   }
 }
+
+TEST_CASE("localizer: reflector map with a 2 mm survey error still meets 5 mm / 5 cdeg", "[localization][sim]") {
+  auto map = makeMap();
+  RunConfig cfg;
+  cfg.surveySigma = 0.002;
+  cfg.seed = 1700;
+  const EndStats s = endStats(cfg, 20, *map);
+  std::printf("survey error 2 mm, reflector map, 12 m: RMS %.2f mm / %.2f cdeg\n", s.rmsPos * 1e3, rad2deg(s.rmsHeading) * 100.0);
+  CHECK(s.rmsPos <= 0.005);
+  CHECK(rad2deg(s.rmsHeading) * 100.0 <= 5.0);
+}
