@@ -304,3 +304,27 @@ TEST_CASE("localizer: the steady-state cycle allocates nothing", "[localization]
     CHECK(s.loc->health().used == s.world.size());
   }
 }
+
+TEST_CASE("localizer: an observation between two landmarks inside the gate is ambiguous, not used", "[localization][localizer]") {
+  Scene s;
+  // two more reflectors 4 cm apart; the pose is known to ~1 cm, so both fall inside the gate
+  const Eigen::Vector2d a = s.truth.compose(Pose2d{5.0, 0.5, 0.0}).translation();
+  const Eigen::Vector2d b = a + Eigen::Vector2d(0.0, 0.04);
+  REQUIRE(s.map->addSurveyed(LandmarkKind::Reflector, a.x(), a.y(), 0.0, 100U).ok());
+  REQUIRE(s.map->addSurveyed(LandmarkKind::Reflector, b.x(), b.y(), 0.0, 101U).ok());
+  s.stand(1);
+  std::vector<Eigen::Vector2d> pts = s.world;
+  pts.push_back(0.5 * (a + b));  // midway: neither can be told from the other
+  s.observe(pts);
+  LocalizerHealth h = s.cycle();
+  CHECK(h.rejectedAmbiguous == 1U);
+  CHECK(hasFlag(h.flags, LocalizerFlag::AmbiguityRejected));
+  CHECK(h.used == s.world.size());
+  // with the pose now known to ~1 mm, an observation of `a` itself is no longer ambiguous
+  s.stand(1);
+  pts.back() = a;
+  s.observe(pts);
+  h = s.cycle();
+  CHECK(h.rejectedAmbiguous == 0U);
+  CHECK(h.used == s.world.size() + 1U);
+}

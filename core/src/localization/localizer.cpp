@@ -143,6 +143,7 @@ void Localizer::associate(const ScanObservations& scan, const LandmarkMap& map) 
     }
     const double r2 = radius * radius;
     double best = INFINITY;
+    double second = INFINITY;
     LandmarkIndex bestIdx = kNoLandmark;
     bool anyCandidate = false;
     map.forEachNear(w.x(), w.y(), radius, [&](LandmarkIndex idx, const Landmark& lm) {
@@ -167,12 +168,18 @@ void Localizer::associate(const ScanObservations& scan, const LandmarkMap& map) 
       }
       const double d2 = (c * nx * nx - 2.0 * bb * nx * ny + a * ny * ny) / det;
       if (d2 < best) {
+        second = best;
         best = d2;
         bestIdx = idx;
+      } else if (d2 < second) {
+        second = d2;
       }
     });
     s.d2 = best;
-    if (bestIdx != kNoLandmark && best <= params_.gate) {
+    if (bestIdx != kNoLandmark && best <= params_.gate && second <= params_.gate &&
+        second - best < params_.ambiguityMargin) {
+      s.state = Assoc::Ambiguous;
+    } else if (bestIdx != kNoLandmark && best <= params_.gate) {
       s.state = Assoc::Matched;
       s.landmark = bestIdx;
     } else if (anyCandidate) {
@@ -387,6 +394,7 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
       case Assoc::Gate: ++health_.rejectedGate; break;
       case Assoc::Duplicate: ++health_.rejectedDuplicate; break;
       case Assoc::UpdateRejected: ++health_.rejectedUpdate; break;
+      case Assoc::Ambiguous: ++health_.rejectedAmbiguous; break;
       case Assoc::None: ++health_.unmatched; break;
       case Assoc::Matched: break;
     }
@@ -399,6 +407,7 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
   if (health_.rejectedGate > 0) health_.flags |= bit(LocalizerFlag::GateRejected);
   if (health_.rejectedDuplicate > 0) health_.flags |= bit(LocalizerFlag::DuplicateRejected);
   if (health_.rejectedUpdate > 0) health_.flags |= bit(LocalizerFlag::UpdateRejected);
+  if (health_.rejectedAmbiguous > 0) health_.flags |= bit(LocalizerFlag::AmbiguityRejected);
   if (health_.used < params_.minMatchesForFix) health_.flags |= bit(LocalizerFlag::NoFix);
 
   // --- Health: matched vs expected, covariance limits, lost.

@@ -69,6 +69,10 @@ struct LocalizerParams {
   double viewRangeMargin = 0.5;
   /// ...and this far inside the angular limits [rad].
   double viewAngleMargin = 0.035;
+  /// An observation whose second-best candidate is also inside the gate and within this much
+  /// squared Mahalanobis distance of the best (a likelihood ratio below exp(margin/2) = 7.4) is
+  /// ambiguous and not used. 0 disables the test.
+  double ambiguityMargin = 4.0;
   /// No new landmark is inserted this close to an existing one of the same kind [m].
   double insertSeparation = 0.3;
   /// Fewer landmarks used than this: the cycle has no fix (flag NoFix).
@@ -103,6 +107,7 @@ enum class LocalizerFlag : std::uint32_t {
   CovarianceLimit = 1U << 12,       ///< position or heading sigma beyond its limit
   MapInsertRefused = 1U << 13,      ///< the map was full; new landmarks were refused (counted)
   Lost = 1U << 14,                  ///< the pose is not trusted (latched until reset): stop the vehicle
+  AmbiguityRejected = 1U << 15,     ///< an observation had two landmarks inside the gate, too close to tell
 };
 
 /// True when `flag` is set in `flags`.
@@ -124,6 +129,7 @@ struct LocalizerHealth {
   std::uint16_t rejectedGate = 0;
   std::uint16_t rejectedDuplicate = 0;
   std::uint16_t rejectedUpdate = 0;
+  std::uint16_t rejectedAmbiguous = 0;
   std::uint16_t unmatched = 0;           ///< no map candidate at all (new landmark candidates)
   std::uint16_t expectedInView = 0;      ///< map landmarks of the detected kinds inside the view
   std::uint16_t inserted = 0;            ///< landmarks added to the map this cycle
@@ -174,7 +180,7 @@ class Localizer {
     Pose2d pose{};                                    // posterior after it
     Eigen::Matrix3d cov = Eigen::Matrix3d::Identity();
   };
-  enum class Assoc : std::uint8_t { None, Matched, NonFinite, OutOfView, Gate, Duplicate, Used, UpdateRejected };
+  enum class Assoc : std::uint8_t { None, Matched, NonFinite, OutOfView, Gate, Duplicate, Ambiguous, Used, UpdateRejected };
   struct Scratch {
     Eigen::Matrix2d R = Eigen::Matrix2d::Zero();   // sensor noise, laser frame
     double d2 = 0.0;
