@@ -10,8 +10,8 @@
 /// sub-millimetre steps under the update rate; float would quantise them to ~15 um at 200 m and
 /// stall the averaging).
 ///
-/// Storage: kMaxLandmarks slots (~56 bytes each) and kLandmarkGridBuckets bucket heads, inline;
-/// a map object is ~260 KB at the default capacity: give it static storage or allocate it once.
+/// Storage: kMaxLandmarks slots (60 bytes each) and kLandmarkGridBuckets bucket heads, inline;
+/// a map object is ~280 KB at the default capacities: give it static storage or allocate it once.
 
 #include <cstddef>
 #include <cstdint>

@@ -6,7 +6,7 @@
 /// timestamp lags the odometry is fused at its own time and the newer odometry re-applied
 /// (docs/localization.md, "Latency"). Every cycle yields a `LocalizerHealth` for the PLC.
 ///
-/// Heap-free; the object holds its history and per-cycle scratch inline (~35 KB): give it static
+/// Heap-free; the object holds its history and per-cycle scratch inline (~32 KB): give it static
 /// storage or allocate it once. Worst-case work per cycle is bounded by kMaxObservations,
 /// kMaxOdometryHistory and the grid query bounds of `LandmarkMap`.
 
