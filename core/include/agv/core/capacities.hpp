@@ -27,6 +27,9 @@
 #ifndef AGV_MAX_CALIB_SEGMENTS
 #define AGV_MAX_CALIB_SEGMENTS 64
 #endif
+#ifndef AGV_MAX_CAN_FILTERS
+#define AGV_MAX_CAN_FILTERS 16
+#endif
 #ifndef AGV_MAX_ODOMETRY_HISTORY
 #define AGV_MAX_ODOMETRY_HISTORY 128
 #endif
@@ -48,6 +51,8 @@ inline constexpr std::size_t kMaxObservations = AGV_MAX_OBSERVATIONS;
 inline constexpr std::size_t kMaxLandmarks = AGV_MAX_LANDMARKS;
 /// Constant-steering path segments used by one calibration solve.
 inline constexpr std::size_t kMaxCalibSegments = AGV_MAX_CALIB_SEGMENTS;
+/// Receive filters of one CAN socket (one per node and object class leaves ample room).
+inline constexpr std::size_t kMaxCanFilters = AGV_MAX_CAN_FILTERS;
 
 /// Odometry increments the localizer keeps for re-prediction after a late scan (at 100 Hz
 /// encoders, 128 cover 1.28 s of scan latency).
