@@ -56,7 +56,8 @@ struct EkfBenchWorld {
         if (visible && observed < wanted) {
           // observed every cycle: a dynamic landmark that lives through the lifecycle
           const auto idx = map->insert(LandmarkKind::Reflector, x, y, 1e-6);
-          for (int k = 0; k < 30; ++k) (void)map->reinforce(idx.value(), x, y, 1e-6, 0U);
+          for (int k = 0; k < 30; ++k)
+            (void)map->reinforce(idx.value(), x, y, 1e-6, 0U);
           const double n = 0.002 * jitter();
           (void)scan->points.push_back(PointObservation{z.x() + n, z.y() - n, LandmarkKind::Reflector});
           ++observed;

@@ -18,8 +18,8 @@ struct RunConfig {
   SimNoise noise{};
   double lagSeconds = 0.05;
   MapMode mapMode = MapMode::Dynamic;
-  bool surveyedMap = true;       // load the world's reflectors as surveyed landmarks
-  int kidnapAtCycle = -1;        // teleport the vehicle after this correction cycle
+  bool surveyedMap = true;  // load the world's reflectors as surveyed landmarks
+  int kidnapAtCycle = -1;   // teleport the vehicle after this correction cycle
   Pose2d kidnapOffset{2.0, 1.0, 0.5};
   std::uint32_t seed = 1;
   double initialSigmaXY = 0.01;
@@ -32,7 +32,7 @@ struct RunConfig {
   /// Feed the filter through the unicycle input: the encoders' RK2 increments, re-integrated over
   /// each 100 ms like a recorded log's ODOM lines, with the generic odometry motion-model noise.
   bool unicycleOdometry = false;
-  UnicycleNoiseParams unicycleNoise{};    // ignore the lag: stamp scans with their delivery time (wrong on purpose)
+  UnicycleNoiseParams unicycleNoise{};  // ignore the lag: stamp scans with their delivery time (wrong on purpose)
 };
 
 struct CycleRecord {
@@ -89,9 +89,11 @@ inline RunResult runOnce(const RunConfig& cfg, LandmarkMap& map, LocalizerParams
   const auto world = cfg.cornerWorld ? cornerWorld() : reflectorWorld();
   Simulator sim(veh, laser, cfg.noise, world, cfg.seed);
   sim.lagSeconds = cfg.lagSeconds;
-  if (cfg.clearMap) map.clear();
+  if (cfg.clearMap)
+    map.clear();
   map.setMode(cfg.mapMode);
-  if (cfg.surveyedMap) loadSurveyed(map, world, cfg.surveySigma, cfg.seed);
+  if (cfg.surveyedMap)
+    loadSurveyed(map, world, cfg.surveySigma, cfg.seed);
 
   auto loc = std::make_unique<Localizer>(lp);
   Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
@@ -107,10 +109,12 @@ inline RunResult runOnce(const RunConfig& cfg, LandmarkMap& map, LocalizerParams
   int extra = static_cast<int>(cfg.standstillSeconds / sim.dt);
   for (int guard = 0; guard < 100000; ++guard) {
     const bool moving = sim.advance(cfg.path);
-    if (!moving && extra-- <= 0) break;
+    if (!moving && extra-- <= 0)
+      break;
     const auto inc = odo.step(sim.encoder());
     if (cfg.unicycleOdometry) {
-      if (inc.ok()) logDelta = logDelta.compose(inc.value().delta);
+      if (inc.ok())
+        logDelta = logDelta.compose(inc.value().delta);
       if (sim.isScanStep()) {
         (void)loc->predict(unicycleIncrement(sim.now, logDelta, cfg.unicycleNoise));
         logDelta = Pose2d{};
@@ -119,7 +123,8 @@ inline RunResult runOnce(const RunConfig& cfg, LandmarkMap& map, LocalizerParams
       (void)loc->predict(inc.value());
     }
     while (sim.takeScan(*scan)) {
-      if (cfg.stampAtDelivery) scan->stamp = sim.now;
+      if (cfg.stampAtDelivery)
+        scan->stamp = sim.now;
       const LocalizerHealth h = loc->correct(*scan, map);
       ++cycle;
       const Pose2d truth = sim.truthAt(loc->stamp());
@@ -129,11 +134,14 @@ inline RunResult runOnce(const RunConfig& cfg, LandmarkMap& map, LocalizerParams
       rec.nees = rec.error.dot(loc->covariance().inverse() * rec.error);
       rec.health = h;
       out.cycles.push_back(rec);
-      if (h.lost && out.lostAtCycle < 0) out.lostAtCycle = cycle;
-      if (cycle == cfg.kidnapAtCycle) sim.kidnap(cfg.kidnapOffset);
+      if (h.lost && out.lostAtCycle < 0)
+        out.lostAtCycle = cycle;
+      if (cycle == cfg.kidnapAtCycle)
+        sim.kidnap(cfg.kidnapOffset);
     }
   }
-  if (!out.cycles.empty()) out.endError = out.cycles.back().error;
+  if (!out.cycles.empty())
+    out.endError = out.cycles.back().error;
   return out;
 }
 

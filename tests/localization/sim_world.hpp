@@ -27,20 +27,22 @@ struct SimNoise {
   double rangeSigma = 0.005;
   double bearingSigma = 0.0005;
   double missProbability = 0.0;
-  double spuriousFraction = 0.0;       // spurious points per real detection
-  double cornerSigma = 0.01;           // extra isotropic noise of a corner (FALKO keypoint) position
+  double spuriousFraction = 0.0;  // spurious points per real detection
+  double cornerSigma = 0.01;      // extra isotropic noise of a corner (FALKO keypoint) position
 };
 
 /// Path: steering angle as a function of distance along the path, and a trapezoidal speed profile.
 struct PathSpec {
-  double length = 12.0;          // [m]
-  double vmax = 1.0;             // [m/s]
-  double accel = 0.5;            // [m/s^2]
+  double length = 12.0;  // [m]
+  double vmax = 1.0;     // [m/s]
+  double accel = 0.5;    // [m/s^2]
   // piecewise: steering changes linearly between knots (distance [m], steering [rad])
   std::vector<std::pair<double, double>> steering;
   double steerAt(double s) const {
-    if (steering.empty()) return 0.0;
-    if (s <= steering.front().first) return steering.front().second;
+    if (steering.empty())
+      return 0.0;
+    if (s <= steering.front().first)
+      return steering.front().second;
     for (std::size_t i = 1; i < steering.size(); ++i) {
       if (s <= steering[i].first) {
         const double f = (s - steering[i - 1].first) / (steering[i].first - steering[i - 1].first);
@@ -112,13 +114,13 @@ class Simulator {
             std::vector<WorldLandmark> world, std::uint32_t seed)
       : vehicle_(vehicle), laser_(laser), noise_(noise), world_(std::move(world)), rng_(seed) {}
 
-  double dt = 0.01;        // encoder period [s]
-  double scanPeriod = 0.1; // [s]
-  double lagSeconds = 0.0; // scan delivery delay [s]
+  double dt = 0.01;         // encoder period [s]
+  double scanPeriod = 0.1;  // [s]
+  double lagSeconds = 0.0;  // scan delivery delay [s]
 
   Pose2d truePose{};
-  double wheelTravel = 0.0;   // what the encoder sees [m]
-  double pathS = 0.0;         // distance along the path [m]
+  double wheelTravel = 0.0;  // what the encoder sees [m]
+  double pathS = 0.0;        // distance along the path [m]
   double speed = 0.0;
   Timestamp now{};
   std::int64_t step = 0;
@@ -137,7 +139,8 @@ class Simulator {
     const double remaining = path.length - pathS;
     const double vStop = std::sqrt(std::max(0.0, 2.0 * path.accel * remaining));
     double v = std::min({path.vmax, speed + path.accel * dt, vStop});
-    if (remaining <= 1e-4) v = 0.0;
+    if (remaining <= 1e-4)
+      v = 0.0;
     speed = v;
     const double ds = v * dt;
     const int sub = 10;
@@ -147,7 +150,8 @@ class Simulator {
     for (int i = 0; i < sub; ++i) {
       const double a = a0 + (a1 - a0) * (i + 0.5) / sub;
       double g = ds / sub;
-      if (g != 0.0) g += gauss(std::sqrt(noise_.slipVariancePerMetre * std::fabs(g)));
+      if (g != 0.0)
+        g += gauss(std::sqrt(noise_.slipVariancePerMetre * std::fabs(g)));
       groundTotal += g;
       truePose = truePose.compose(tricycleArc(g, a, vehicle_.wheelbase));
     }
@@ -171,13 +175,16 @@ class Simulator {
 
   /// A scan whose delivery time has come (its stamp + lag <= now), if any.
   bool takeScan(ScanObservations& out) {
-    if (pending_.empty()) return false;
-    if ((now - pending_.front().stamp).seconds() + 1e-9 < lagSeconds) return false;
+    if (pending_.empty())
+      return false;
+    if ((now - pending_.front().stamp).seconds() + 1e-9 < lagSeconds)
+      return false;
     const ScanObservations& s = pending_.front();
     out.stamp = s.stamp;
     out.kindsDetected = s.kindsDetected;
     out.points.clear();
-    for (const auto& p : s.points) (void)out.points.push_back(p);
+    for (const auto& p : s.points)
+      (void)out.points.push_back(p);
     pending_.pop_front();
     return true;
   }
@@ -200,8 +207,10 @@ class Simulator {
       const Eigen::Vector2d p = laserWorld.inverseTransformPoint(Eigen::Vector2d(lm.x, lm.y));
       const double r = p.norm();
       const double b = std::atan2(p.y(), p.x());
-      if (r < laser_.rangeMin || r > laser_.rangeMax || b < laser_.angleMin || b > laser_.angleMax) continue;
-      if (noise_.missProbability > 0.0 && uniform(0.0, 1.0) < noise_.missProbability) continue;
+      if (r < laser_.rangeMin || r > laser_.rangeMax || b < laser_.angleMin || b > laser_.angleMax)
+        continue;
+      if (noise_.missProbability > 0.0 && uniform(0.0, 1.0) < noise_.missProbability)
+        continue;
       const double rn = r + gauss(noise_.rangeSigma);
       const double bn = b + gauss(noise_.bearingSigma);
       const double extra = lm.kind == LandmarkKind::Corner ? noise_.cornerSigma : 0.0;
@@ -212,7 +221,8 @@ class Simulator {
     if (noise_.spuriousFraction > 0.0) {
       const double expected = noise_.spuriousFraction * static_cast<double>(real);
       std::size_t n = static_cast<std::size_t>(expected);
-      if (uniform(0.0, 1.0) < expected - static_cast<double>(n)) ++n;
+      if (uniform(0.0, 1.0) < expected - static_cast<double>(n))
+        ++n;
       for (std::size_t i = 0; i < n; ++i) {
         const double r = uniform(laser_.rangeMin + 0.5, 15.0);
         const double b = uniform(laser_.angleMin, laser_.angleMax);
@@ -235,7 +245,8 @@ class Simulator {
   /// True pose at `stamp` (must be an encoder instant).
   Pose2d truthAt(Timestamp stamp) const {
     for (auto it = truth_.rbegin(); it != truth_.rend(); ++it) {
-      if (it->stamp == stamp) return it->pose;
+      if (it->stamp == stamp)
+        return it->pose;
     }
     return truePose;
   }

@@ -92,7 +92,8 @@ TEST_CASE("landmark map: surveyed landmarks never move or die; static mode freez
   CHECK(map.size() == 3U);
 }
 
-TEST_CASE("landmark map: a full map refuses inserts and counts them; bad coordinates are refused", "[localization][map]") {
+TEST_CASE("landmark map: a full map refuses inserts and counts them; bad coordinates are refused",
+          "[localization][map]") {
   LandmarkMap& map = sharedMap();
   for (std::size_t i = 0; i < kMaxLandmarks; ++i) {
     const double x = static_cast<double>(i % 64U);
@@ -133,9 +134,11 @@ TEST_CASE("landmark map: grid queries find exactly the landmarks a brute-force s
   }
   // move some across cells, delete some, so the index must have followed
   for (LandmarkIndex i = 0; i < 300; ++i) {
-    for (int k = 0; k < 30; ++k) (void)map.reinforce(i, 35.0, -35.0, 0.0, 1U);
+    for (int k = 0; k < 30; ++k)
+      (void)map.reinforce(i, 35.0, -35.0, 0.0, 1U);
   }
-  for (LandmarkIndex i = 300; i < 600; i += 2) REQUIRE(map.remove(i) == Status::Ok);
+  for (LandmarkIndex i = 300; i < 600; i += 2)
+    REQUIRE(map.remove(i) == Status::Ok);
   for (int q = 0; q < 60; ++q) {
     const double cx = -45.0 + 90.0 * rng.next();
     const double cy = -45.0 + 90.0 * rng.next();
@@ -144,13 +147,15 @@ TEST_CASE("landmark map: grid queries find exactly the landmarks a brute-force s
     int visits = 0;
     map.forEachNear(cx, cy, r, [&](LandmarkIndex, const Landmark& l) {
       ++visits;
-      if ((l.x - cx) * (l.x - cx) + (l.y - cy) * (l.y - cy) <= r * r) ++viaGrid;
+      if ((l.x - cx) * (l.x - cx) + (l.y - cy) * (l.y - cy) <= r * r)
+        ++viaGrid;
     });
     int brute = 0;
     int total = 0;
     map.forEach([&](LandmarkIndex, const Landmark& l) {
       ++total;
-      if ((l.x - cx) * (l.x - cx) + (l.y - cy) * (l.y - cy) <= r * r) ++brute;
+      if ((l.x - cx) * (l.x - cx) + (l.y - cy) * (l.y - cy) <= r * r)
+        ++brute;
     });
     CHECK(viaGrid == brute);
     CHECK(total == n - 150);

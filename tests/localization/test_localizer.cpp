@@ -30,11 +30,13 @@ struct Scene {
     scan = std::make_unique<ScanObservations>();
     for (int i = 0; i < 8; ++i) {
       const double a = 0.5 * i - 1.75;  // all inside the 270 deg field of view
-      world.emplace_back(truth.x + 6.0 * std::cos(a + truth.theta) + 0.3 * i, truth.y + 6.0 * std::sin(a + truth.theta));
+      world.emplace_back(truth.x + 6.0 * std::cos(a + truth.theta) + 0.3 * i,
+                         truth.y + 6.0 * std::sin(a + truth.theta));
     }
     if (surveyed) {
       std::uint32_t id = 1;
-      for (const auto& w : world) REQUIRE(map->addSurveyed(LandmarkKind::Reflector, w.x(), w.y(), 0.0, id++).ok());
+      for (const auto& w : world)
+        REQUIRE(map->addSurveyed(LandmarkKind::Reflector, w.x(), w.y(), 0.0, id++).ok());
     }
     Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
     P0(0, 0) = P0(1, 1) = 1e-4;
@@ -67,7 +69,8 @@ struct Scene {
 };
 }  // namespace
 
-TEST_CASE("localizer: refuses to work before initialisation and refuses a bad initial state", "[localization][localizer]") {
+TEST_CASE("localizer: refuses to work before initialisation and refuses a bad initial state",
+          "[localization][localizer]") {
   auto loc = std::make_unique<Localizer>();
   auto map = std::make_unique<LandmarkMap>();
   auto scan = std::make_unique<ScanObservations>();
@@ -77,11 +80,13 @@ TEST_CASE("localizer: refuses to work before initialisation and refuses a bad in
   OdometryIncrement inc;
   inc.stamp = Timestamp::fromSeconds(1.0);
   CHECK(loc->predict(inc) == Status::NotInitialized);
-  CHECK(loc->reset(Timestamp{}, Pose2d{std::nan(""), 0.0, 0.0}, Eigen::Matrix3d::Identity()) == Status::InvalidArgument);
+  CHECK(loc->reset(Timestamp{}, Pose2d{std::nan(""), 0.0, 0.0}, Eigen::Matrix3d::Identity()) ==
+        Status::InvalidArgument);
   CHECK_FALSE(loc->initialized());
 }
 
-TEST_CASE("localizer: a good cycle uses every landmark and reports consistent test ratios", "[localization][localizer]") {
+TEST_CASE("localizer: a good cycle uses every landmark and reports consistent test ratios",
+          "[localization][localizer]") {
   Scene s;
   s.stand(10);
   s.observe(s.world);
@@ -121,7 +126,8 @@ TEST_CASE("localizer: bad observations and odometry are refused, counted and fla
   s.scan->stamp = s.t;
   s.scan->points.clear();
   (void)s.scan->points.push_back(PointObservation{std::nan(""), 1.0, LandmarkKind::Reflector});
-  (void)s.scan->points.push_back(PointObservation{1.0, std::numeric_limits<double>::infinity(), LandmarkKind::Reflector});
+  (void)s.scan->points.push_back(
+      PointObservation{1.0, std::numeric_limits<double>::infinity(), LandmarkKind::Reflector});
   (void)s.scan->points.push_back(PointObservation{100.0, 0.0, LandmarkKind::Reflector});  // beyond range
   (void)s.scan->points.push_back(PointObservation{-5.0, 0.0, LandmarkKind::Reflector});   // behind: outside 270 deg
   const LocalizerHealth h = s.cycle();
@@ -180,7 +186,8 @@ TEST_CASE("localizer: gate, duplicate and lost health", "[localization][localize
   s.stand(2);
   s.observe(s.world);
   // a ghost 0.1 m off one landmark (~9 sigma): it has a candidate within the search radius but fails the gate
-  const Eigen::Vector2d ghost = s.truth.compose(s.params.laser.mounting).inverseTransformPoint(s.world[0] + Eigen::Vector2d(0.1, 0.0));
+  const Eigen::Vector2d ghost =
+      s.truth.compose(s.params.laser.mounting).inverseTransformPoint(s.world[0] + Eigen::Vector2d(0.1, 0.0));
   (void)s.scan->points.push_back(PointObservation{ghost.x(), ghost.y(), LandmarkKind::Reflector});
   // a second detection 3 mm from another landmark: both within the gate, one is a duplicate
   const PointObservation twin{s.scan->points[1].x + 0.003, s.scan->points[1].y, LandmarkKind::Reflector};
@@ -272,7 +279,10 @@ TEST_CASE("localizer: a full map refuses new landmarks and the health says so", 
   Scene s(MapMode::Dynamic, true);
   // fill the rest of the map far away, out of view
   for (std::size_t i = s.map->size(); i < kMaxLandmarks; ++i) {
-    REQUIRE(s.map->insert(LandmarkKind::Corner, 500.0 + static_cast<double>(i % 64U), 500.0 + static_cast<double>(i / 64U), 1e-4).ok());
+    REQUIRE(s.map
+                ->insert(LandmarkKind::Corner, 500.0 + static_cast<double>(i % 64U),
+                         500.0 + static_cast<double>(i / 64U), 1e-4)
+                .ok());
   }
   s.stand(10);
   std::vector<Eigen::Vector2d> pts = s.world;
@@ -300,12 +310,13 @@ TEST_CASE("localizer: the steady-state cycle allocates nothing", "[localization]
       s.t = s.t + Duration::fromMilliseconds(10);
       inc.stamp = s.t;
       (void)s.loc->predict(inc);
-    } (void)s.loc->correct(*s.scan, *s.map));
+    }(void)s.loc->correct(*s.scan, *s.map));
     CHECK(s.loc->health().used == s.world.size());
   }
 }
 
-TEST_CASE("localizer: an observation between two landmarks inside the gate is ambiguous, not used", "[localization][localizer]") {
+TEST_CASE("localizer: an observation between two landmarks inside the gate is ambiguous, not used",
+          "[localization][localizer]") {
   Scene s;
   // two more reflectors 4 cm apart; the pose is known to ~1 cm, so both fall inside the gate
   const Eigen::Vector2d a = s.truth.compose(Pose2d{5.0, 0.5, 0.0}).translation();

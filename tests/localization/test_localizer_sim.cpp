@@ -10,7 +10,9 @@ using namespace agv;
 using namespace agv::sim;
 
 namespace {
-std::unique_ptr<LandmarkMap> makeMap() { return std::make_unique<LandmarkMap>(); }
+std::unique_ptr<LandmarkMap> makeMap() {
+  return std::make_unique<LandmarkMap>();
+}
 
 struct EndStats {
   double rmsPos = 0.0;
@@ -30,7 +32,8 @@ EndStats endStats(const RunConfig& base, int runs, LandmarkMap& map) {
 }
 }  // namespace
 
-TEST_CASE("localizer: end-of-path accuracy with a reflector map (12 m and 7 m paths, 50 ms lag)", "[localization][sim]") {
+TEST_CASE("localizer: end-of-path accuracy with a reflector map (12 m and 7 m paths, 50 ms lag)",
+          "[localization][sim]") {
   auto map = makeMap();
   for (int p = 0; p < 2; ++p) {
     RunConfig cfg;
@@ -39,7 +42,8 @@ TEST_CASE("localizer: end-of-path accuracy with a reflector map (12 m and 7 m pa
     const EndStats s = endStats(cfg, 20, *map);
     const RunResult one = runOnce(cfg, *map);
     double inView = 0.0;
-    for (const auto& c : one.cycles) inView += c.health.used;
+    for (const auto& c : one.cycles)
+      inView += c.health.used;
     std::printf("landmarks used per cycle (mean): %.1f\n", inView / one.cycles.size());
     std::printf("accuracy %s path: RMS position %.2f mm, heading %.2f cdeg (20 runs)\n", p == 0 ? "12 m" : "7 m",
                 s.rmsPos * 1e3, rad2deg(s.rmsHeading) * 100.0);
@@ -62,7 +66,8 @@ TEST_CASE("localizer: NEES over 50 Monte-Carlo runs lies within the 95 % chi-squ
       sum.assign(cycles, 0.0);
     }
     REQUIRE(res.cycles.size() == cycles);
-    for (std::size_t k = 0; k < cycles; ++k) sum[k] += res.cycles[k].nees;
+    for (std::size_t k = 0; k < cycles; ++k)
+      sum[k] += res.cycles[k].nees;
   }
   // Per cycle: N * ANEES ~ chi2(3N). Two-sided 95 % bounds (z = 1.96).
   const double lo = chiSquareQuantile(3.0 * runs, -1.959964) / runs;
@@ -72,12 +77,15 @@ TEST_CASE("localizer: NEES over 50 Monte-Carlo runs lies within the 95 % chi-squ
   for (std::size_t k = 0; k < cycles; ++k) {
     const double anees = sum[k] / runs;
     total += anees;
-    if (anees >= lo && anees <= hi) ++inside;
-    else if (std::getenv("AGV_PRINT_NEES") != nullptr) std::printf("cycle %zu ANEES %.3f outside\n", k, anees);
+    if (anees >= lo && anees <= hi)
+      ++inside;
+    else if (std::getenv("AGV_PRINT_NEES") != nullptr)
+      std::printf("cycle %zu ANEES %.3f outside\n", k, anees);
   }
   const double meanAnees = total / static_cast<double>(cycles);
-  std::printf("NEES: %d runs, %zu cycles, per-cycle 95%% band [%.3f, %.3f], %zu cycles inside (%.1f %%), mean ANEES %.3f\n",
-              runs, cycles, lo, hi, inside, 100.0 * inside / cycles, meanAnees);
+  std::printf(
+      "NEES: %d runs, %zu cycles, per-cycle 95%% band [%.3f, %.3f], %zu cycles inside (%.1f %%), mean ANEES %.3f\n",
+      runs, cycles, lo, hi, inside, 100.0 * inside / cycles, meanAnees);
   CHECK(static_cast<double>(inside) >= 0.90 * static_cast<double>(cycles));
   CHECK(meanAnees >= lo);
   CHECK(meanAnees <= hi);
@@ -99,19 +107,23 @@ TEST_CASE("localizer: 50 ms scan lag is absorbed by the odometry history", "[loc
     cfg.seed = 300 + static_cast<std::uint32_t>(r);
     const RunResult res = runOnce(cfg, *map);
     double s = 0.0;
-    for (const auto& c : res.cycles) s += c.error.head<2>().squaredNorm();
+    for (const auto& c : res.cycles)
+      s += c.error.head<2>().squaredNorm();
     naiveRms += s / res.cycles.size();
-    if (res.lostAtCycle >= 0) ++naiveLost;
+    if (res.lostAtCycle >= 0)
+      ++naiveLost;
   }
   naiveRms = std::sqrt(naiveRms / 20);
-  std::printf("latency: end RMS no lag %.2f mm, 50 ms lag %.2f mm; lag ignored: RMS along path %.1f mm, %d/20 runs lost\n",
-              noLag.rmsPos * 1e3, lag.rmsPos * 1e3, naiveRms * 1e3, naiveLost);
+  std::printf(
+      "latency: end RMS no lag %.2f mm, 50 ms lag %.2f mm; lag ignored: RMS along path %.1f mm, %d/20 runs lost\n",
+      noLag.rmsPos * 1e3, lag.rmsPos * 1e3, naiveRms * 1e3, naiveLost);
   CHECK(lag.rmsPos <= 1.5 * noLag.rmsPos);
   CHECK(lag.rmsHeading <= 1.5 * noLag.rmsHeading);
   CHECK(naiveRms > 5.0 * lag.rmsPos);
 }
 
-TEST_CASE("localizer: 20 % spurious and 10 % missed detections stay within 1.5x the clean errors", "[localization][sim]") {
+TEST_CASE("localizer: 20 % spurious and 10 % missed detections stay within 1.5x the clean errors",
+          "[localization][sim]") {
   auto map = makeMap();
   for (int p = 0; p < 2; ++p) {
     RunConfig cfg;
@@ -144,11 +156,13 @@ TEST_CASE("localizer: a kidnapped vehicle is flagged lost within 5 cycles", "[lo
     REQUIRE(res.lostAtCycle > cfg.kidnapAtCycle);
     CHECK(res.lostAtCycle - cfg.kidnapAtCycle <= 5);
     // Not lost before the kidnap.
-    for (int c = 0; c < cfg.kidnapAtCycle; ++c) CHECK_FALSE(res.cycles[static_cast<std::size_t>(c)].health.lost);
+    for (int c = 0; c < cfg.kidnapAtCycle; ++c)
+      CHECK_FALSE(res.cycles[static_cast<std::size_t>(c)].health.lost);
   }
 }
 
-TEST_CASE("localizer: FALKO-corner maps: dynamic with no prior map, and static from a mapping run", "[localization][sim][falko]") {
+TEST_CASE("localizer: FALKO-corner maps: dynamic with no prior map, and static from a mapping run",
+          "[localization][sim][falko]") {
   auto map = makeMap();
   // The start pose is known (a reference station): 2 mm, 2 cdeg. Without a prior map it defines
   // the map frame, so it bounds the error against the world.
@@ -171,13 +185,14 @@ TEST_CASE("localizer: FALKO-corner maps: dynamic with no prior map, and static f
       const RunResult res = runOnce(cfg, *map);
       sp += res.endError.head<2>().squaredNorm();
       sh += res.endError(2) * res.endError(2);
-      for (const auto& c : res.cycles) CHECK_FALSE(c.health.lost);
+      for (const auto& c : res.cycles)
+        CHECK_FALSE(c.health.lost);
       maxLm = std::max(maxLm, static_cast<double>(map->size()));
     }
     const double rp = std::sqrt(sp / runs);
     const double rh = rad2deg(std::sqrt(sh / runs)) * 100.0;
-    std::printf("FALKO dynamic map, no prior, 7 m: RMS %.2f mm / %.2f cdeg (%d runs, map up to %.0f landmarks)\n", rp * 1e3,
-                rh, runs, maxLm);
+    std::printf("FALKO dynamic map, no prior, 7 m: RMS %.2f mm / %.2f cdeg (%d runs, map up to %.0f landmarks)\n",
+                rp * 1e3, rh, runs, maxLm);
     CHECK(rp <= 0.02);
     CHECK(rh <= 10.0);
   }
@@ -217,7 +232,8 @@ TEST_CASE("localizer: driven through the unicycle odometry input (log-style incr
   cfg.lagSeconds = 0.0;  // log increments arrive at the scan instants
   cfg.seed = 1500;
   const EndStats s = endStats(cfg, 20, *map);
-  std::printf("unicycle input, reflector map, 12 m: RMS %.2f mm / %.2f cdeg\n", s.rmsPos * 1e3, rad2deg(s.rmsHeading) * 100.0);
+  std::printf("unicycle input, reflector map, 12 m: RMS %.2f mm / %.2f cdeg\n", s.rmsPos * 1e3,
+              rad2deg(s.rmsHeading) * 100.0);
   CHECK(s.rmsPos <= 0.005);
   CHECK(rad2deg(s.rmsHeading) * 100.0 <= 5.0);
   const RunResult res = runOnce(cfg, *map);
@@ -233,7 +249,8 @@ TEST_CASE("localizer: reflector map with a 2 mm survey error still meets 5 mm / 
   cfg.surveySigma = 0.002;
   cfg.seed = 1700;
   const EndStats s = endStats(cfg, 20, *map);
-  std::printf("survey error 2 mm, reflector map, 12 m: RMS %.2f mm / %.2f cdeg\n", s.rmsPos * 1e3, rad2deg(s.rmsHeading) * 100.0);
+  std::printf("survey error 2 mm, reflector map, 12 m: RMS %.2f mm / %.2f cdeg\n", s.rmsPos * 1e3,
+              rad2deg(s.rmsHeading) * 100.0);
   CHECK(s.rmsPos <= 0.005);
   CHECK(rad2deg(s.rmsHeading) * 100.0 <= 5.0);
 }

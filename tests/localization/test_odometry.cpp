@@ -45,7 +45,8 @@ TEST_CASE("tricycle process noise matches Monte Carlo propagation of the input n
   const double a1 = 0.35;
   const OdometryIncrement inc = odo.increment(Timestamp{}, ds, a0, a1, true);
   // Input variances from the documented model, independently of the code under test.
-  const double varDs = noise.slipVariancePerMetre * ds + v.driveScale * v.driveScale / (6.0 * noise.samplesPerCorrection);
+  const double varDs =
+      noise.slipVariancePerMetre * ds + v.driveScale * v.driveScale / (6.0 * noise.samplesPerCorrection);
   const double varA = noise.steeringSigma * noise.steeringSigma;
   std::mt19937_64 rng(7);
   std::normal_distribution<double> n01(0.0, 1.0);
@@ -86,7 +87,8 @@ TEST_CASE("steering noise: the white-equivalent per-step variance matches the he
   const double ds = 0.01;
   // Model: sum of the per-step heading variances (straight driving, so no coupling).
   double modelVar = 0.0;
-  for (int k = 0; k < steps; ++k) modelVar += odo.increment(Timestamp{}, ds, 0.0, 0.0, false).covariance(2, 2);
+  for (int k = 0; k < steps; ++k)
+    modelVar += odo.increment(Timestamp{}, ds, 0.0, 0.0, false).covariance(2, 2);
   std::mt19937_64 rng(11);
   std::normal_distribution<double> n(0.0, noise.steeringSigma);
   const int runs = 20000;

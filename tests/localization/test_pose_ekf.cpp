@@ -63,7 +63,8 @@ TEST_CASE("pose EKF: prediction Jacobians match numerical differentiation", "[lo
     REQUIRE(ekf.reset(x, P) == Status::Ok);
     REQUIRE(ekf.predict(inc) == Status::Ok);
     // P' = F e_j e_j^T F^T: its diagonal is col^2
-    for (int r = 0; r < 3; ++r) AGV_CHECK_NEAR(ekf.covariance()(r, r), col(r) * col(r), 1e-8);
+    for (int r = 0; r < 3; ++r)
+      AGV_CHECK_NEAR(ekf.covariance()(r, r), col(r) * col(r), 1e-8);
   }
 }
 

@@ -11,8 +11,12 @@ struct Cursor {
   const char* end;
 };
 
-bool isBlank(char c) noexcept { return c == ' ' || c == '\t' || c == '\r'; }
-bool isDigit(char c) noexcept { return c >= '0' && c <= '9'; }
+bool isBlank(char c) noexcept {
+  return c == ' ' || c == '\t' || c == '\r';
+}
+bool isDigit(char c) noexcept {
+  return c >= '0' && c <= '9';
+}
 
 /// The next line without its end-of-line and comment; false at end of text.
 bool nextLine(Cursor& c, const char** begin, const char** lineEnd) noexcept {

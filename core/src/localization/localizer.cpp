@@ -10,8 +10,12 @@ double largestEigen2(double a, double b, double c) noexcept {
   const double h = 0.5 * (a - c);
   return 0.5 * (a + c) + std::sqrt(h * h + b * b);
 }
-std::uint32_t bit(LocalizerFlag f) noexcept { return static_cast<std::uint32_t>(f); }
-std::uint16_t sat16(std::size_t v) noexcept { return v > 0xFFFFU ? static_cast<std::uint16_t>(0xFFFFU) : static_cast<std::uint16_t>(v); }
+std::uint32_t bit(LocalizerFlag f) noexcept {
+  return static_cast<std::uint32_t>(f);
+}
+std::uint16_t sat16(std::size_t v) noexcept {
+  return v > 0xFFFFU ? static_cast<std::uint16_t>(0xFFFFU) : static_cast<std::uint16_t>(v);
+}
 }  // namespace
 
 Localizer::Localizer(const LocalizerParams& params) noexcept : params_(params), ekf_(params.ekf) {}
@@ -92,16 +96,15 @@ std::uint16_t Localizer::countExpectedInView(std::uint8_t kinds, const LandmarkM
                                              LandmarkMap* mutableMap) noexcept {
   const Pose2d laserWorld = ekf_.pose().compose(params_.laser.mounting);
   std::size_t count = 0;
-  map.forEachNear(laserWorld.x, laserWorld.y, params_.laser.rangeMax,
-                  [&](LandmarkIndex idx, const Landmark& lm) {
-                    if ((landmarkKindBit(lm.kind) & kinds) == 0U || !inView(laserWorld, lm.x, lm.y)) {
-                      return;
-                    }
-                    ++count;
-                    if (weakenUnmatched && mutableMap != nullptr && !lm.surveyed && lm.lastMatchedCycle != cycle_) {
-                      (void)mutableMap->weaken(idx);
-                    }
-                  });
+  map.forEachNear(laserWorld.x, laserWorld.y, params_.laser.rangeMax, [&](LandmarkIndex idx, const Landmark& lm) {
+    if ((landmarkKindBit(lm.kind) & kinds) == 0U || !inView(laserWorld, lm.x, lm.y)) {
+      return;
+    }
+    ++count;
+    if (weakenUnmatched && mutableMap != nullptr && !lm.surveyed && lm.lastMatchedCycle != cycle_) {
+      (void)mutableMap->weaken(idx);
+    }
+  });
   return sat16(count);
 }
 
@@ -315,7 +318,8 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
   const bool tooOld = scan.stamp < entry(0).stamp || (haveScan_ && scan.stamp < lastScanStamp_);
   const bool tooNew = scan.stamp > newest && (scan.stamp - newest) > params_.maxScanLead;
   if (tooOld || tooNew) {
-    health_.flags |= bit(LocalizerFlag::ScanRejected) | bit(tooOld ? LocalizerFlag::ScanTooOld : LocalizerFlag::ScanTooNew);
+    health_.flags |=
+        bit(LocalizerFlag::ScanRejected) | bit(tooOld ? LocalizerFlag::ScanTooOld : LocalizerFlag::ScanTooNew);
     health_.status = Status::Rejected;
     finishHealth();
     return health_;
@@ -388,27 +392,49 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
   }
   for (std::size_t i = 0; i < nObs; ++i) {
     switch (scratch_[i].state) {
-      case Assoc::Used: ++health_.used; break;
-      case Assoc::NonFinite: ++health_.rejectedNonFinite; break;
-      case Assoc::OutOfView: ++health_.rejectedOutOfView; break;
-      case Assoc::Gate: ++health_.rejectedGate; break;
-      case Assoc::Duplicate: ++health_.rejectedDuplicate; break;
-      case Assoc::UpdateRejected: ++health_.rejectedUpdate; break;
-      case Assoc::Ambiguous: ++health_.rejectedAmbiguous; break;
-      case Assoc::None: ++health_.unmatched; break;
-      case Assoc::Matched: break;
+      case Assoc::Used:
+        ++health_.used;
+        break;
+      case Assoc::NonFinite:
+        ++health_.rejectedNonFinite;
+        break;
+      case Assoc::OutOfView:
+        ++health_.rejectedOutOfView;
+        break;
+      case Assoc::Gate:
+        ++health_.rejectedGate;
+        break;
+      case Assoc::Duplicate:
+        ++health_.rejectedDuplicate;
+        break;
+      case Assoc::UpdateRejected:
+        ++health_.rejectedUpdate;
+        break;
+      case Assoc::Ambiguous:
+        ++health_.rejectedAmbiguous;
+        break;
+      case Assoc::None:
+        ++health_.unmatched;
+        break;
+      case Assoc::Matched:
+        break;
     }
   }
   if (health_.used > 0) {
     health_.meanTestRatio = ratioSum / static_cast<double>(health_.used);
   }
-  if (health_.rejectedNonFinite > 0) health_.flags |= bit(LocalizerFlag::ObservationNonFinite);
-  if (health_.rejectedOutOfView > 0) health_.flags |= bit(LocalizerFlag::ObservationOutOfView);
-  if (health_.rejectedGate > 0) health_.flags |= bit(LocalizerFlag::GateRejected);
-  if (health_.rejectedDuplicate > 0) health_.flags |= bit(LocalizerFlag::DuplicateRejected);
-  if (health_.rejectedUpdate > 0) health_.flags |= bit(LocalizerFlag::UpdateRejected);
-  if (health_.rejectedAmbiguous > 0) health_.flags |= bit(LocalizerFlag::AmbiguityRejected);
-  if (health_.used < params_.minMatchesForFix) health_.flags |= bit(LocalizerFlag::NoFix);
+  const auto flagIf = [this](bool condition, LocalizerFlag flag) {
+    if (condition) {
+      health_.flags |= bit(flag);
+    }
+  };
+  flagIf(health_.rejectedNonFinite > 0, LocalizerFlag::ObservationNonFinite);
+  flagIf(health_.rejectedOutOfView > 0, LocalizerFlag::ObservationOutOfView);
+  flagIf(health_.rejectedGate > 0, LocalizerFlag::GateRejected);
+  flagIf(health_.rejectedDuplicate > 0, LocalizerFlag::DuplicateRejected);
+  flagIf(health_.rejectedUpdate > 0, LocalizerFlag::UpdateRejected);
+  flagIf(health_.rejectedAmbiguous > 0, LocalizerFlag::AmbiguityRejected);
+  flagIf(health_.used < params_.minMatchesForFix, LocalizerFlag::NoFix);
 
   // --- Health: matched vs expected, covariance limits, lost.
   bool bad = false;

@@ -29,9 +29,9 @@ OdometryIncrement TricycleOdometry::increment(Timestamp stamp, double ds, double
   const double a = 0.5 * (alphaPrev + alphaCur);
   const double ca = std::cos(a);
   const double sa = std::sin(a);
-  const double d = ds * ca;            // forward travel of the logical point
-  const double dTheta = ds * sa / L;   // rotation
-  const double h = 0.5 * dTheta;       // heading of the chord (RK2 midpoint)
+  const double d = ds * ca;           // forward travel of the logical point
+  const double dTheta = ds * sa / L;  // rotation
+  const double h = 0.5 * dTheta;      // heading of the chord (RK2 midpoint)
   const double ch = std::cos(h);
   const double sh = std::sin(h);
 
@@ -88,7 +88,7 @@ Result<OdometryIncrement> TricycleOdometry::step(const TricycleSample& sample) n
   }
   const double ds = static_cast<double>(dn) * vehicle_.driveScale;
   const double offset = ds >= 0.0 ? vehicle_.steerOffsetForward : vehicle_.steerOffsetBackward;
-  const OdometryIncrement inc =
+  OdometryIncrement inc =
       increment(sample.stamp, ds, previous_.steeringAngle + offset, sample.steeringAngle + offset, dn != 0);
   previous_ = sample;
   return inc;
@@ -101,7 +101,8 @@ OdometryIncrement unicycleIncrement(Timestamp stamp, const Pose2d& delta, const 
   const double dist = std::hypot(delta.x, delta.y);
   const double rot = std::fabs(delta.theta);
   const double varT = noise.translationVariancePerMetre * dist + noise.floorVariance;
-  const double varR = noise.rotationVariancePerRadian * rot + noise.rotationVariancePerMetre * dist + noise.floorVariance;
+  const double varR =
+      noise.rotationVariancePerRadian * rot + noise.rotationVariancePerMetre * dist + noise.floorVariance;
   inc.covariance = Eigen::Matrix3d::Zero();
   inc.covariance(0, 0) = varT;
   inc.covariance(1, 1) = varT;

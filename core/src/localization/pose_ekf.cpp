@@ -96,8 +96,7 @@ PointInnovation PoseEkf::innovation(const Eigen::Vector2d& zLaser, const Eigen::
   const Eigen::Vector2d h(cl * qx + sl * qy, -sl * qx + cl * qy);
   // d(p)/d(x, y, theta)
   Eigen::Matrix<double, 2, 3> Hp;
-  Hp << -c, -s, py,
-         s, -c, -px;
+  Hp << -c, -s, py, s, -c, -px;
   Eigen::Matrix2d Rl;
   Rl << cl, sl, -sl, cl;  // R(l_theta)^T
   out.H = Rl * Hp;

@@ -51,22 +51,22 @@ inline constexpr double kMaxMapCoordinate = 1.0e6;
 
 /// One point landmark.
 struct Landmark {
-  double x = 0.0;                          ///< world [m]
-  double y = 0.0;                          ///< world [m]
-  double variance = 0.0;                   ///< isotropic position variance [m^2]
-  std::uint32_t id = 0;                    ///< unique id (surveyed: from the map file)
-  std::uint32_t lastMatchedCycle = 0;      ///< cycle number of the last match (0 = never)
-  std::int16_t hits = 0;                   ///< lifecycle counter (surveyed: unused)
+  double x = 0.0;                      ///< world [m]
+  double y = 0.0;                      ///< world [m]
+  double variance = 0.0;               ///< isotropic position variance [m^2]
+  std::uint32_t id = 0;                ///< unique id (surveyed: from the map file)
+  std::uint32_t lastMatchedCycle = 0;  ///< cycle number of the last match (0 = never)
+  std::int16_t hits = 0;               ///< lifecycle counter (surveyed: unused)
   LandmarkKind kind = LandmarkKind::Reflector;
-  bool surveyed = false;                   ///< never moves, never dies
+  bool surveyed = false;  ///< never moves, never dies
 };
 
 /// Parameters of the map (documented defaults from the reference localizer).
 struct LandmarkMapParams {
-  double cellSize = 2.0;          ///< grid cell edge [m], in [0.05, 1000]
-  double updateRate = 0.1;        ///< a matched landmark moves this fraction toward the observation
-  std::int16_t initialHits = 1;   ///< hit count of a newly inserted landmark
-  std::int16_t maxHits = 20;      ///< cap, so a vanished landmark dies within maxHits cycles in view
+  double cellSize = 2.0;         ///< grid cell edge [m], in [0.05, 1000]
+  double updateRate = 0.1;       ///< a matched landmark moves this fraction toward the observation
+  std::int16_t initialHits = 1;  ///< hit count of a newly inserted landmark
+  std::int16_t maxHits = 20;     ///< cap, so a vanished landmark dies within maxHits cycles in view
   MapMode mode = MapMode::Dynamic;
 };
 

@@ -43,13 +43,13 @@ struct ScanObservations {
 
 /// The laser as the localizer sees it.
 struct LaserModel {
-  Pose2d mounting{};                  ///< calibrated laser pose l in the logical-point frame
-  double rangeMin = 0.3;              ///< [m] closest valid detection
-  double rangeMax = 30.0;             ///< [m] farthest valid detection
-  double angleMin = -2.35619449;      ///< [rad] field of view start (-135 deg)
-  double angleMax = 2.35619449;       ///< [rad] field of view end (+135 deg)
-  double rangeSigma = 0.005;          ///< [m] range noise of a point detection
-  double bearingSigma = 0.0005;       ///< [rad] bearing noise of a point detection (0.03 deg)
+  Pose2d mounting{};              ///< calibrated laser pose l in the logical-point frame
+  double rangeMin = 0.3;          ///< [m] closest valid detection
+  double rangeMax = 30.0;         ///< [m] farthest valid detection
+  double angleMin = -2.35619449;  ///< [rad] field of view start (-135 deg)
+  double angleMax = 2.35619449;   ///< [rad] field of view end (+135 deg)
+  double rangeSigma = 0.005;      ///< [m] range noise of a point detection
+  double bearingSigma = 0.0005;   ///< [rad] bearing noise of a point detection (0.03 deg)
   /// Extra isotropic position noise per kind [m]: a reflector centre is well defined (0), a corner
   /// apex from FALKO's sub-beam refinement less so.
   double kindSigma[kLandmarkKindCount] = {0.0, 0.01};
@@ -84,30 +84,30 @@ struct LocalizerParams {
   /// Consecutive bad cycles that make the localizer lost (latched until `reset`).
   std::uint8_t lostAfterBadCycles = 3;
   /// Position (largest axis) and heading standard deviations beyond which a cycle is bad.
-  double maxPositionSigma = 0.10;     ///< [m]
-  double maxHeadingSigma = 0.035;     ///< [rad] (2 deg)
+  double maxPositionSigma = 0.10;  ///< [m]
+  double maxHeadingSigma = 0.035;  ///< [rad] (2 deg)
   /// A scan stamped later than the newest odometry by more than this is refused.
   Duration maxScanLead = Duration::fromMilliseconds(100);
 };
 
 /// Bits of `LocalizerHealth::flags`.
 enum class LocalizerFlag : std::uint32_t {
-  NotInitialized = 1U << 0,         ///< no `reset` yet
-  OdometryRejected = 1U << 1,       ///< an increment since the last cycle was refused (non-finite, out of order)
-  ScanRejected = 1U << 2,           ///< the whole scan was refused (see ScanTooOld / ScanTooNew)
-  ScanTooOld = 1U << 3,             ///< older than the odometry history or than the previous scan
-  ScanTooNew = 1U << 4,             ///< later than the newest odometry by more than maxScanLead
-  ObservationNonFinite = 1U << 5,   ///< some observation had NaN/inf coordinates
-  ObservationOutOfView = 1U << 6,   ///< some observation lay outside the laser's range/field of view
-  GateRejected = 1U << 7,           ///< some observation had map candidates, none within the gate
-  DuplicateRejected = 1U << 8,      ///< two observations claimed one landmark; the worse was dropped
-  UpdateRejected = 1U << 9,         ///< an associated observation failed the re-gate in the update
-  NoFix = 1U << 10,                 ///< fewer than minMatchesForFix landmarks used
-  BadCycle = 1U << 11,              ///< too few of the expected landmarks matched, or covariance limit
-  CovarianceLimit = 1U << 12,       ///< position or heading sigma beyond its limit
-  MapInsertRefused = 1U << 13,      ///< the map was full; new landmarks were refused (counted)
-  Lost = 1U << 14,                  ///< the pose is not trusted (latched until reset): stop the vehicle
-  AmbiguityRejected = 1U << 15,     ///< an observation had two landmarks inside the gate, too close to tell
+  NotInitialized = 1U << 0,        ///< no `reset` yet
+  OdometryRejected = 1U << 1,      ///< an increment since the last cycle was refused (non-finite, out of order)
+  ScanRejected = 1U << 2,          ///< the whole scan was refused (see ScanTooOld / ScanTooNew)
+  ScanTooOld = 1U << 3,            ///< older than the odometry history or than the previous scan
+  ScanTooNew = 1U << 4,            ///< later than the newest odometry by more than maxScanLead
+  ObservationNonFinite = 1U << 5,  ///< some observation had NaN/inf coordinates
+  ObservationOutOfView = 1U << 6,  ///< some observation lay outside the laser's range/field of view
+  GateRejected = 1U << 7,          ///< some observation had map candidates, none within the gate
+  DuplicateRejected = 1U << 8,     ///< two observations claimed one landmark; the worse was dropped
+  UpdateRejected = 1U << 9,        ///< an associated observation failed the re-gate in the update
+  NoFix = 1U << 10,                ///< fewer than minMatchesForFix landmarks used
+  BadCycle = 1U << 11,             ///< too few of the expected landmarks matched, or covariance limit
+  CovarianceLimit = 1U << 12,      ///< position or heading sigma beyond its limit
+  MapInsertRefused = 1U << 13,     ///< the map was full; new landmarks were refused (counted)
+  Lost = 1U << 14,                 ///< the pose is not trusted (latched until reset): stop the vehicle
+  AmbiguityRejected = 1U << 15,    ///< an observation had two landmarks inside the gate, too close to tell
 };
 
 /// True when `flag` is set in `flags`.
@@ -119,26 +119,26 @@ constexpr bool hasFlag(std::uint32_t flags, LocalizerFlag flag) noexcept {
 struct LocalizerHealth {
   /// Ok; NotInitialized; Rejected (scan refused); Lost (latched).
   Status status = Status::Ok;
-  std::uint32_t flags = 0;               ///< LocalizerFlag bits
-  std::uint32_t cycle = 0;               ///< correction cycle number (1 = first)
-  Timestamp stamp;                       ///< the scan's stamp
-  std::uint16_t observations = 0;        ///< points in the scan
-  std::uint16_t used = 0;                ///< landmarks used in the update
+  std::uint32_t flags = 0;         ///< LocalizerFlag bits
+  std::uint32_t cycle = 0;         ///< correction cycle number (1 = first)
+  Timestamp stamp;                 ///< the scan's stamp
+  std::uint16_t observations = 0;  ///< points in the scan
+  std::uint16_t used = 0;          ///< landmarks used in the update
   std::uint16_t rejectedNonFinite = 0;
   std::uint16_t rejectedOutOfView = 0;
   std::uint16_t rejectedGate = 0;
   std::uint16_t rejectedDuplicate = 0;
   std::uint16_t rejectedUpdate = 0;
   std::uint16_t rejectedAmbiguous = 0;
-  std::uint16_t unmatched = 0;           ///< no map candidate at all (new landmark candidates)
-  std::uint16_t expectedInView = 0;      ///< map landmarks of the detected kinds inside the view
-  std::uint16_t inserted = 0;            ///< landmarks added to the map this cycle
-  std::uint16_t insertRefused = 0;       ///< inserts the full map refused this cycle
-  std::uint16_t deleted = 0;             ///< landmarks that died this cycle
-  double maxTestRatio = 0.0;             ///< max d^2/gate over used observations (< 1)
-  double meanTestRatio = 0.0;            ///< mean d^2/gate over used observations (~2/gate if consistent)
-  double positionSigma = 0.0;            ///< [m] largest axis of the position covariance
-  double headingSigma = 0.0;             ///< [rad]
+  std::uint16_t unmatched = 0;       ///< no map candidate at all (new landmark candidates)
+  std::uint16_t expectedInView = 0;  ///< map landmarks of the detected kinds inside the view
+  std::uint16_t inserted = 0;        ///< landmarks added to the map this cycle
+  std::uint16_t insertRefused = 0;   ///< inserts the full map refused this cycle
+  std::uint16_t deleted = 0;         ///< landmarks that died this cycle
+  double maxTestRatio = 0.0;         ///< max d^2/gate over used observations (< 1)
+  double meanTestRatio = 0.0;        ///< mean d^2/gate over used observations (~2/gate if consistent)
+  double positionSigma = 0.0;        ///< [m] largest axis of the position covariance
+  double headingSigma = 0.0;         ///< [rad]
   std::uint8_t consecutiveBadCycles = 0;
   bool lost = false;
 };
@@ -175,14 +175,24 @@ class Localizer {
  private:
   struct HistoryEntry {
     Timestamp stamp;
-    Pose2d delta{};                                   // increment ending at stamp
+    Pose2d delta{};  // increment ending at stamp
     Eigen::Matrix3d deltaCov = Eigen::Matrix3d::Zero();
-    Pose2d pose{};                                    // posterior after it
+    Pose2d pose{};  // posterior after it
     Eigen::Matrix3d cov = Eigen::Matrix3d::Identity();
   };
-  enum class Assoc : std::uint8_t { None, Matched, NonFinite, OutOfView, Gate, Duplicate, Ambiguous, Used, UpdateRejected };
+  enum class Assoc : std::uint8_t {
+    None,
+    Matched,
+    NonFinite,
+    OutOfView,
+    Gate,
+    Duplicate,
+    Ambiguous,
+    Used,
+    UpdateRejected
+  };
   struct Scratch {
-    Eigen::Matrix2d R = Eigen::Matrix2d::Zero();   // sensor noise, laser frame
+    Eigen::Matrix2d R = Eigen::Matrix2d::Zero();  // sensor noise, laser frame
     double d2 = 0.0;
     LandmarkIndex landmark = kNoLandmark;
     Assoc state = Assoc::None;

@@ -23,9 +23,9 @@ namespace agv {
 /// pose's frame, with the covariance of (dx, dy, dtheta) in that frame. This is the only thing
 /// the EKF prediction consumes, so any odometry source can drive it.
 struct OdometryIncrement {
-  Timestamp stamp;                                          ///< end of the interval
-  Pose2d delta;                                             ///< motion in the start frame [m, m, rad]
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();     ///< of delta [m^2, rad^2]
+  Timestamp stamp;                                       ///< end of the interval
+  Pose2d delta;                                          ///< motion in the start frame [m, m, rad]
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< of delta [m^2, rad^2]
 
   /// True when every number is finite and the covariance is symmetric with a non-negative diagonal.
   bool isValid() const noexcept;
@@ -96,16 +96,15 @@ class TricycleOdometry {
 /// Noise of a differential/unicycle odometry increment (classic odometry motion model): variances
 /// grow with the distance and rotation of the increment.
 struct UnicycleNoiseParams {
-  double translationVariancePerMetre = 1e-4;   ///< [m^2/m] along and across the motion
-  double rotationVariancePerRadian = 1e-3;     ///< [rad^2/rad] from turning
-  double rotationVariancePerMetre = 2e-4;      ///< [rad^2/m] heading drift from translation
-  double floorVariance = 1e-12;                ///< added to every diagonal term (keeps Q > 0)
+  double translationVariancePerMetre = 1e-4;  ///< [m^2/m] along and across the motion
+  double rotationVariancePerRadian = 1e-3;    ///< [rad^2/rad] from turning
+  double rotationVariancePerMetre = 2e-4;     ///< [rad^2/m] heading drift from translation
+  double floorVariance = 1e-12;               ///< added to every diagonal term (keeps Q > 0)
 };
 
 /// Wraps a measured pose increment `delta` (start frame) ending at `stamp` with a covariance from
 /// `noise`. Use it for odometry that is already integrated (differential drive, recorded logs).
-OdometryIncrement unicycleIncrement(Timestamp stamp, const Pose2d& delta,
-                                    const UnicycleNoiseParams& noise) noexcept;
+OdometryIncrement unicycleIncrement(Timestamp stamp, const Pose2d& delta, const UnicycleNoiseParams& noise) noexcept;
 
 /// The fraction `f` in [0, 1] of an increment (same chord direction relative to the half-way
 /// heading, rotation and distance scaled by f, covariance scaled by f). `between(part(f), delta)`

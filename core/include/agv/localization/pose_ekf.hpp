@@ -29,18 +29,18 @@ namespace agv {
 
 /// Parameters of the pose filter.
 struct PoseEkfParams {
-  double varianceFloorXY = 1e-10;      ///< [m^2] lowest x/y variance kept ((10 um)^2)
-  double varianceFloorTheta = 1e-12;   ///< [rad^2] lowest heading variance kept ((1 urad)^2)
+  double varianceFloorXY = 1e-10;     ///< [m^2] lowest x/y variance kept ((10 um)^2)
+  double varianceFloorTheta = 1e-12;  ///< [rad^2] lowest heading variance kept ((1 urad)^2)
 };
 
 /// The linearised prediction of one point observation at the current state.
 struct PointInnovation {
-  Eigen::Vector2d innovation = Eigen::Vector2d::Zero();  ///< z - h(x, m) [m], laser frame
-  Eigen::Matrix2d S = Eigen::Matrix2d::Identity();       ///< H P H^T + R [m^2]
+  Eigen::Vector2d innovation = Eigen::Vector2d::Zero();                 ///< z - h(x, m) [m], laser frame
+  Eigen::Matrix2d S = Eigen::Matrix2d::Identity();                      ///< H P H^T + R [m^2]
   Eigen::Matrix<double, 2, 3> H = Eigen::Matrix<double, 2, 3>::Zero();  ///< dh/dx
-  Eigen::Matrix2d R = Eigen::Matrix2d::Zero();           ///< observation + landmark noise [m^2]
-  double mahalanobis2 = 0.0;                             ///< nu^T S^-1 nu
-  bool valid = false;                                    ///< false when S is not positive definite
+  Eigen::Matrix2d R = Eigen::Matrix2d::Zero();                          ///< observation + landmark noise [m^2]
+  double mahalanobis2 = 0.0;                                            ///< nu^T S^-1 nu
+  bool valid = false;                                                   ///< false when S is not positive definite
 };
 
 /// Covariance [m^2] of a laser-frame point measured at range r, bearing b with independent range
