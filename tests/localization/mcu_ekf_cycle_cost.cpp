@@ -25,7 +25,6 @@ void printU64(std::uint64_t v) {
 }
 
 LandmarkMap map;
-Localizer* locPtr = nullptr;
 ScanObservations scan;
 }  // namespace
 
@@ -38,7 +37,6 @@ int main() {
   params.laser.mounting = Pose2d{1.0, 0.0, 0.0};
   params.laser.rangeMax = 14.0;
   static Localizer loc(params);
-  locPtr = &loc;
   const int side = 16;
   const double spacing = 3.0;
   const double half = 0.5 * spacing * side;
