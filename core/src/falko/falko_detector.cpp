@@ -1,6 +1,7 @@
 #include "agv/falko/falko_detector.hpp"
 
 #include <cmath>
+#include <algorithm>
 #include <limits>
 
 #include "agv/core/angle.hpp"
@@ -11,6 +12,7 @@ namespace agv {
 namespace {
 
 constexpr std::size_t kMaxGridSectors = 64;
+constexpr float kNotCandidate = std::numeric_limits<float>::infinity();
 
 /// A line through (mx, my) with unit direction (dx, dy).
 struct Line {
@@ -135,86 +137,130 @@ Status FalkoDetector::detect(const LaserScan& scan, IVector<FalkoKeypoint>& out)
   return detect(points_, out);
 }
 
-bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, Side& left, Side& right) noexcept {
+namespace {
+/// Farthest point within `radius` of beam i on one side (dir -1: earlier beams, +1: later), found
+/// by walking from the edge of the angular window inwards: on a straight wall the window edge is
+/// about r away, so this usually stops after a few beams. Returns false when the side is empty.
+bool farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::size_t kmax, float r2, float& fx,
+                    float& fy) noexcept {
   const std::size_t n = pts.size();
+  const float cx = pts.x(i);
+  const float cy = pts.y(i);
+  for (std::size_t k = kmax; k >= 1; --k) {
+    std::size_t j = 0;
+    if (dir < 0) {
+      if (k <= i) {
+        j = i - k;
+      } else if (pts.wraps()) {
+        j = i + n - k;
+      } else {
+        continue;
+      }
+    } else {
+      if (i + k < n) {
+        j = i + k;
+      } else if (pts.wraps()) {
+        j = i + k - n;
+      } else {
+        continue;
+      }
+    }
+    const float dx = pts.x(j) - cx;
+    const float dy = pts.y(j) - cy;
+    if (dx * dx + dy * dy <= r2) {  // invalid readings are far away
+      fx = dx;
+      fy = dy;
+      return true;
+    }
+  }
+  return false;
+}
+}  // namespace
+
+bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, Side& left, Side& right) noexcept {
   const float cx = pts.x(i);
   const float cy = pts.y(i);
   const float r2 = radius * radius;
   const std::size_t kmax = pts.maxOffset(pts.range(i), radius);
-  left = Side{};
-  right = Side{};
-  for (std::size_t k = 1; k <= kmax; ++k) {
-    const std::size_t j = pts.offsetIndex(i, -static_cast<std::ptrdiff_t>(k));
-    if (j >= n) {
-      break;
-    }
-    if (!pts.valid(j)) {
-      continue;
-    }
+  // Invalid readings are far away (ScanPoints::kFarAway): the radius test drops them.
+  std::size_t nl = 0;
+  float slx = 0.0F;
+  float sly = 0.0F;
+  float* lx = leftX_.data();
+  float* ly = leftY_.data();
+  falko_detail::walkBeams(pts, i, -1, kmax, [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {
-      leftX_[left.count] = dx;
-      leftY_[left.count] = dy;
-      ++left.count;
-      left.sumX += dx;
-      left.sumY += dy;
+      lx[nl] = dx;
+      ly[nl] = dy;
+      ++nl;
+      slx += dx;
+      sly += dy;
     }
-  }
-  if (left.count < params_.minSidePoints) {
+  });
+  left.count = nl;
+  left.sumX = slx;
+  left.sumY = sly;
+  if (nl < params_.minSidePoints) {
     return false;  // early rejection: the other side is not needed
   }
-  for (std::size_t k = 1; k <= kmax; ++k) {
-    const std::size_t j = pts.offsetIndex(i, static_cast<std::ptrdiff_t>(k));
-    if (j >= n) {
-      break;
-    }
-    if (!pts.valid(j)) {
-      continue;
-    }
+  std::size_t nr = 0;
+  float srx = 0.0F;
+  float sry = 0.0F;
+  float* rx = rightX_.data();
+  float* ry = rightY_.data();
+  falko_detail::walkBeams(pts, i, 1, kmax, [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {
-      rightX_[right.count] = dx;
-      rightY_[right.count] = dy;
-      ++right.count;
-      right.sumX += dx;
-      right.sumY += dy;
+      rx[nr] = dx;
+      ry[nr] = dy;
+      ++nr;
+      srx += dx;
+      sry += dy;
     }
-  }
-  return right.count >= params_.minSidePoints;
+  });
+  right.count = nr;
+  right.sumX = srx;
+  right.sumY = sry;
+  return nr >= params_.minSidePoints;
 }
 
-float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float s) const noexcept {
+float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float s) noexcept {
   const auto bins = static_cast<unsigned>(params_.gridSectors);
   const float binsPerRadian = static_cast<float>(bins) / kTwoPi<float>;
   const unsigned half = bins / 2U;
+  const bool fast16 = bins == 16U;
   float total = 0.0F;
   float pairs = 0.0F;
   for (int side = 0; side < 2; ++side) {
     const Side& sd = side == 0 ? left : right;
     const float* px = side == 0 ? leftX_.data() : rightX_.data();
     const float* py = side == 0 ? leftY_.data() : rightY_.data();
-    std::array<std::uint32_t, kMaxGridSectors> hist{};
-    std::array<unsigned, kMaxGridSectors> used{};
+    // hist_ is all zero between calls: only the used bins are reset at the end.
+    std::array<unsigned, kMaxGridSectors> used;  // only [0, usedCount) is read
     unsigned usedCount = 0;
     for (std::size_t k = 0; k < sd.count; ++k) {
       // Bearing of the neighbour seen from the candidate, relative to the corner orientation.
       const float u = px[k] * c + py[k] * s;
       const float v = py[k] * c - px[k] * s;
-      const unsigned b = falko_detail::sectorOf(v, u, binsPerRadian, bins);
-      if (hist[b]++ == 0U) {
+      const unsigned b = fast16 ? falko_detail::sector16(u, v) : falko_detail::sectorOf(v, u, binsPerRadian, bins);
+      if (hist_[b]++ == 0U) {
         used[usedCount++] = b;
       }
     }
     // Sum over point pairs of the circular sector distance = sum over pairs of occupied sectors.
-    std::uint64_t sum = 0;
+    std::uint32_t sum = 0;
     for (unsigned a = 0; a < usedCount; ++a) {
       for (unsigned b = a + 1U; b < usedCount; ++b) {
         const unsigned d0 = used[a] > used[b] ? used[a] - used[b] : used[b] - used[a];
         const unsigned d = d0 > half ? bins - d0 : d0;
-        sum += static_cast<std::uint64_t>(hist[used[a]]) * hist[used[b]] * d;
+        sum += hist_[used[a]] * hist_[used[b]] * d;  // < 2048^2 * 32: fits
       }
+    }
+    for (unsigned a = 0; a < usedCount; ++a) {
+      hist_[used[a]] = 0U;
     }
     const auto cnt = static_cast<float>(sd.count);
     total += static_cast<float>(sum);
@@ -225,7 +271,6 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
 
 bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, const Side& left, const Side& right,
                            FalkoKeypoint& kp) noexcept {
-  const std::size_t n = pts.size();
   const float mxAbs = pts.x(i);
   const float myAbs = pts.y(i);
   const float maxShift2 = params_.subbeamMaxShift * params_.subbeamMaxShift;
@@ -241,26 +286,36 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, const Side& lef
   const float reach = params_.refineRadiusFactor * kp.radius;
   const float reach2 = reach * reach;
   bool ok = false;
+  std::size_t windowCount = 0;
   {
     float* wx = leftX_.data();
     float* wy = leftY_.data();
     std::size_t m = 0;
-    const auto kmax = static_cast<std::ptrdiff_t>(pts.maxOffset(pts.range(i), reach));
+    const std::size_t kmax = pts.maxOffset(pts.range(i), reach);
     LineAcc total;
-    for (std::ptrdiff_t k = -kmax; k <= kmax; ++k) {
-      const std::size_t j = pts.offsetIndex(i, k);
-      if (j >= n || !pts.valid(j)) {
-        continue;
-      }
+    // Window in beam order: the earlier beams are walked nearest first, then reversed.
+    auto take = [&](std::size_t j) {
       const float qx = pts.x(j) - mxAbs;
       const float qy = pts.y(j) - myAbs;
-      if (qx * qx + qy * qy <= reach2) {
+      if (qx * qx + qy * qy <= reach2) {  // invalid readings are far away
         wx[m] = qx;
         wy[m] = qy;
         ++m;
         total.add(qx, qy);
       }
+    };
+    falko_detail::walkBeams(pts, i, -1, kmax, take);
+    for (std::size_t a = 0, b = m; a + 1 < b; ++a, --b) {
+      const float tx = wx[a];
+      const float ty = wy[a];
+      wx[a] = wx[b - 1];
+      wy[a] = wy[b - 1];
+      wx[b - 1] = tx;
+      wy[b - 1] = ty;
     }
+    take(i);
+    falko_detail::walkBeams(pts, i, 1, kmax, take);
+    windowCount = m;
     const std::size_t minSide = params_.minSidePoints + 1;
     LineAcc before;  // points [0, q)
     float bestCost = std::numeric_limits<float>::infinity();
@@ -304,16 +359,11 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, const Side& lef
     for (int pass = 0; pass < 2; ++pass) {
       const float ccx = mxAbs + cx;
       const float ccy = myAbs + cy;
-      const std::size_t kmax = pts.maxOffset(pts.range(i), reach + std::sqrt(cx * cx + cy * cy));
       LineAcc l;
       LineAcc r;
-      for (std::ptrdiff_t k = -static_cast<std::ptrdiff_t>(kmax); k <= static_cast<std::ptrdiff_t>(kmax); ++k) {
-        const std::size_t j = pts.offsetIndex(i, k);
-        if (j >= n || !pts.valid(j)) {
-          continue;
-        }
-        const float qx = pts.x(j) - mxAbs;
-        const float qy = pts.y(j) - myAbs;
+      for (std::size_t q = 0; q < windowCount; ++q) {
+        const float qx = leftX_[q];
+        const float qy = leftY_[q];
         const float ex = qx - cx;
         const float ey = qy - cy;
         const float e2 = ex * ex + ey * ey;
@@ -321,7 +371,7 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, const Side& lef
           continue;
         }
         // Sign of cross(corner, point) in the sensor frame: negative = clockwise = earlier beam.
-        const bool isLeft = ccx * pts.y(j) - ccy * pts.x(j) < 0.0F;
+        const bool isLeft = ccx * (myAbs + qy) - ccy * (mxAbs + qx) < 0.0F;
         const Line& ln = isLeft ? lineL : lineR;
         const float dist = std::fabs(ln.dx * (qy - ln.my) - ln.dy * (qx - ln.mx));
         if (dist > tol) {
@@ -389,6 +439,7 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
 
   // 1. Candidates: side split, triangle test, score.
   for (std::size_t i = 0; i < n; ++i) {
+    score_[i] = kNotCandidate;
     if (!pts.valid(i)) {
       continue;
     }
@@ -401,16 +452,19 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     if (radius > maxRadius) {
       radius = maxRadius;
     }
-    Side left;
-    Side right;
-    if (!gather(pts, i, radius, left, right)) {
+    // Early rejection: the triangle test needs only the first (front) and last (back) neighbours,
+    // found from the window edges inwards; most beams (walls) stop here, before the full
+    // neighbourhood and the score.
+    const float r2 = radius * radius;
+    const std::size_t kmax = pts.maxOffset(rho, radius);
+    float fx = 0.0F;
+    float fy = 0.0F;
+    float bx = 0.0F;
+    float by = 0.0F;
+    if (!farthestWithin(pts, i, -1, kmax, r2, fx, fy) || !farthestWithin(pts, i, 1, kmax, r2, bx, by)) {
       continue;
     }
-    // Triangle first neighbour (front) / candidate (origin) / last neighbour (back).
-    const float fx = leftX_[left.count - 1];
-    const float fy = leftY_[left.count - 1];
-    const float bx = rightX_[right.count - 1];
-    const float by = rightY_[right.count - 1];
+    // Triangle front / candidate (origin) / back: base and height at least r / beta.
     const float minLen = radius * invBeta;
     const float base2 = (bx - fx) * (bx - fx) + (by - fy) * (by - fy);
     if (base2 < minLen * minLen) {
@@ -420,6 +474,11 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     if (cross * cross < base2 * minLen * minLen) {
       continue;
     }
+    Side left;
+    Side right;
+    if (!gather(pts, i, radius, left, right)) {
+      continue;
+    }
     const float ox = left.sumX / static_cast<float>(left.count) + right.sumX / static_cast<float>(right.count);
     const float oy = left.sumY / static_cast<float>(left.count) + right.sumY / static_cast<float>(right.count);
     const float on = std::sqrt(ox * ox + oy * oy);
@@ -427,80 +486,71 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
       continue;
     }
     const float score = scoreOf(left, right, ox / on, oy / on);
-    if (score > p.maxScore) {
-      continue;
-    }
-    // Refined here while the neighbourhood is in the buffers: suppression compares refined
-    // corners, so that candidates a few beams apart that describe one corner compete.
-    FalkoKeypoint& kp = cands_[candidates++];
-    kp = FalkoKeypoint{};
-    kp.beamIndex = static_cast<std::uint32_t>(i);
-    kp.radius = radius;
-    kp.score = score;
-    if (!refine(pts, i, left, right, kp)) {
-      --candidates;
+    if (score <= p.maxScore) {
+      score_[i] = score;
+      radius_[i] = radius;
+      ++candidates;
     }
   }
   candidateCount_ = candidates;
 
-  // 2. Non-maxima suppression on the refined corners: a candidate survives when no better one lies
-  //    within nmsRadius. Better = refined over unrefined, then lower score, then lower beam index.
-  //    Candidates are in beam order and lie within subbeamMaxShift of their beam point, so only
-  //    candidates within a bounded beam offset need to be looked at.
-  Status result = Status::Ok;
+  // 2. Greedy non-maxima suppression, best score first (ties to the lower beam index): a
+  //    candidate whose beam point lies within nmsRadius of an accepted corner is suppressed;
+  //    otherwise it is refined, and accepted unless the refinement rejects it or it lands within
+  //    nmsRadius of an accepted corner. A rejected candidate suppresses nothing, so the next best
+  //    candidate of the same corner gets its turn. O(candidates x accepted).
+  std::size_t nc = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (score_[i] != kNotCandidate) {
+      order_[nc++] = static_cast<std::uint32_t>(i);
+    }
+  }
+  const float* sc = score_.data();
+  std::sort(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(nc), [sc](std::uint32_t a, std::uint32_t b) {
+    return sc[a] < sc[b] || (sc[a] == sc[b] && a < b);
+  });
   const float nms2 = p.nmsRadius * p.nmsRadius;
-  const float wide2 = (p.nmsRadius + p.subbeamMaxShift) * (p.nmsRadius + p.subbeamMaxShift);
-  auto better = [](const FalkoKeypoint& a, const FalkoKeypoint& b) {
-    if (a.refined != b.refined) {
-      return a.refined;
+  std::size_t kept = 0;
+  for (std::size_t o = 0; o < nc; ++o) {
+    const std::size_t i = order_[o];
+    const float xi = pts.x(i);
+    const float yi = pts.y(i);
+    bool suppressed = false;
+    for (std::size_t c = 0; c < kept && !suppressed; ++c) {
+      const float dx = cands_[c].x - xi;
+      const float dy = cands_[c].y - yi;
+      suppressed = dx * dx + dy * dy <= nms2;
     }
-    if (a.score != b.score) {
-      return a.score < b.score;
+    if (suppressed) {
+      continue;
     }
-    return a.beamIndex < b.beamIndex;
-  };
-  const auto nb = static_cast<std::ptrdiff_t>(n);
-  for (std::size_t c = 0; c < candidates; ++c) {
-    const FalkoKeypoint& kp = cands_[c];
-    const std::size_t i = kp.beamIndex;
-    const auto kmax = static_cast<std::ptrdiff_t>(
-        pts.maxOffset(pts.range(i), p.nmsRadius + 2.0F * p.subbeamMaxShift));
-    bool best = true;
-    for (int dir = -1; dir <= 1 && best; dir += 2) {
-      for (std::size_t step = 1; step < candidates; ++step) {
-        // Neighbouring candidate in beam order, circular on wrapping scans.
-        std::size_t d = 0;
-        if (dir < 0) {
-          if (step > c && !pts.wraps()) {
-            break;
-          }
-          d = (c + candidates - (step % candidates)) % candidates;
-        } else {
-          if (c + step >= candidates && !pts.wraps()) {
-            break;
-          }
-          d = (c + step) % candidates;
-        }
-        const FalkoKeypoint& other = cands_[d];
-        std::ptrdiff_t off = dir * (static_cast<std::ptrdiff_t>(other.beamIndex) - static_cast<std::ptrdiff_t>(i));
-        if (off < 0) {
-          off += nb;  // wrapped around the seam
-        }
-        if (off > kmax) {
-          break;
-        }
-        const float dx = other.x - kp.x;
-        const float dy = other.y - kp.y;
-        // An unrefined candidate is a beam point up to subbeamMaxShift away from the corner it
-        // sees: a refined corner suppresses it within the enlarged radius.
-        const float lim2 = (other.refined && !kp.refined) ? wide2 : nms2;
-        if (dx * dx + dy * dy <= lim2 && better(other, kp)) {
-          best = false;
-          break;
-        }
-      }
+    Side left;
+    Side right;
+    if (!gather(pts, i, radius_[i], left, right)) {
+      continue;  // cannot happen: the same test passed in step 1
     }
-    if (best && !isOk(out.push_back(kp))) {
+    FalkoKeypoint kp;
+    kp.beamIndex = static_cast<std::uint32_t>(i);
+    kp.radius = radius_[i];
+    kp.score = score_[i];
+    if (!refine(pts, i, left, right, kp)) {
+      continue;
+    }
+    for (std::size_t c = 0; c < kept && !suppressed; ++c) {
+      const float dx = cands_[c].x - kp.x;
+      const float dy = cands_[c].y - kp.y;
+      suppressed = dx * dx + dy * dy <= nms2;
+    }
+    if (!suppressed) {
+      cands_[kept++] = kp;
+    }
+  }
+  // Output in beam order.
+  std::sort(cands_.begin(), cands_.begin() + static_cast<std::ptrdiff_t>(kept),
+            [](const FalkoKeypoint& a, const FalkoKeypoint& b) { return a.beamIndex < b.beamIndex; });
+  Status result = Status::Ok;
+  for (std::size_t c = 0; c < kept; ++c) {
+    if (!isOk(out.push_back(cands_[c]))) {
       result = Status::CapacityExceeded;
     }
   }

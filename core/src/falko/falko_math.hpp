@@ -3,7 +3,10 @@
 
 #include <cmath>
 
+#include <cstddef>
+
 #include "agv/core/angle.hpp"
+#include "agv/falko/scan_points.hpp"
 
 namespace agv {
 namespace falko_detail {
@@ -42,6 +45,51 @@ inline unsigned sectorOf(float v, float u, float binsPerRadian, unsigned bins) n
   }
   const auto k = static_cast<unsigned>(f);
   return k < bins ? k : 0U;  // the upper half of the last half-bin is bin 0 again
+}
+
+/// Fast path of sectorOf for 16 bins: the bin of (u, v) from three sign tests and four
+/// comparisons against the tangents of the bin boundaries (11.25, 33.75, 56.25, 78.75 deg); no
+/// division, no polynomial. Same result as sectorOf(v, u, 16 / (2 pi), 16) except exactly on a
+/// boundary.
+inline unsigned sector16(float u, float v) noexcept {
+  const float ax = std::fabs(u);
+  const float ay = std::fabs(v);
+  // Steps of 22.5 deg within the quadrant, 0 (on the u axis) .. 4 (on the v axis).
+  const unsigned q = static_cast<unsigned>(ay > 0.19891237F * ax) + static_cast<unsigned>(ay > 0.66817864F * ax) +
+                     static_cast<unsigned>(ay > 1.49660576F * ax) + static_cast<unsigned>(ay > 5.02733949F * ax);
+  // Bin of the angle counted from 0 deg, 0..15: quadrant I: q; II: 8 - q; III: 8 + q; IV: 16 - q.
+  const unsigned fromZero = u >= 0.0F ? (v >= 0.0F ? q : 16U - q) : (v >= 0.0F ? 8U - q : 8U + q);
+  // Bin 0 is centred on -pi (180 deg).
+  return (fromZero + 8U) & 15U;
+}
+
+/// Calls f(j) for the beams 1..k steps from beam i in direction dir (-1 or +1), nearest first,
+/// wrapping on 360 deg scans and stopping at the scan ends otherwise. Plain index loops (no modulo
+/// per step); k must not exceed pts.maxOffset(...) so that the two directions never overlap.
+template <typename F>
+inline void walkBeams(const ScanPoints& pts, std::size_t i, int dir, std::size_t k, F&& f) {
+  const std::size_t n = pts.size();
+  if (dir < 0) {
+    const std::size_t direct = k <= i ? k : i;
+    for (std::size_t s = 1; s <= direct; ++s) {
+      f(i - s);
+    }
+    if (pts.wraps() && k > direct) {
+      for (std::size_t s = 0; s < k - direct; ++s) {
+        f(n - 1 - s);
+      }
+    }
+  } else {
+    const std::size_t direct = i + k < n ? k : n - 1 - i;
+    for (std::size_t s = 1; s <= direct; ++s) {
+      f(i + s);
+    }
+    if (pts.wraps() && k > direct) {
+      for (std::size_t s = 0; s < k - direct; ++s) {
+        f(s);
+      }
+    }
+  }
 }
 
 }  // namespace falko_detail

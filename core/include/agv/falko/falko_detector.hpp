@@ -27,15 +27,17 @@ using FalkoKeypoints = FixedVector<FalkoKeypoint, kMaxKeypoints>;
 /// then scores it: the side points are binned into s_n polar sectors around the candidate, aligned
 /// to the corner orientation, and the score is the mean circular sector distance between points of
 /// the same side (0 for two straight sides). Candidates with score <= maxScore are refined:
-/// the points within refineRadiusFactor * r are split in two in beam order where two fitted lines
-/// leave the least residual, the lines are intersected (accepted within subbeamMaxShift of the
-/// beam point; a corner farther away drops the candidate, one line fitting almost as well drops
-/// it too), and the fit is repeated twice on the points near each line. Non-maxima suppression
-/// then keeps the candidates with no better refined candidate within nmsRadius. The orientation
-/// is the mean of the directions from the corner to the centroids of its two sides.
+/// go through a greedy non-maxima suppression, best score first: a candidate within nmsRadius of
+/// an accepted corner is suppressed, otherwise it is refined: the points within refineRadiusFactor * r are split in two in beam order where two
+/// fitted lines leave the least residual, the lines are intersected (accepted within
+/// subbeamMaxShift of the beam point; a corner farther away drops the candidate, one line fitting
+/// almost as well drops it too), and the fit is repeated twice on the points near each line.
+/// A candidate whose refinement is rejected suppresses nothing; one that refines to within
+/// nmsRadius of an accepted corner is dropped. The orientation is
+/// the mean of the directions from the corner to the centroids of its two sides.
 ///
 /// Work per scan is bounded by beams x (window size), with the window bounded by the scan length;
-/// the object holds all its buffers (about 140 kB with 2048 beams), so keep it static on an MCU.
+/// the object holds all its buffers (about 150 kB with 2048 beams), so keep it static on an MCU.
 /// No heap, no exceptions.
 class FalkoDetector {
  public:
@@ -71,7 +73,7 @@ class FalkoDetector {
   /// Gathers the neighbours of beam i into left/right buffers (coordinates relative to the
   /// candidate); returns false when a side has too few points.
   bool gather(const ScanPoints& pts, std::size_t i, float radius, Side& left, Side& right) noexcept;
-  float scoreOf(const Side& left, const Side& right, float c, float s) const noexcept;
+  float scoreOf(const Side& left, const Side& right, float c, float s) noexcept;
   /// Sub-beam refinement and orientation; false when the points around the candidate are
   /// explained by one line (the candidate is then dropped).
   bool refine(const ScanPoints& pts, std::size_t i, const Side& left, const Side& right,
@@ -83,7 +85,11 @@ class FalkoDetector {
   std::array<float, kMaxScanBeams> leftY_{};
   std::array<float, kMaxScanBeams> rightX_{};
   std::array<float, kMaxScanBeams> rightY_{};
-  std::array<FalkoKeypoint, kMaxScanBeams> cands_{};  ///< refined candidates, in beam order
+  std::array<float, kMaxScanBeams> score_{};   ///< per beam; +inf when not a candidate
+  std::array<float, kMaxScanBeams> radius_{};  ///< per beam neighbourhood radius
+  std::array<std::uint32_t, kMaxScanBeams> order_{};  ///< candidates by score
+  std::array<FalkoKeypoint, kMaxScanBeams> cands_{};  ///< accepted keypoints
+  std::array<std::uint32_t, 64> hist_{};  ///< score histogram, all zero between uses
   std::size_t candidateCount_ = 0;
 };
 
