@@ -321,8 +321,12 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, const Side& lef
     float bestCost = std::numeric_limits<float>::infinity();
     LineAcc bestL;
     LineAcc bestR;
+    // The split point is the one nearest the corner, which lies within subbeamMaxShift of the
+    // candidate: farther splits are not tried (cheaper, and they could only be rejected).
+    const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
+    const float splitReach2 = splitReach * splitReach;
     for (std::size_t q = 0; q < m; ++q) {
-      if (q >= minSide && m - q - 1 >= minSide) {
+      if (q >= minSide && m - q - 1 >= minSide && wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
         LineAcc after = total;
         after.subtract(before);
         after.remove(wx[q], wy[q]);
