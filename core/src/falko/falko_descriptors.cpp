@@ -15,7 +15,7 @@ unsigned popcount16(std::uint16_t v) noexcept {
   x = (x + (x >> 4U)) & 0x0F0FU;
   return (x + (x >> 8U)) & 0x1FU;
 }
-static_assert(kBscSectors == 16, "BSC rings are stored as 16-bit masks");
+static_assert(kBscSectors == 16, "BSC rings are 16-bit masks and use the 16-sector fast path");
 }  // namespace
 
 std::uint32_t bscDistance(const BscDescriptor& a, const BscDescriptor& b) noexcept {
@@ -79,8 +79,11 @@ Status FalkoDescriber::describe(const ScanPoints& points, const FalkoKeypoint& k
   const float py = keypoint.y;
   const float c = std::cos(keypoint.orientation);
   const float s = std::sin(keypoint.orientation);
-  const float ringsPerMetre = static_cast<float>(kBscRings) / R;
-  const float sectorsPerRadian = static_cast<float>(kBscSectors) / kTwoPi<float>;
+  std::array<float, kBscRings - 1> ringBound2{};  // squared outer radius of rings 0..6
+  for (std::size_t b = 0; b + 1 < kBscRings; ++b) {
+    const float rb = R * static_cast<float>(b + 1) / static_cast<float>(kBscRings);
+    ringBound2[b] = rb * rb;
+  }
   const float binsPerRadian = static_cast<float>(kCghBins) / kTwoPi<float>;
   std::array<std::uint16_t, kCghBins> counts{};
 
@@ -97,10 +100,11 @@ Status FalkoDescriber::describe(const ScanPoints& points, const FalkoKeypoint& k
     // Rotate into the keypoint frame (x along the orientation).
     const float u = dx * c + dy * s;
     const float v = dy * c - dx * s;
-    const unsigned sector = falko_detail::sectorOf(v, u, sectorsPerRadian, static_cast<unsigned>(kBscSectors));
-    auto ring = static_cast<std::size_t>(std::sqrt(d2) * ringsPerMetre);
-    if (ring >= kBscRings) {
-      ring = kBscRings - 1;
+    const unsigned sector = falko_detail::sector16(u, v);
+    // Ring from squared distance: count the ring boundaries below (no square root).
+    std::size_t ring = 0;
+    for (std::size_t b = 0; b + 1 < kBscRings; ++b) {
+      ring += d2 >= ringBound2[b] ? 1U : 0U;
     }
     bsc.rings[ring] = static_cast<std::uint16_t>(bsc.rings[ring] | (1U << sector));
     const unsigned bin = kCghBins == kBscSectors
