@@ -59,11 +59,12 @@ struct LineAcc {
     if (n < 2.0F) {
       return 0.0F;
     }
-    const float mx = sx / n;
-    const float my = sy / n;
-    const float cxx = sxx / n - mx * mx;
-    const float cyy = syy / n - my * my;
-    const float cxy = sxy / n - mx * my;
+    const float inv = 1.0F / n;
+    const float mx = sx * inv;
+    const float my = sy * inv;
+    const float cxx = sxx * inv - mx * mx;
+    const float cyy = syy * inv - my * my;
+    const float cxy = sxy * inv - mx * my;
     const float h = 0.5F * (cxx - cyy);
     const float lmin = 0.5F * (cxx + cyy) - std::sqrt(h * h + cxy * cxy);
     return n * (lmin > 0.0F ? lmin : 0.0F);
