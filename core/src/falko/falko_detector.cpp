@@ -147,30 +147,41 @@ bool farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::size_t k
   const std::size_t n = pts.size();
   const float cx = pts.x(i);
   const float cy = pts.y(i);
-  for (std::size_t k = kmax; k >= 1; --k) {
-    std::size_t j = 0;
-    if (dir < 0) {
-      if (k <= i) {
-        j = i - k;
-      } else if (pts.wraps()) {
-        j = i + n - k;
-      } else {
-        continue;
-      }
-    } else {
-      if (i + k < n) {
-        j = i + k;
-      } else if (pts.wraps()) {
-        j = i + k - n;
-      } else {
-        continue;
-      }
-    }
+  auto within = [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {  // invalid readings are far away
       fx = dx;
       fy = dy;
+      return true;
+    }
+    return false;
+  };
+  // The beams i + dir * k, k = kmax .. 1, as at most two plain index runs (farthest first).
+  if (dir < 0) {
+    if (kmax > i && pts.wraps()) {
+      for (std::size_t j = n + i - kmax; j < n; ++j) {
+        if (within(j)) {
+          return true;
+        }
+      }
+    }
+    for (std::size_t j = kmax > i ? 0 : i - kmax; j < i; ++j) {
+      if (within(j)) {
+        return true;
+      }
+    }
+    return false;
+  }
+  if (i + kmax >= n && pts.wraps()) {
+    for (std::size_t j = i + kmax - n + 1; j-- > 0;) {
+      if (within(j)) {
+        return true;
+      }
+    }
+  }
+  for (std::size_t j = i + kmax < n ? i + kmax : n - 1; j > i; --j) {
+    if (within(j)) {
       return true;
     }
   }
