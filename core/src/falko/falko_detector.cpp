@@ -281,7 +281,7 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
   return pairs > 0.0F ? total / pairs : 0.0F;
 }
 
-bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, const Side& left, const Side& right,
+bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY,
                            FalkoKeypoint& kp) noexcept {
   const float mxAbs = pts.x(i);
   const float myAbs = pts.y(i);
@@ -435,8 +435,8 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, const Side& lef
     }
   }
   if (ox == 0.0F && oy == 0.0F) {
-    ox = left.sumX / static_cast<float>(left.count) + right.sumX / static_cast<float>(right.count) - 2.0F * cx;
-    oy = left.sumY / static_cast<float>(left.count) + right.sumY / static_cast<float>(right.count) - 2.0F * cy;
+    ox = sideX - 2.0F * cx;
+    oy = sideY - 2.0F * cy;
   }
   kp.orientation = std::atan2(oy, ox);
   return true;
@@ -505,6 +505,8 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     if (score <= p.maxScore) {
       score_[i] = score;
       radius_[i] = radius;
+      sideX_[i] = ox;
+      sideY_[i] = oy;
       ++candidates;
     }
   }
@@ -540,16 +542,11 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     if (suppressed) {
       continue;
     }
-    Side left;
-    Side right;
-    if (!gather(pts, i, radius_[i], left, right)) {
-      continue;  // cannot happen: the same test passed in step 1
-    }
     FalkoKeypoint kp;
     kp.beamIndex = static_cast<std::uint32_t>(i);
     kp.radius = radius_[i];
     kp.score = score_[i];
-    if (!refine(pts, i, left, right, kp)) {
+    if (!refine(pts, i, sideX_[i], sideY_[i], kp)) {
       continue;
     }
     for (std::size_t c = 0; c < kept && !suppressed; ++c) {

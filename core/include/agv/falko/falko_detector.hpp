@@ -76,8 +76,8 @@ class FalkoDetector {
   float scoreOf(const Side& left, const Side& right, float c, float s) noexcept;
   /// Sub-beam refinement and orientation; false when the points around the candidate are
   /// explained by one line (the candidate is then dropped).
-  bool refine(const ScanPoints& pts, std::size_t i, const Side& left, const Side& right,
-              FalkoKeypoint& kp) noexcept;
+  /// (sideX, sideY): sum of the side centroids relative to the candidate (orientation fallback).
+  bool refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept;
 
   FalkoParams params_;
   ScanPoints points_;
@@ -87,6 +87,8 @@ class FalkoDetector {
   std::array<float, kMaxScanBeams> rightY_{};
   std::array<float, kMaxScanBeams> score_{};   ///< per beam; +inf when not a candidate
   std::array<float, kMaxScanBeams> radius_{};  ///< per beam neighbourhood radius
+  std::array<float, kMaxScanBeams> sideX_{};   ///< per beam sum of the side centroids (relative)
+  std::array<float, kMaxScanBeams> sideY_{};
   std::array<std::uint32_t, kMaxScanBeams> order_{};  ///< candidates by score
   std::array<FalkoKeypoint, kMaxScanBeams> cands_{};  ///< accepted keypoints
   std::array<std::uint32_t, 64> hist_{};  ///< score histogram, all zero between uses
