@@ -27,6 +27,9 @@
 #ifndef AGV_MAX_CALIB_SEGMENTS
 #define AGV_MAX_CALIB_SEGMENTS 64
 #endif
+#ifndef AGV_MAX_CAN_FILTERS
+#define AGV_MAX_CAN_FILTERS 16
+#endif
 
 namespace agv {
 
@@ -42,6 +45,8 @@ inline constexpr std::size_t kMaxObservations = AGV_MAX_OBSERVATIONS;
 inline constexpr std::size_t kMaxLandmarks = AGV_MAX_LANDMARKS;
 /// Constant-steering path segments used by one calibration solve.
 inline constexpr std::size_t kMaxCalibSegments = AGV_MAX_CALIB_SEGMENTS;
+/// Receive filters of one CAN socket (one per node and object class leaves ample room).
+inline constexpr std::size_t kMaxCanFilters = AGV_MAX_CAN_FILTERS;
 
 static_assert(kMaxScanBeams >= 16, "a scan needs at least 16 beams of capacity");
 static_assert(kMaxKeypoints >= 1 && kMaxReflectors >= 1 && kMaxObservations >= 1, "capacities must be positive");
