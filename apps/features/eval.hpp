@@ -18,12 +18,12 @@ namespace features {
 
 /// Evaluation settings (defaults: the full run of the tool).
 struct EvalOptions {
-  std::size_t maxScans = 0;          ///< 0: every scan of the log
-  double pairMaxDistance = 1.0;      ///< [m] scan pairs closer than this (ground truth)
+  std::size_t maxScans = 0;                                   ///< 0: every scan of the log
+  double pairMaxDistance = 1.0;                               ///< [m] scan pairs closer than this (ground truth)
   std::vector<double> viewpointLevels{0.25, 0.5, 0.75, 1.0};  ///< [m] upper bounds of the distance bins
-  std::size_t pairsPerScan = 4;      ///< at most one partner per distance bin and scan
-  double matchDistance = 0.10;       ///< [m] a keypoint is repeated if one lies this close
-  double visibilityTolerance = 0.30; ///< [m] the other scan must see the point this close
+  std::size_t pairsPerScan = 4;                               ///< at most one partner per distance bin and scan
+  double matchDistance = 0.10;                                ///< [m] a keypoint is repeated if one lies this close
+  double visibilityTolerance = 0.30;                          ///< [m] the other scan must see the point this close
   std::vector<double> noiseLevels{0.01, 0.03, 0.05, 0.1, 0.2, 0.3};  ///< [m] sigma of range noise
   std::vector<int> resampleLevels{-4, -2, 2};  ///< <0: keep every k-th beam; >0: k-times oversampling
   std::uint32_t seed = 1;
@@ -54,8 +54,8 @@ struct DatasetResult {
 
 /// Runs every test on one log. Returns false (and `error`) if the log cannot be read or holds no
 /// scan with ground truth.
-bool evaluateLog(const std::string& name, const std::string& path, const EvalOptions& options,
-                 DatasetResult& result, std::string& error);
+bool evaluateLog(const std::string& name, const std::string& path, const EvalOptions& options, DatasetResult& result,
+                 std::string& error);
 
 /// JSON of the results: {"repeatability": {dataset: {test: {level: value}}},
 /// "keypoints_per_scan": {dataset: value}, "descriptors": {...}}.

@@ -27,9 +27,8 @@ struct Dataset {
   const char* name;
   const char* file;
 };
-const Dataset kDatasets[] = {{"intel", "intel/intel-lab.log.gz"},
-                             {"fr079", "fr079/fr079.log.gz"},
-                             {"mit-csail", "mit-csail/mit-cscail.log.gz"}};
+const Dataset kDatasets[] = {
+    {"intel", "intel/intel-lab.log.gz"}, {"fr079", "fr079/fr079.log.gz"}, {"mit-csail", "mit-csail/mit-cscail.log.gz"}};
 
 int runDetect(const std::string& logPath, std::size_t index, const std::string& svgPath) {
   agv::datasets::CarmenLog log;

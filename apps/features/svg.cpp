@@ -40,7 +40,8 @@ std::string scanSvg(const LaserScan& scan, const std::vector<FalkoKeypoint>& key
     }
     const double a = static_cast<double>(scan.angle(i));
     const double r = static_cast<double>(scan.ranges[i]);
-    s << "<circle cx=\"" << px(r * std::cos(a)) << "\" cy=\"" << py(r * std::sin(a)) << "\" r=\"1.5\" fill=\"#555\"/>\n";
+    s << "<circle cx=\"" << px(r * std::cos(a)) << "\" cy=\"" << py(r * std::sin(a))
+      << "\" r=\"1.5\" fill=\"#555\"/>\n";
   }
   for (const FalkoKeypoint& k : keypoints) {
     const double x = static_cast<double>(k.x);
@@ -76,7 +77,8 @@ std::string curveSvg(const std::vector<DatasetResult>& results, const std::strin
   s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h << "\">\n";
   s << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
   s << "<text x=\"" << m << "\" y=\"20\" font-size=\"14\">repeatability / " << test << "</text>\n";
-  s << "<line x1=\"" << m << "\" y1=\"" << h - m << "\" x2=\"" << w - m << "\" y2=\"" << h - m << "\" stroke=\"black\"/>\n";
+  s << "<line x1=\"" << m << "\" y1=\"" << h - m << "\" x2=\"" << w - m << "\" y2=\"" << h - m
+    << "\" stroke=\"black\"/>\n";
   s << "<line x1=\"" << m << "\" y1=\"" << m << "\" x2=\"" << m << "\" y2=\"" << h - m << "\" stroke=\"black\"/>\n";
   for (int t = 0; t <= 4; ++t) {
     const double y = h - m - (h - 2 * m) * t / 4.0;

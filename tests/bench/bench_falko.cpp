@@ -56,10 +56,18 @@ const Scans& scanSet(int set) {
   static bool loaded[4] = {false, false, false, false};
   if (!loaded[set]) {
     switch (set) {
-      case 0: sets[0] = loadLog("intel/intel-lab.log.gz"); break;
-      case 1: sets[1] = loadLog("fr079/fr079.log.gz"); break;
-      case 2: sets[2] = loadLog("mit-csail/mit-cscail.log.gz"); break;
-      default: sets[3] = dense1440(); break;
+      case 0:
+        sets[0] = loadLog("intel/intel-lab.log.gz");
+        break;
+      case 1:
+        sets[1] = loadLog("fr079/fr079.log.gz");
+        break;
+      case 2:
+        sets[2] = loadLog("mit-csail/mit-cscail.log.gz");
+        break;
+      default:
+        sets[3] = dense1440();
+        break;
     }
     loaded[set] = true;
   }
@@ -110,12 +118,20 @@ BENCHMARK_CAPTURE(BM_Falko, fr079, 1)->Name("BM_Falko/fr079")->Unit(benchmark::k
 BENCHMARK_CAPTURE(BM_Falko, mitcsail, 2)->Name("BM_Falko/mitcsail")->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_Falko, dense1440, 3)->Name("BM_Falko/dense1440")->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_FalkoDescriptors, intel, 0)
-    ->Name("BM_FalkoDescriptors/intel")->UseManualTime()->Unit(benchmark::kMicrosecond);
+    ->Name("BM_FalkoDescriptors/intel")
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_FalkoDescriptors, fr079, 1)
-    ->Name("BM_FalkoDescriptors/fr079")->UseManualTime()->Unit(benchmark::kMicrosecond);
+    ->Name("BM_FalkoDescriptors/fr079")
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_FalkoDescriptors, mitcsail, 2)
-    ->Name("BM_FalkoDescriptors/mitcsail")->UseManualTime()->Unit(benchmark::kMicrosecond);
+    ->Name("BM_FalkoDescriptors/mitcsail")
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_FalkoDescriptors, dense1440, 3)
-    ->Name("BM_FalkoDescriptors/dense1440")->UseManualTime()->Unit(benchmark::kMicrosecond);
+    ->Name("BM_FalkoDescriptors/dense1440")
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace

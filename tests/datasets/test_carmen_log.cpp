@@ -28,11 +28,11 @@ TEST_CASE("carmen log: records, ground truth and malformed lines with their numb
       "4.9648966975 5.9808229785 0.5 5.0 6.0 0.5 0.1 0.0 0 0 0 12.5 x 12.75\n"
       "ODOM 1 2 0.1 0.5 0.01 0 100.5 pippo 100.25\n"
       "FLASER 3 1.0 2.0 3.0 4.0 5.0 0.3 4.0 5.0 0.3 7.5 pippo 7.25\n"
-      "ROBOTLASER1 0 -1.5 3.1 0.01 50.0 0.1 0 5 1.0 2.0\n"            // line 7: truncated
-      "VERTEX2 8 1.0 abc 0.5\n"                                        // line 8: not a number
-      "ODOM 1 2\n"                                                     // line 9: truncated
+      "ROBOTLASER1 0 -1.5 3.1 0.01 50.0 0.1 0 5 1.0 2.0\n"  // line 7: truncated
+      "VERTEX2 8 1.0 abc 0.5\n"                             // line 8: not a number
+      "ODOM 1 2\n"                                          // line 9: truncated
       "EDGE2 7 8 0 0 0 100 0 100 500 0 0\n"
-      "FLASER 2 1.0 nan? 0 0 0 0 0 0 0 h 0\n";                          // line 11
+      "FLASER 2 1.0 nan? 0 0 0 0 0 0 0 h 0\n";  // line 11
   const CarmenLog log = agv::datasets::parseCarmenLog(text);
   CHECK(log.lines == 11U);
   REQUIRE(log.scans.size() == 2U);

@@ -1,19 +1,16 @@
 // Cortex-M7 image: instructions of FALKO detect and describe on one dense1440 scan (360 deg,
-// 0.25 deg, simulated room, 1 cm noise). Run under QEMU with `-icount shift=0` (one instruction
-// per virtual nanosecond): the SysTick, clocked at the 25 MHz CPU clock of the mps2-an500 model,
-// then counts 40 instructions per tick. Prints the counts through semihosting.
+// 0.25 deg, simulated room, 1 cm noise), counted with the instruction counter of
+// toolchains/cortex-m7 (QEMU -icount shift=0, SysTick, self-calibrated). Prints the counts
+// through semihosting.
 #include <cstdint>
 
 #include "agv/falko/falko_descriptors.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "instruction_counter.h"
 #include "room_sim.hpp"
 #include "semihosting.h"
 
 namespace {
-
-volatile std::uint32_t* const kSysTickCtrl = reinterpret_cast<volatile std::uint32_t*>(0xE000E010U);
-volatile std::uint32_t* const kSysTickLoad = reinterpret_cast<volatile std::uint32_t*>(0xE000E014U);
-volatile std::uint32_t* const kSysTickVal = reinterpret_cast<volatile std::uint32_t*>(0xE000E018U);
 
 void print(const char* label, std::uint32_t value) {
   char buf[64];
@@ -49,24 +46,17 @@ int main() {
   agv::test::simulateScan(w, agv::test::SensorPose{3.5, 2.5, 0.3}, -3.14159265F, 0.25F * 0.017453292F, 1440, 0.01, 1U,
                           g_scan);
   (void)g_detector.detect(g_scan, g_keypoints);  // warm-up: builds the trig tables of the geometry
-  *kSysTickLoad = 0x00FFFFFFU;
-  *kSysTickVal = 0U;
-  *kSysTickCtrl = 5U;  // enable, processor clock, no interrupt
-  const std::uint32_t t0 = *kSysTickVal;
+  if (agv_icount_init() == 0U) {
+    semihosting_write0("SysTick does not run: start QEMU with -icount shift=0\n");
+    return 1;
+  }
+  const std::uint64_t t0 = agv_icount_ticks();
   const agv::Status s1 = g_detector.detect(g_scan, g_keypoints);
-  const std::uint32_t t1 = *kSysTickVal;
+  const std::uint64_t t1 = agv_icount_ticks();
   const agv::Status s2 = g_describer.describe(g_detector.points(), g_keypoints, g_bsc, g_cgh);
-  const std::uint32_t t2 = *kSysTickVal;
-  // Calibration: 100000 iterations of nop / subs / bne = 300000 instructions.
-  const std::uint32_t c0 = *kSysTickVal;
-  std::uint32_t n = 100000U;
-  __asm__ volatile("1: nop\n subs %0, %0, #1\n bne 1b" : "+r"(n) : : "cc");
-  const std::uint32_t c1 = *kSysTickVal;
-  print("calibration (300000 expected): ", ((c0 - c1) & 0x00FFFFFFU) * 40U);
-  const std::uint32_t detectTicks = (t0 - t1) & 0x00FFFFFFU;
-  const std::uint32_t describeTicks = (t1 - t2) & 0x00FFFFFFU;
+  const std::uint64_t t2 = agv_icount_ticks();
   print("keypoints: ", static_cast<std::uint32_t>(g_keypoints.size()));
-  print("detect instructions: ", detectTicks * 40U);
-  print("describe instructions: ", describeTicks * 40U);
+  print("detect instructions: ", static_cast<std::uint32_t>(agv_icount_instructions(t1 - t0)));
+  print("describe instructions: ", static_cast<std::uint32_t>(agv_icount_instructions(t2 - t1)));
   return (s1 == agv::Status::Ok && s2 == agv::Status::Ok && !g_keypoints.empty()) ? 0 : 1;
 }

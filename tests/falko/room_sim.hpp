@@ -87,8 +87,8 @@ struct SensorPose {
 
 /// Ray-casts `beams` beams from `angleMin` (sensor frame) in steps of `increment`; ranges get
 /// Gaussian noise of `sigma` metres. rangeMax 30 m (misses stored as +inf).
-inline void simulateScan(const World& w, SensorPose s, float angleMin, float increment, std::size_t beams,
-                         double sigma, std::uint32_t seed, LaserScan& out) {
+inline void simulateScan(const World& w, SensorPose s, float angleMin, float increment, std::size_t beams, double sigma,
+                         std::uint32_t seed, LaserScan& out) {
   Gauss g(seed);
   out.angleMin = angleMin;
   out.angleIncrement = increment;
@@ -164,8 +164,7 @@ std::size_t expectedCorners(const World& w, SensorPose s, double fovMin, double 
       if (incidenceCos(prev) >= cos75 && incidenceCos(next) >= cos75 &&
           isVisible(w, s, nudge(prev), fovMin + margin, fovMax - margin) &&
           isVisible(w, s, nudge(next), fovMin + margin, fovMax - margin) &&
-          isVisible(w, s, along(prev), fovMin, fovMax) && isVisible(w, s, along(next), fovMin, fovMax) &&
-          count < N) {
+          isVisible(w, s, along(prev), fovMin, fovMax) && isVisible(w, s, along(next), fovMin, fovMax) && count < N) {
         out[count++] = toSensor(s, c);
       }
     }

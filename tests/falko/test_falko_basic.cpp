@@ -72,8 +72,14 @@ TEST_CASE("falko: empty, all-invalid and NaN/inf/zero scans give no keypoints", 
   FalkoKeypoints& kps = keypoints();
   CHECK(detector().detect(scan, kps) == Status::Ok);
   CHECK(kps.empty());
-  const float bad[] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
-                       -std::numeric_limits<float>::infinity(), 0.0F, -1.0F, 0.05F, 50.0F, 81.83F};
+  const float bad[] = {std::numeric_limits<float>::quiet_NaN(),
+                       std::numeric_limits<float>::infinity(),
+                       -std::numeric_limits<float>::infinity(),
+                       0.0F,
+                       -1.0F,
+                       0.05F,
+                       50.0F,
+                       81.83F};
   for (std::size_t i = 0; i < 300; ++i) {
     (void)scan.ranges.push_back(bad[i % 8]);
   }
@@ -172,7 +178,8 @@ TEST_CASE("falko: detect + describe allocate nothing", "[falko]") {
   static const agv::FalkoDescriber describer;
   Status s1 = Status::InvalidArgument;
   Status s2 = Status::InvalidArgument;
-  AGV_CHECK_NO_ALLOCATIONS(s1 = detector().detect(scan, kps); s2 = describer.describe(detector().points(), kps, bsc, cgh));
+  AGV_CHECK_NO_ALLOCATIONS(s1 = detector().detect(scan, kps);
+                           s2 = describer.describe(detector().points(), kps, bsc, cgh));
   CHECK(s1 == Status::Ok);
   CHECK(s2 == Status::Ok);
   CHECK(bsc.size() == kps.size());

@@ -107,9 +107,8 @@ Status FalkoDescriber::describe(const ScanPoints& points, const FalkoKeypoint& k
       ring += d2 >= ringBound2[b] ? 1U : 0U;
     }
     bsc.rings[ring] = static_cast<std::uint16_t>(bsc.rings[ring] | (1U << sector));
-    const unsigned bin = kCghBins == kBscSectors
-                             ? sector
-                             : falko_detail::sectorOf(v, u, binsPerRadian, static_cast<unsigned>(kCghBins));
+    const unsigned bin =
+        kCghBins == kBscSectors ? sector : falko_detail::sectorOf(v, u, binsPerRadian, static_cast<unsigned>(kCghBins));
     ++counts[bin];
   };
 

@@ -1,7 +1,7 @@
 #include "agv/falko/falko_detector.hpp"
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include "agv/core/angle.hpp"
@@ -119,13 +119,12 @@ bool FalkoDetector::paramsValid() const noexcept {
   const bool finite = std::isfinite(p.neighA) && std::isfinite(p.neighB) && std::isfinite(p.beta) &&
                       std::isfinite(p.maxScore) && std::isfinite(p.nmsRadius) && std::isfinite(p.subbeamMaxShift) &&
                       std::isfinite(p.refineRadiusFactor) && std::isfinite(p.refineInlierDistance) &&
-                      std::isfinite(p.minCornerResidualRatio) &&
-                      std::isfinite(p.minExtractionRange) && std::isfinite(p.maxRadiusRangeRatio) &&
-                      !std::isnan(p.maxExtractionRange);
-  return finite && p.neighA > 0.0F && p.neighB >= 0.0F && p.beta > 0.0F && p.minSidePoints >= 1 &&
-         p.gridSectors >= 4 && p.gridSectors <= kMaxGridSectors && p.maxScore >= 0.0F && p.nmsRadius >= 0.0F &&
-         p.subbeamMaxShift >= 0.0F && p.refineRadiusFactor >= 1.0F && p.refineInlierDistance > 0.0F &&
-         p.minCornerResidualRatio >= 0.0F && p.maxRadiusRangeRatio > 0.0F && p.maxRadiusRangeRatio < 1.0F;
+                      std::isfinite(p.minCornerResidualRatio) && std::isfinite(p.minExtractionRange) &&
+                      std::isfinite(p.maxRadiusRangeRatio) && !std::isnan(p.maxExtractionRange);
+  return finite && p.neighA > 0.0F && p.neighB >= 0.0F && p.beta > 0.0F && p.minSidePoints >= 1 && p.gridSectors >= 4 &&
+         p.gridSectors <= kMaxGridSectors && p.maxScore >= 0.0F && p.nmsRadius >= 0.0F && p.subbeamMaxShift >= 0.0F &&
+         p.refineRadiusFactor >= 1.0F && p.refineInlierDistance > 0.0F && p.minCornerResidualRatio >= 0.0F &&
+         p.maxRadiusRangeRatio > 0.0F && p.maxRadiusRangeRatio < 1.0F;
 }
 
 Status FalkoDetector::detect(const LaserScan& scan, IVector<FalkoKeypoint>& out) noexcept {
@@ -281,8 +280,7 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
   return pairs > 0.0F ? total / pairs : 0.0F;
 }
 
-bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY,
-                           FalkoKeypoint& kp) noexcept {
+bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept {
   const float mxAbs = pts.x(i);
   const float myAbs = pts.y(i);
   const float maxShift2 = params_.subbeamMaxShift * params_.subbeamMaxShift;
@@ -524,9 +522,8 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     }
   }
   const float* sc = score_.data();
-  std::sort(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(nc), [sc](std::uint32_t a, std::uint32_t b) {
-    return sc[a] < sc[b] || (sc[a] == sc[b] && a < b);
-  });
+  std::sort(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(nc),
+            [sc](std::uint32_t a, std::uint32_t b) { return sc[a] < sc[b] || (sc[a] == sc[b] && a < b); });
   const float nms2 = p.nmsRadius * p.nmsRadius;
   std::size_t kept = 0;
   for (std::size_t o = 0; o < nc; ++o) {

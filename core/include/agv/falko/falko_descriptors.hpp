@@ -60,8 +60,8 @@ class FalkoDescriber {
   /// `points` must be the scan the keypoints were detected in. `CapacityExceeded` when an output
   /// is too small (the rest counted as refused); `OutOfRange` when a keypoint's beam index lies
   /// outside the scan (that keypoint gets empty descriptors).
-  Status describe(const ScanPoints& points, const IVector<FalkoKeypoint>& keypoints,
-                  IVector<BscDescriptor>& bsc, IVector<CghDescriptor>& cgh) const noexcept;
+  Status describe(const ScanPoints& points, const IVector<FalkoKeypoint>& keypoints, IVector<BscDescriptor>& bsc,
+                  IVector<CghDescriptor>& cgh) const noexcept;
 
   /// Both descriptors of one keypoint.
   Status describe(const ScanPoints& points, const FalkoKeypoint& keypoint, BscDescriptor& bsc,

@@ -28,8 +28,8 @@ using FalkoKeypoints = FixedVector<FalkoKeypoint, kMaxKeypoints>;
 /// to the corner orientation, and the score is the mean circular sector distance between points of
 /// the same side (0 for two straight sides). Candidates with score <= maxScore are refined:
 /// go through a greedy non-maxima suppression, best score first: a candidate within nmsRadius of
-/// an accepted corner is suppressed, otherwise it is refined: the points within refineRadiusFactor * r are split in two in beam order where two
-/// fitted lines leave the least residual, the lines are intersected (accepted within
+/// an accepted corner is suppressed, otherwise it is refined: the points within refineRadiusFactor * r are split in two
+/// in beam order where two fitted lines leave the least residual, the lines are intersected (accepted within
 /// subbeamMaxShift of the beam point; a corner farther away drops the candidate, one line fitting
 /// almost as well drops it too), and the fit is repeated twice on the points near each line.
 /// A candidate whose refinement is rejected suppresses nothing; one that refines to within
@@ -53,8 +53,8 @@ class FalkoDetector {
   /// The scan's points stay available through `points()` for the descriptors.
   Status detect(const LaserScan& scan, IVector<FalkoKeypoint>& out) noexcept;
 
-  /// Same on an already converted scan.
-  Status detect(const ScanPoints& points, IVector<FalkoKeypoint>& out) noexcept;
+  /// Same on an already converted scan `pts`.
+  Status detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out) noexcept;
 
   /// Points of the last scan given to `detect(const LaserScan&, ...)`.
   const ScanPoints& points() const noexcept { return points_; }
@@ -91,7 +91,7 @@ class FalkoDetector {
   std::array<float, kMaxScanBeams> sideY_{};
   std::array<std::uint32_t, kMaxScanBeams> order_{};  ///< candidates by score
   std::array<FalkoKeypoint, kMaxScanBeams> cands_{};  ///< accepted keypoints
-  std::array<std::uint32_t, 64> hist_{};  ///< score histogram, all zero between uses
+  std::array<std::uint32_t, 64> hist_{};              ///< score histogram, all zero between uses
   std::size_t candidateCount_ = 0;
 };
 

@@ -15,20 +15,20 @@ namespace datasets {
 
 /// One laser line (`ROBOTLASER1` or `FLASER`).
 struct LogScan {
-  std::size_t line = 0;          ///< 1-based line number in the file
-  double timestamp = 0.0;        ///< [s] logger timestamp of the line
-  float angleMin = 0.0F;         ///< [rad] angle of the first beam
-  float angleIncrement = 0.0F;   ///< [rad]
-  float maxRange = 0.0F;         ///< [m] readings at or above are invalid ("no return")
-  std::vector<float> ranges;     ///< [m]
-  Pose2d laserPose;              ///< laser pose written in the line (odometry or corrected frame)
-  Pose2d robotPose;              ///< robot pose written in the line
+  std::size_t line = 0;         ///< 1-based line number in the file
+  double timestamp = 0.0;       ///< [s] logger timestamp of the line
+  float angleMin = 0.0F;        ///< [rad] angle of the first beam
+  float angleIncrement = 0.0F;  ///< [rad]
+  float maxRange = 0.0F;        ///< [m] readings at or above are invalid ("no return")
+  std::vector<float> ranges;    ///< [m]
+  Pose2d laserPose;             ///< laser pose written in the line (odometry or corrected frame)
+  Pose2d robotPose;             ///< robot pose written in the line
   /// Ground-truth pose of the *laser* in the world: the VERTEX2 pose given just before the scan
   /// (FLIRTLib logs) composed with the laser offset of the line, or the corrected pose of a FLASER
   /// line (gmapping-corrected logs).
   Pose2d groundTruth;
   bool hasGroundTruth = false;
-  long vertexId = -1;            ///< id of the VERTEX2 line that gave the ground truth (-1: none)
+  long vertexId = -1;  ///< id of the VERTEX2 line that gave the ground truth (-1: none)
 
   /// Fills a core `LaserScan` (ranges beyond its capacity are dropped: returns false then).
   bool toLaserScan(LaserScan& scan) const;
