@@ -2,17 +2,20 @@
 //
 // A simulated forklift (true kinematics, slip, quantised encoders) drives the reference paths of
 // a simulated warehouse while a simulated navigation laser sweeps it; the navigation side reads
-// the devices through the HAL and publishes its pose to an in-process PLC peer. Today the
-// navigation side is the on-vehicle calibration routine (ATC closed form from reflector
-// egomotion) followed by dead reckoning with the true, the nominal and the calibrated vehicle
-// parameters; the reflector EKF, the static FALKO map and the dynamic map are announced as not
-// wired yet (see docs/hil.md).
+// the devices through the HAL and publishes its pose to an in-process PLC peer. The navigation
+// side is the on-vehicle calibration routine (ATC closed form from reflector egomotion) followed
+// by the localizer (EKF, agv/localization) with the calibrated parameters in three modes:
+// reflectors against a surveyed map, a static FALKO corner map built by mapping runs, and the
+// dynamic corner map; dead reckoning with the true, nominal and calibrated parameters is kept as
+// a comparison (see docs/hil.md).
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -38,9 +41,9 @@ struct Stage {
 Stage kStages[] = {
     {"calibration", "on-vehicle calibration routine (ATC + laser mount)", true},
     {"dead_reckoning", "dead reckoning (true, nominal, estimated parameters)", true},
-    {"reflector_ekf", "EKF localization with reflectors only", false},
-    {"static_falko_map", "EKF localization with a static FALKO map", false},
-    {"dynamic_map", "EKF localization with the dynamic landmark map", false},
+    {"reflector_ekf", "EKF localization with reflectors only", true},
+    {"static_falko_map", "EKF localization with a static FALKO map", true},
+    {"dynamic_map", "EKF localization with the dynamic landmark map", true},
 };
 
 std::string jsonString(const std::string& s) {
@@ -87,8 +90,21 @@ bool meets(const agv::Pose2d& est, const agv::Pose2d& truth) {
          agv::rad2deg(agv::hil::headingError(est, truth)) <= kHeadingRequirementDeg;
 }
 
+void writeLocalizerRun(std::FILE* f, const agv::hil::RunResult& r) {
+  std::fprintf(f,
+               "    {\"mode\": \"%s\", \"path\": %s, \"run\": %d, \"final_position_error_m\": %.6f, "
+               "\"final_heading_error_deg\": %.6f, \"distance_m\": %.3f, \"finished\": %s, \"lost\": %s, "
+               "\"landmarks_used_per_scan\": %.2f, \"scans_without_fix\": %zu, \"keypoints_per_scan\": %.2f}",
+               agv::hil::modeName(r.mode), jsonString(r.path).c_str(), r.run,
+               agv::hil::positionError(r.finalLocalized, r.finalTruth),
+               agv::rad2deg(agv::hil::headingError(r.finalLocalized, r.finalTruth)), r.distance,
+               r.finished ? "true" : "false", r.localizerLost ? "true" : "false", r.meanUsedPerScan, r.scansWithoutFix,
+               r.meanKeypointsPerScan);
+}
+
 bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, const agv::hil::CalibrationOutcome& calib,
-               const std::string& calibStatus, const std::vector<agv::hil::RunResult>& runs, bool requirementMet) {
+               const std::string& calibStatus, const std::vector<agv::hil::RunResult>& runs,
+               const std::vector<agv::hil::RunResult>& mappingRuns, std::size_t mapCorners, bool requirementMet) {
   std::FILE* f = std::fopen(file.c_str(), "w");
   if (f == nullptr) {
     return false;
@@ -118,6 +134,14 @@ bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, con
   std::fprintf(f, "},\n  \"runs\": [\n");
   bool first = true;
   for (const agv::hil::RunResult& r : runs) {
+    std::fprintf(f, "%s", first ? "" : ",\n");
+    writeLocalizerRun(f, r);
+    first = false;
+  }
+  for (const agv::hil::RunResult& r : runs) {
+    if (r.mode != agv::hil::LocalizationMode::Reflectors) {
+      continue;  // the vehicle runs of every mode repeat these (same seeds): one comparison set
+    }
     struct Entry {
       const char* params;
       const agv::Pose2d* pose;
@@ -136,7 +160,14 @@ bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, con
       first = false;
     }
   }
-  std::fprintf(f, "\n  ],\n  \"requirement_met\": %s\n}\n", requirementMet ? "true" : "false");
+  std::fprintf(f, "\n  ],\n  \"static_falko_mapping\": {\"frozen_corners\": %zu, \"runs\": [\n", mapCorners);
+  first = true;
+  for (const agv::hil::RunResult& r : mappingRuns) {
+    std::fprintf(f, "%s", first ? "" : ",\n");
+    writeLocalizerRun(f, r);
+    first = false;
+  }
+  std::fprintf(f, "\n  ]},\n  \"requirement_met\": %s\n}\n", requirementMet ? "true" : "false");
   return std::fclose(f) == 0;
 }
 
@@ -258,42 +289,93 @@ int main(int argc, char** argv) {
               cfg.runsPerPath, kPositionRequirement * 100.0, kHeadingRequirementDeg);
   std::fflush(stdout);
 
-  std::vector<agv::hil::RunResult> results;
+  // Stage 2: the localizer in the loop, mode after mode. The runs of every mode use the same
+  // seeds, so the vehicle, its slip and the laser noise repeat: the modes differ only in what the
+  // localizer is fed.
+  using agv::hil::LocalizationMode;
+  using agv::hil::RunResult;
+  const auto progress = [](const RunResult& r, int index, int total) {
+    std::printf(
+        "[%2d/%2d] %-12s %-4s run %d: %5.2f m in %5.1f s%s | localizer %6.1f mm %6.3f deg%s (%.1f landmarks/scan, "
+        "%zu without fix) | DR estimated %6.1f mm %6.3f deg | DR true %5.1f mm | reflectors/scan %.1f (min %zu)\n",
+        index, total, agv::hil::modeName(r.mode), r.path.c_str(), r.run, r.distance, r.simSeconds,
+        r.finished ? "" : " (NOT FINISHED)", 1000.0 * agv::hil::positionError(r.finalLocalized, r.finalTruth),
+        agv::rad2deg(agv::hil::headingError(r.finalLocalized, r.finalTruth)), r.localizerLost ? " LOST" : "",
+        r.meanUsedPerScan, r.scansWithoutFix, 1000.0 * agv::hil::positionError(r.finalWithEstimate, r.finalTruth),
+        agv::rad2deg(agv::hil::headingError(r.finalWithEstimate, r.finalTruth)),
+        1000.0 * agv::hil::positionError(r.finalWithTruth, r.finalTruth), r.meanReflectorsPerScan,
+        r.minReflectorsPerScan);
+    std::fflush(stdout);
+  };
+  std::vector<RunResult> results;
+  std::vector<RunResult> mappingResults;
   std::string error;
-  const bool ok = agv::hil::runScenario(
-      world, cfg,
-      [](const agv::hil::RunResult& r, int index, int total) {
-        std::printf(
-            "[%2d/%2d] %-4s run %d: %5.2f m in %5.1f s%s | DR true %5.1f mm %5.3f deg | "
-            "nominal %6.1f mm %5.3f deg | estimated %5.1f mm %5.3f deg | reflectors/scan %.1f (min %zu)\n",
-            index, total, r.path.c_str(), r.run, r.distance, r.simSeconds, r.finished ? "" : " (NOT FINISHED)",
-            1000.0 * agv::hil::positionError(r.finalWithTruth, r.finalTruth),
-            agv::rad2deg(agv::hil::headingError(r.finalWithTruth, r.finalTruth)),
-            1000.0 * agv::hil::positionError(r.finalWithNominal, r.finalTruth),
-            agv::rad2deg(agv::hil::headingError(r.finalWithNominal, r.finalTruth)),
-            1000.0 * agv::hil::positionError(r.finalWithEstimate, r.finalTruth),
-            agv::rad2deg(agv::hil::headingError(r.finalWithEstimate, r.finalTruth)), r.meanReflectorsPerScan,
-            r.minReflectorsPerScan);
-        std::fflush(stdout);
-      },
-      &results, &error);
-  if (!ok) {
+  // The surveyed reflector map: the poles as a surveyor measured them (1 mm per coordinate).
+  constexpr double kSurveySigma = 0.001;  // [m]
+  auto reflectorMap = std::make_unique<agv::LandmarkMap>();
+  if (agv::hil::buildSurveyedReflectorMap(world, kSurveySigma, seed ^ 0x5EEDU, *reflectorMap) != agv::Status::Ok) {
+    std::fprintf(stderr, "agvnav-hil: the world's reflectors do not fit the landmark map\n");
+    return 2;
+  }
+  std::printf("mode reflectors: surveyed map of %zu reflectors (survey noise %.0f mm), static\n", reflectorMap->size(),
+              1000.0 * kSurveySigma);
+  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Reflectors, *reflectorMap, {}, cfg.runsPerPath, 0, progress,
+                             &results, &error)) {
+    std::fprintf(stderr, "agvnav-hil: %s\n", error.c_str());
+    return 2;
+  }
+  // Static FALKO map: one mapping run per path (other seeds) localizing on the surveyed
+  // reflectors while the dynamic lifecycle inserts the FALKO corners; the corners seen at least
+  // kMinMapHits times are then frozen and used alone.
+  constexpr int kMinMapHits = 3;
+  auto mappingMap = std::make_unique<agv::LandmarkMap>();
+  static_cast<void>(agv::hil::buildSurveyedReflectorMap(world, kSurveySigma, seed ^ 0x5EEDU, *mappingMap));
+  mappingMap->setMode(agv::MapMode::Dynamic);
+  std::printf("mode static_falko: mapping runs (reflectors + FALKO corners, dynamic lifecycle), 1 per path\n");
+  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Mapping, *mappingMap, {}, 1, 0xA11CEU, progress,
+                             &mappingResults, &error)) {
+    std::fprintf(stderr, "agvnav-hil: %s\n", error.c_str());
+    return 2;
+  }
+  auto falkoMap = std::make_unique<agv::LandmarkMap>();
+  const std::size_t mapCorners = agv::hil::freezeCorners(*mappingMap, kMinMapHits, *falkoMap);
+  std::printf("mode static_falko: %zu corners frozen (seen >= %d times), static, corners only\n", mapCorners,
+              kMinMapHits);
+  if (!agv::hil::runScenario(world, cfg, LocalizationMode::StaticFalko, *falkoMap, {}, cfg.runsPerPath, 0, progress,
+                             &results, &error)) {
+    std::fprintf(stderr, "agvnav-hil: %s\n", error.c_str());
+    return 2;
+  }
+  // Dynamic map: FALKO corners only, no prior map, on the path into the block storage (P4 in the
+  // built-in warehouse; the last path of a custom world).
+  std::size_t dynamicPath = world.paths.size() - 1;
+  for (std::size_t p = 0; p < world.paths.size(); ++p) {
+    if (world.paths[p].name == "P4") {
+      dynamicPath = p;
+    }
+  }
+  auto dynamicMap = std::make_unique<agv::LandmarkMap>();
+  std::printf("mode dynamic: FALKO corners only, empty map at the start, path %s\n",
+              world.paths[dynamicPath].name.c_str());
+  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Dynamic, *dynamicMap, {dynamicPath}, cfg.runsPerPath, 0,
+                             progress, &results, &error)) {
     std::fprintf(stderr, "agvnav-hil: %s\n", error.c_str());
     return 2;
   }
 
   // Summary per path and parameter set: maximum final errors over the runs.
   bool allFinished = true;
-  bool estimateMeets = true;
+  bool localizerMeets = true;
   int truthMeetCount = 0;
   int estimateMeetCount = 0;
-  std::printf("summary (max over runs): %-4s %22s %22s %22s\n", "path", "DR true params", "DR nominal params",
-              "DR estimated params");
+  int drRuns = 0;
+  std::printf("dead reckoning (comparison), max over runs: %-4s %22s %22s %22s\n", "path", "DR true params",
+              "DR nominal params", "DR estimated params");
   for (const agv::sim::Path& p : world.paths) {
     double maxP[3] = {0.0, 0.0, 0.0};
     double maxH[3] = {0.0, 0.0, 0.0};
-    for (const agv::hil::RunResult& r : results) {
-      if (r.path != p.name) {
+    for (const RunResult& r : results) {
+      if (r.path != p.name || r.mode != LocalizationMode::Reflectors) {
         continue;
       }
       const agv::Pose2d* finals[3] = {&r.finalWithTruth, &r.finalWithNominal, &r.finalWithEstimate};
@@ -302,27 +384,67 @@ int main(int argc, char** argv) {
         maxH[k] = std::max(maxH[k], agv::hil::headingError(*finals[k], r.finalTruth));
       }
     }
-    std::printf("                         %-4s", p.name.c_str());
+    std::printf("                                            %-4s", p.name.c_str());
     for (int k = 0; k < 3; ++k) {
       std::printf(" %9.1f mm %7.3f deg", 1000.0 * maxP[k], agv::rad2deg(maxH[k]));
     }
     std::printf("\n");
   }
-  for (const agv::hil::RunResult& r : results) {
-    allFinished = allFinished && r.finished;
-    estimateMeets = estimateMeets && meets(r.finalWithEstimate, r.finalTruth);
-    truthMeetCount += meets(r.finalWithTruth, r.finalTruth) ? 1 : 0;
-    estimateMeetCount += meets(r.finalWithEstimate, r.finalTruth) ? 1 : 0;
+  std::printf("localizer (pose sent to the PLC): %-12s %-4s %s\n", "mode", "path",
+              "position max / rms [mm], heading max / rms [deg], runs within requirement");
+  for (const LocalizationMode mode :
+       {LocalizationMode::Reflectors, LocalizationMode::StaticFalko, LocalizationMode::Dynamic}) {
+    for (const agv::sim::Path& p : world.paths) {
+      double maxP = 0.0;
+      double maxH = 0.0;
+      double sumP2 = 0.0;
+      double sumH2 = 0.0;
+      int n = 0;
+      int met = 0;
+      for (const RunResult& r : results) {
+        if (r.path != p.name || r.mode != mode) {
+          continue;
+        }
+        const double e = agv::hil::positionError(r.finalLocalized, r.finalTruth);
+        const double h = agv::rad2deg(agv::hil::headingError(r.finalLocalized, r.finalTruth));
+        maxP = std::max(maxP, e);
+        maxH = std::max(maxH, h);
+        sumP2 += e * e;
+        sumH2 += h * h;
+        ++n;
+        met += meets(r.finalLocalized, r.finalTruth) ? 1 : 0;
+      }
+      if (n == 0) {
+        continue;
+      }
+      std::printf("                                  %-12s %-4s %6.1f / %6.1f mm   %6.3f / %6.3f deg   %d of %d\n",
+                  agv::hil::modeName(mode), p.name.c_str(), 1000.0 * maxP,
+                  1000.0 * std::sqrt(sumP2 / static_cast<double>(n)), maxH, std::sqrt(sumH2 / static_cast<double>(n)),
+                  met, n);
+    }
   }
-  const bool requirementMet = allFinished && estimateMeets;
+  int localizerRuns = 0;
+  int localizerMeetCount = 0;
+  for (const RunResult& r : results) {
+    allFinished = allFinished && r.finished;
+    localizerMeets = localizerMeets && meets(r.finalLocalized, r.finalTruth);
+    ++localizerRuns;
+    localizerMeetCount += meets(r.finalLocalized, r.finalTruth) ? 1 : 0;
+    if (r.mode == LocalizationMode::Reflectors) {
+      ++drRuns;
+      truthMeetCount += meets(r.finalWithTruth, r.finalTruth) ? 1 : 0;
+      estimateMeetCount += meets(r.finalWithEstimate, r.finalTruth) ? 1 : 0;
+    }
+  }
+  const bool requirementMet = allFinished && localizerMeets;
   std::printf(
-      "%.0f cm / %.1f deg met by dead reckoning with the true parameters in %d of %zu runs, with the "
+      "%.0f cm / %.1f deg met by dead reckoning with the true parameters in %d of %d runs, with the "
       "estimated parameters in %d\n",
-      kPositionRequirement * 100.0, kHeadingRequirementDeg, truthMeetCount, results.size(), estimateMeetCount);
-  std::printf("requirement (pose sent to the PLC, every run): %s (%s)\n", requirementMet ? "MET" : "NOT MET",
-              "the localizer is not wired yet: the PLC receives dead reckoning with the estimated parameters");
+      kPositionRequirement * 100.0, kHeadingRequirementDeg, truthMeetCount, drRuns, estimateMeetCount);
+  std::printf("requirement (pose sent to the PLC by the localizer, every run of every mode): %s (%d of %d runs)\n",
+              requirementMet ? "MET" : "NOT MET", localizerMeetCount, localizerRuns);
 
-  int rc = 0;
+  int rc = requirementMet ? 0 : 1;
   if (!allFinished) {
     std::fprintf(stderr, "agvnav-hil: a run did not reach the end of its path\n");
     rc = 3;
@@ -340,7 +462,7 @@ int main(int argc, char** argv) {
     std::printf("plots: %s, %s\n", map.c_str(), err.c_str());
   }
   if (!jsonFile.empty()) {
-    if (!writeJson(jsonFile, cfg, calib, calibStatus, results, requirementMet)) {
+    if (!writeJson(jsonFile, cfg, calib, calibStatus, results, mappingResults, mapCorners, requirementMet)) {
       std::fprintf(stderr, "agvnav-hil: cannot write %s\n", jsonFile.c_str());
       return 2;
     }

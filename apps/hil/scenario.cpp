@@ -2,9 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <random>
+#include <cstdio>
+#include <cstdlib>
 
+#include "agv/falko/falko_detector.hpp"
 #include "agv/hal/plc_messages.hpp"
+#include "agv/localization/localizer.hpp"
 #include "agv/sim/path_follower.hpp"
 #include "agv/sim/ray_caster.hpp"
 #include "agv/sim/sim_clock.hpp"
@@ -21,15 +26,250 @@ double headingError(const Pose2d& estimate, const Pose2d& truth) noexcept {
   return std::fabs(angleDiff(estimate.theta, truth.theta));
 }
 
+const char* modeName(LocalizationMode mode) noexcept {
+  switch (mode) {
+    case LocalizationMode::Reflectors:
+      return "reflectors";
+    case LocalizationMode::Mapping:
+      return "mapping";
+    case LocalizationMode::StaticFalko:
+      return "static_falko";
+    case LocalizationMode::Dynamic:
+      return "dynamic";
+  }
+  return "?";
+}
+
+Status buildSurveyedReflectorMap(const sim::World& world, double sigma, std::uint64_t seed, LandmarkMap& map) {
+  map.clear();
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::uint32_t id = 1;
+  for (const sim::Circle& c : world.circles) {
+    if (c.kind != sim::ObstacleKind::Reflector) {
+      continue;
+    }
+    const double x = c.centre.x + sigma * normal(rng);
+    const double y = c.centre.y + sigma * normal(rng);
+    const Result<LandmarkIndex> r = map.addSurveyed(LandmarkKind::Reflector, x, y, sigma, id++);
+    if (!r.ok()) {
+      return r.status();
+    }
+  }
+  map.setMode(MapMode::Static);
+  return Status::Ok;
+}
+
+std::size_t freezeCorners(const LandmarkMap& mapped, int minHits, LandmarkMap& frozen) {
+  frozen.clear();
+  std::size_t n = 0;
+  mapped.forEach([&](LandmarkIndex, const Landmark& l) {
+    if (l.kind == LandmarkKind::Corner && l.hits >= minHits &&
+        frozen.addSurveyed(LandmarkKind::Corner, l.x, l.y, std::sqrt(l.variance), l.id).ok()) {
+      ++n;
+    }
+  });
+  frozen.setMode(MapMode::Static);
+  return n;
+}
+
 namespace {
+
+/// Calibrated dead-reckoning poses of the last half second, for the motion compensation of a
+/// sweep (the navigation's own odometry, never the truth).
+class PoseHistory {
+ public:
+  void add(Timestamp stamp, const Pose2d& pose) {
+    samples_.push_back({stamp, pose});
+    while (samples_.size() > 2 && (stamp - samples_.front().stamp).seconds() > 0.5) {
+      samples_.erase(samples_.begin());
+    }
+  }
+  /// Linear interpolation at `t` (clamped to the stored interval).
+  Pose2d at(Timestamp t) const {
+    if (samples_.empty()) {
+      return Pose2d{};
+    }
+    if (!(samples_.front().stamp < t)) {
+      return samples_.front().pose;
+    }
+    for (std::size_t k = 1; k < samples_.size(); ++k) {
+      if (!(samples_[k].stamp < t)) {
+        const Sample& a = samples_[k - 1];
+        const Sample& b = samples_[k];
+        const double f = (t - a.stamp).seconds() / (b.stamp - a.stamp).seconds();
+        return Pose2d{a.pose.x + f * (b.pose.x - a.pose.x), a.pose.y + f * (b.pose.y - a.pose.y),
+                      normalizeAngle(a.pose.theta + f * angleDiff(b.pose.theta, a.pose.theta))};
+      }
+    }
+    return samples_.back().pose;
+  }
+
+ private:
+  struct Sample {
+    Timestamp stamp;
+    Pose2d pose;
+  };
+  std::vector<Sample> samples_;
+};
+
+/// The localizer side of the navigation: odometry increments from the encoder samples, point
+/// observations (reflectors and/or FALKO corners) from the laser, motion-compensated to the end
+/// of the sweep with the calibrated odometry, corrected against the map.
+class Navigation {
+ public:
+  Navigation(const ScenarioConfig& cfg, LocalizationMode mode)
+      : mode_(mode),
+        odometry_(cfg.estimate.kinematics, noiseParams(cfg)),
+        localizer_(std::make_unique<Localizer>(localizerParams(cfg))),
+        detector_(std::make_unique<FalkoDetector>()),
+        keypoints_(std::make_unique<FalkoKeypoints>()),
+        observations_(std::make_unique<ScanObservations>()),
+        mount_(cfg.estimate.laserMount),
+        fieldOfView_(cfg.laser.fieldOfView) {}
+
+  bool usesReflectors() const noexcept {
+    return mode_ == LocalizationMode::Reflectors || mode_ == LocalizationMode::Mapping;
+  }
+  bool usesCorners() const noexcept { return mode_ != LocalizationMode::Reflectors; }
+
+  /// Starts at the known pose `start` with `sample` as the odometry reference.
+  void reset(const Pose2d& start, const hal::EncoderSample& sample, const Pose2d& deadReckoning) {
+    odometry_.reset();
+    static_cast<void>(odometry_.step(TricycleSample{sample.stamp, sample.driveTicks, sample.steeringAngle}));
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    cov(0, 0) = cov(1, 1) = 0.005 * 0.005;
+    cov(2, 2) = deg2rad(0.05) * deg2rad(0.05);
+    static_cast<void>(localizer_->reset(sample.stamp, start, cov));
+    history_.add(sample.stamp, deadReckoning);
+  }
+
+  /// One encoder sample; `deadReckoning` is the calibrated odometry pose after it.
+  void predict(const hal::EncoderSample& sample, const Pose2d& deadReckoning) {
+    const Result<OdometryIncrement> inc =
+        odometry_.step(TricycleSample{sample.stamp, sample.driveTicks, sample.steeringAngle});
+    if (inc.ok()) {
+      static_cast<void>(localizer_->predict(inc.value()));
+    }
+    history_.add(sample.stamp, deadReckoning);
+  }
+
+  /// One laser sweep.
+  const LocalizerHealth& correct(const hal::LaserMeasurement& m, LandmarkMap& map) {
+    ScanObservations& obs = *observations_;
+    obs.points.clear();
+    const Timestamp tRef = m.scan.stamp + m.scan.sweepDuration;
+    obs.stamp = tRef;
+    obs.kindsDetected = 0;
+    const Pose2d laserRef = history_.at(tRef) * mount_;
+    const double sweep = m.scan.sweepDuration.seconds();
+    // A point seen at sweep fraction f, expressed in the sensor frame at the end of the sweep.
+    auto compensate = [&](double f, double x, double y, LandmarkKind kind) {
+      const Timestamp tf = m.scan.stamp + Duration::fromSeconds(std::clamp(f, 0.0, 1.0) * sweep);
+      const Pose2d rel = between(laserRef, history_.at(tf) * mount_);
+      const Pose2d::Vector2 p = rel.transformPoint(Pose2d::Vector2(x, y));
+      static_cast<void>(obs.points.push_back(PointObservation{p.x(), p.y(), kind}));
+    };
+    if (usesReflectors() && m.hasReflectors) {
+      obs.kindsDetected |= landmarkKindBit(LandmarkKind::Reflector);
+      for (std::size_t i = 0; i < m.reflectors.size(); ++i) {
+        const double x = static_cast<double>(m.reflectors[i].x);
+        const double y = static_cast<double>(m.reflectors[i].y);
+        const double f = (std::atan2(y, x) - static_cast<double>(m.scan.angleMin)) / fieldOfView_;
+        compensate(f, x, y, LandmarkKind::Reflector);
+      }
+    }
+    keypointCount_ = 0;
+    if (usesCorners()) {
+      keypoints_->clear();
+      const Status ds = detector_->detect(m.scan, *keypoints_);
+      if (std::getenv("HILDBG") != nullptr) {
+        std::fprintf(stderr, "falko %s raw %zu cand %zu\n", toString(ds), keypoints_->size(), detector_->lastCandidateCount());
+      }
+      if (ds == Status::Ok) {
+        obs.kindsDetected |= landmarkKindBit(LandmarkKind::Corner);
+        const double last = static_cast<double>(std::max<std::size_t>(1, m.scan.size() - 1));
+        for (std::size_t i = 0; i < keypoints_->size(); ++i) {
+          const FalkoKeypoint& k = (*keypoints_)[i];
+          if (!k.refined) {
+            continue;
+          }
+          ++keypointCount_;
+          compensate(static_cast<double>(k.beamIndex) / last, static_cast<double>(k.x), static_cast<double>(k.y),
+                     LandmarkKind::Corner);
+        }
+      }
+    }
+    return localizer_->correct(obs, map);
+  }
+
+  const Localizer& localizer() const noexcept { return *localizer_; }
+  std::size_t keypointCount() const noexcept { return keypointCount_; }
+
+ private:
+  static TricycleNoiseParams noiseParams(const ScenarioConfig& cfg) {
+    TricycleNoiseParams n;
+    // Encoder samples per laser correction (100 Hz encoders, 12.5 Hz sweeps by default).
+    n.samplesPerCorrection = std::max(1.0, cfg.laser.scanRate > 0.0 ? 100.0 / cfg.laser.scanRate : 1.0);
+    return n;
+  }
+  static LocalizerParams localizerParams(const ScenarioConfig& cfg) {
+    LocalizerParams p;
+    p.laser.mounting = cfg.estimate.laserMount;  // calibrated, never the true mount
+    p.laser.rangeMin = std::max(0.3, cfg.laser.rangeMin);
+    p.laser.rangeMax = std::min(cfg.laser.rangeMax, cfg.laser.reflectorMaxRange);
+    p.laser.angleMin = -0.5 * cfg.laser.fieldOfView;
+    p.laser.angleMax = 0.5 * cfg.laser.fieldOfView;
+    // The laser reports reflector centres with isotropic noise (1 cm per coordinate by default):
+    // mostly a per-kind term on top of the default range/bearing model.
+    p.laser.kindSigma[static_cast<std::size_t>(LandmarkKind::Reflector)] =
+        std::sqrt(std::max(0.0, cfg.laser.reflectorNoiseStdDev * cfg.laser.reflectorNoiseStdDev - 0.005 * 0.005));
+    // The in-view check counts every landmark inside range and field of view: occlusion is not
+    // modelled, and between the pallet blocks most poles are hidden (as few as 3 of the 18 seen at
+    // the end of the lane). The default 30 % matched fraction then declares the vehicle lost on
+    // a correct pose; 15 % still trips when the associations stop (a wrong pose matches nothing).
+    p.minMatchedFraction = 0.15;
+    return p;
+  }
+
+  LocalizationMode mode_;
+  TricycleOdometry odometry_;
+  std::unique_ptr<Localizer> localizer_;
+  std::unique_ptr<FalkoDetector> detector_;
+  std::unique_ptr<FalkoKeypoints> keypoints_;
+  std::unique_ptr<ScanObservations> observations_;
+  Pose2d mount_;
+  double fieldOfView_;
+  PoseHistory history_;
+  std::size_t keypointCount_ = 0;
+};
+
+/// Publishes the localizer's newest pose to the PLC peer.
+void publish(const Localizer& loc, std::uint16_t visibleReflectors, hal::PlcLink& plc) {
+  hal::PoseReport report;
+  report.stamp = loc.stamp();
+  report.pose = loc.pose();
+  report.covariance = loc.covariance();
+  report.health.mode = loc.lost() ? hal::NavMode::Lost : hal::NavMode::Localizing;
+  report.health.lastStatus = loc.health().status;
+  report.health.matchedLandmarks = loc.health().used;
+  report.health.visibleReflectors = visibleReflectors;
+  static_cast<void>(plc.publish(report));
+}
 
 /// One run of `path`: place the vehicle near the start, steer at rest, follow the path to its end
 /// and stop; the navigation side integrates the encoders and publishes to the PLC peer.
 RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, const ScenarioConfig& cfg,
-                 std::uint64_t seed) {
+                 LocalizationMode mode, LandmarkMap& map, std::uint64_t seed) {
   RunResult r;
   r.path = path.name;
   r.run = run;
+  r.mode = mode;
+  if (mode == LocalizationMode::Dynamic) {
+    map.clear();
+    map.setMode(MapMode::Dynamic);
+  }
+  Navigation nav(cfg, mode);
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal(0.0, 1.0);
 
@@ -75,6 +315,9 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   withTruth.reset(vehicle.truePose(), latest);
   withNominal.reset(vehicle.truePose(), latest);
   withEstimate.reset(vehicle.truePose(), latest);
+  nav.reset(vehicle.truePose(), latest, withEstimate.pose());
+  double usedSum = 0.0;
+  double keypointSum = 0.0;
 
   static hal::LaserMeasurement scan;  // ~8.5 KiB, reused
   const Duration scanPeriod = laser.period();
@@ -102,12 +345,8 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
       withTruth.update(sample);
       withNominal.update(sample);
       withEstimate.update(sample);
-      hal::PoseReport report;
-      report.stamp = sample.stamp;
-      report.pose = withEstimate.pose();
-      report.health.mode = hal::NavMode::Localizing;
-      report.health.visibleReflectors = lastReflectors;
-      static_cast<void>(plcLink.publish(report));
+      nav.predict(sample, withEstimate.pose());
+      publish(nav.localizer(), lastReflectors, plcLink);
     }
     // Laser sweeps: the pose is interpolated between the control steps around the sweep (the
     // sweep ends one beam before the next starts; the pose difference is sub-millimetre).
@@ -124,12 +363,20 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
           valid += scan.scan.isValid(i) ? 1U : 0U;
         }
         validSum += static_cast<double>(valid) / static_cast<double>(std::max<std::size_t>(1, scan.scan.size()));
+        const LocalizerHealth& h = nav.correct(scan, map);
+        if (std::getenv("HILDBG") != nullptr) {
+          std::fprintf(stderr, "cyc %u st %d fl %x obs %u used %u gate %u upd %u amb %u unm %u exp %u kp %zu ins %u psig %.4f\n", h.cycle, static_cast<int>(h.status), h.flags, h.observations, h.used, h.rejectedGate, h.rejectedUpdate, h.rejectedAmbiguous, h.unmatched, h.expectedInView, nav.keypointCount(), h.inserted, h.positionSigma);
+        }
+        usedSum += static_cast<double>(h.used);
+        keypointSum += static_cast<double>(nav.keypointCount());
+        r.scansWithoutFix += hasFlag(h.flags, LocalizerFlag::NoFix) ? 1U : 0U;
+        publish(nav.localizer(), lastReflectors, plcLink);
       }
       laserPoseAtScanStart = laserPoseNow;
       nextScan = t;
     }
-    r.history.push_back(
-        TrajectorySample{r.distance, vehicle.truePose(), withTruth.pose(), withNominal.pose(), withEstimate.pose()});
+    r.history.push_back(TrajectorySample{r.distance, vehicle.truePose(), withTruth.pose(), withNominal.pose(),
+                                         withEstimate.pose(), nav.localizer().pose()});
     if (follower.finished() && drive.isStandstill()) {
       r.finished = true;
       break;
@@ -140,8 +387,12 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   r.finalWithTruth = withTruth.pose();
   r.finalWithNominal = withNominal.pose();
   r.plcReports = plc.reports().size();
-  r.finalWithEstimate = plc.reports().empty() ? withEstimate.pose() : plc.reports().back().pose;
+  r.finalWithEstimate = withEstimate.pose();
+  r.finalLocalized = plc.reports().empty() ? nav.localizer().pose() : plc.reports().back().pose;
+  r.localizerLost = nav.localizer().lost();
   if (r.scans > 0) {
+    r.meanUsedPerScan = usedSum / static_cast<double>(r.scans);
+    r.meanKeypointsPerScan = keypointSum / static_cast<double>(r.scans);
     r.meanReflectorsPerScan = reflectorSum / static_cast<double>(r.scans);
     r.meanValidBeamFraction = validSum / static_cast<double>(r.scans);
   } else {
@@ -152,7 +403,8 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
 
 }  // namespace
 
-bool runScenario(const sim::World& world, const ScenarioConfig& config,
+bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
+                 const std::vector<std::size_t>& pathIndices, int runsPerPath, std::uint64_t seedSalt,
                  const std::function<void(const RunResult&, int index, int total)>& progress,
                  std::vector<RunResult>* results, std::string* error) {
   if (world.paths.empty()) {
@@ -164,18 +416,28 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config,
     *error = std::string("laser parameters: ") + toString(laserStatus);
     return false;
   }
-  if (config.runsPerPath < 1) {
+  if (runsPerPath < 1) {
     *error = "runs per path must be >= 1";
     return false;
   }
   const sim::RayCaster caster(world, 1.0);
-  const int total = static_cast<int>(world.paths.size()) * config.runsPerPath;
+  std::vector<std::size_t> paths = pathIndices;
+  if (paths.empty()) {
+    for (std::size_t p = 0; p < world.paths.size(); ++p) {
+      paths.push_back(p);
+    }
+  }
+  const int total = static_cast<int>(paths.size()) * runsPerPath;
   int index = 0;
-  for (std::size_t p = 0; p < world.paths.size(); ++p) {
-    for (int run = 1; run <= config.runsPerPath; ++run) {
+  for (const std::size_t p : paths) {
+    if (p >= world.paths.size()) {
+      *error = "path index out of range";
+      return false;
+    }
+    for (int run = 1; run <= runsPerPath; ++run) {
       const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
-      const std::uint64_t seed = config.seed * 1000003U + p * 1000U + runIndex;
-      results->push_back(runOne(caster, world.paths[p], run, config, seed));
+      const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + p * 1000U + runIndex;
+      results->push_back(runOne(caster, world.paths[p], run, config, mode, map, seed));
       ++index;
       if (progress) {
         progress(results->back(), index, total);

@@ -10,6 +10,7 @@
 
 #include "agv/core/pose2.hpp"
 #include "agv/kinematics/tricycle.hpp"
+#include "agv/localization/landmark_map.hpp"
 #include "agv/sim/sim_laser.hpp"
 #include "agv/sim/sim_vehicle.hpp"
 #include "agv/sim/world.hpp"
@@ -21,6 +22,16 @@ struct NominalVehicle {
   TricycleParams kinematics{1.5, 1.0e-4, 0.0, 0.0};
   Pose2d laserMount{1.6, 0.0, 0.0};
 };
+
+/// What the localizer is fed with in a run (docs/hil.md, "Localization modes").
+enum class LocalizationMode {
+  Reflectors,   ///< reflector centres against the surveyed reflector map (static)
+  Mapping,      ///< reflectors (surveyed) + FALKO corners inserted by the dynamic lifecycle
+  StaticFalko,  ///< FALKO corners only, against the frozen map of the mapping runs
+  Dynamic,      ///< FALKO corners only, dynamic map starting empty
+};
+/// JSON / printout name of a mode.
+const char* modeName(LocalizationMode mode) noexcept;
 
 /// Settings of one HIL session.
 struct ScenarioConfig {
@@ -43,6 +54,7 @@ struct TrajectorySample {
   Pose2d withTruth;     ///< dead reckoning with the true parameters
   Pose2d withNominal;   ///< dead reckoning with the nominal (uncalibrated) parameters
   Pose2d withEstimate;  ///< dead reckoning with the parameters the navigation has (calibrated)
+  Pose2d localized;     ///< the localizer's pose (what the PLC receives)
 };
 
 /// Result of one run along one path.
@@ -55,7 +67,13 @@ struct RunResult {
   Pose2d finalTruth;
   Pose2d finalWithTruth;
   Pose2d finalWithNominal;
-  Pose2d finalWithEstimate;  ///< the last pose published to the PLC
+  Pose2d finalWithEstimate;  ///< calibrated dead reckoning at the end (comparison)
+  LocalizationMode mode = LocalizationMode::Reflectors;
+  Pose2d finalLocalized;  ///< the last pose published to the PLC (the localizer's)
+  bool localizerLost = false;
+  double meanUsedPerScan = 0.0;       ///< landmarks used per correction
+  std::size_t scansWithoutFix = 0;    ///< corrections with fewer than 2 landmarks used
+  double meanKeypointsPerScan = 0.0;  ///< FALKO keypoints per scan (corner modes)
   std::size_t plcReports = 0;
   std::size_t scans = 0;
   double meanReflectorsPerScan = 0.0;
@@ -64,11 +82,23 @@ struct RunResult {
   std::vector<TrajectorySample> history;
 };
 
-/// Runs `config.runsPerPath` runs on every path of `world`; `progress` is called after each run.
+/// Runs `runsPerPath` runs of `mode` on each path of `world` listed in `pathIndices` (all when
+/// empty), the localizer using `map` (modified by the lifecycle in Mapping and Dynamic modes;
+/// Dynamic mode clears it before each run); `seedSalt` separates the random streams of sessions
+/// that must not repeat each other (mapping runs). `progress` is called after each run.
 /// Returns false (with `error`) on a setup problem (no path, invalid laser parameters).
-bool runScenario(const sim::World& world, const ScenarioConfig& config,
+bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
+                 const std::vector<std::size_t>& pathIndices, int runsPerPath, std::uint64_t seedSalt,
                  const std::function<void(const RunResult&, int index, int total)>& progress,
                  std::vector<RunResult>* results, std::string* error);
+
+/// The surveyed reflector map: every reflector pole centre of `world` with Gaussian survey noise
+/// `sigma` [m] per coordinate (seeded), as static surveyed landmarks with that sigma.
+Status buildSurveyedReflectorMap(const sim::World& world, double sigma, std::uint64_t seed, LandmarkMap& map);
+
+/// Copies the corners of `mapped` seen at least `minHits` times into `frozen` as surveyed
+/// landmarks (sigma from their variance) and sets it Static. Returns the number copied.
+std::size_t freezeCorners(const LandmarkMap& mapped, int minHits, LandmarkMap& frozen);
 
 /// Position error [m] and absolute heading error [rad] of `estimate` against `truth`.
 double positionError(const Pose2d& estimate, const Pose2d& truth) noexcept;
