@@ -85,7 +85,7 @@ void writeParamDiff(std::FILE* f, const agv::hil::NominalVehicle& v, const agv::
                agv::rad2deg(agv::angleDiff(v.laserMount.theta, truth.laserMount.theta)));
 }
 
-bool meets(const agv::Pose2d& est, const agv::Pose2d& truth) {
+bool meets(const agv::Pose2d& est, const agv::Pose2d& truth) {  // dead reckoning and localizer poses
   return agv::hil::positionError(est, truth) <= kPositionRequirement &&
          agv::rad2deg(agv::hil::headingError(est, truth)) <= kHeadingRequirementDeg;
 }
@@ -100,6 +100,13 @@ void writeLocalizerRun(std::FILE* f, const agv::hil::RunResult& r) {
                agv::rad2deg(agv::hil::headingError(r.finalLocalized, r.finalTruth)), r.distance,
                r.finished ? "true" : "false", r.localizerLost ? "true" : "false", r.meanUsedPerScan, r.scansWithoutFix,
                r.meanKeypointsPerScan);
+}
+
+// A localizer run meets the requirement when it reached the operation point, the pose sent to
+// the PLC is within 2 cm / 0.1 deg and the localizer is not lost (a lost localizer stops the
+// vehicle through the PLC interlock, whatever its last pose).
+bool runMeets(const agv::hil::RunResult& r) {
+  return r.finished && !r.localizerLost && meets(r.finalLocalized, r.finalTruth);
 }
 
 bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, const agv::hil::CalibrationOutcome& calib,
@@ -319,30 +326,33 @@ int main(int argc, char** argv) {
   }
   std::printf("mode reflectors: surveyed map of %zu reflectors (survey noise %.0f mm), static\n", reflectorMap->size(),
               1000.0 * kSurveySigma);
-  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Reflectors, *reflectorMap, {}, cfg.runsPerPath, 0, progress,
-                             &results, &error)) {
+  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Reflectors, *reflectorMap, nullptr, {}, cfg.runsPerPath, 0,
+                             progress, &results, &error)) {
     std::fprintf(stderr, "agvnav-hil: %s\n", error.c_str());
     return 2;
   }
   // Static FALKO map: one mapping run per path (other seeds) localizing on the surveyed
-  // reflectors while the dynamic lifecycle inserts the FALKO corners; the corners seen at least
-  // kMinMapHits times are then frozen and used alone.
-  constexpr int kMinMapHits = 3;
-  auto mappingMap = std::make_unique<agv::LandmarkMap>();
-  static_cast<void>(agv::hil::buildSurveyedReflectorMap(world, kSurveySigma, seed ^ 0x5EEDU, *mappingMap));
-  mappingMap->setMode(agv::MapMode::Dynamic);
-  std::printf("mode static_falko: mapping runs (reflectors + FALKO corners, dynamic lifecycle), 1 per path\n");
-  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Mapping, *mappingMap, {}, 1, 0xA11CEU, progress,
+  // reflectors while the FALKO corners are accumulated at the localizer's pose; the corners seen
+  // at least kMinMapHits times are then frozen and used alone.
+  constexpr int kMinMapHits = 5;
+  constexpr double kMaxCornerScatter = 0.015;  // [m] per coordinate
+  agv::hil::CornerMapper mapper;
+  std::printf(
+      "mode static_falko: mapping runs (localizing on the surveyed reflectors, FALKO corners accumulated "
+      "at the localizer's pose), 1 per path\n");
+  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Mapping, *reflectorMap, &mapper, {}, 1, 0xA11CEU, progress,
                              &mappingResults, &error)) {
     std::fprintf(stderr, "agvnav-hil: %s\n", error.c_str());
     return 2;
   }
   auto falkoMap = std::make_unique<agv::LandmarkMap>();
-  const std::size_t mapCorners = agv::hil::freezeCorners(*mappingMap, kMinMapHits, *falkoMap);
-  std::printf("mode static_falko: %zu corners frozen (seen >= %d times), static, corners only\n", mapCorners,
-              kMinMapHits);
-  if (!agv::hil::runScenario(world, cfg, LocalizationMode::StaticFalko, *falkoMap, {}, cfg.runsPerPath, 0, progress,
-                             &results, &error)) {
+  const std::size_t mapCorners = mapper.freeze(kMinMapHits, kMaxCornerScatter, *falkoMap);
+  std::printf(
+      "mode static_falko: %zu of %zu corner clusters frozen (seen >= %d times, scatter <= %.0f mm), static, corners "
+      "only\n",
+      mapCorners, mapper.clusters(), kMinMapHits, 1000.0 * kMaxCornerScatter);
+  if (!agv::hil::runScenario(world, cfg, LocalizationMode::StaticFalko, *falkoMap, nullptr, {}, cfg.runsPerPath, 0,
+                             progress, &results, &error)) {
     std::fprintf(stderr, "agvnav-hil: %s\n", error.c_str());
     return 2;
   }
@@ -357,8 +367,8 @@ int main(int argc, char** argv) {
   auto dynamicMap = std::make_unique<agv::LandmarkMap>();
   std::printf("mode dynamic: FALKO corners only, empty map at the start, path %s\n",
               world.paths[dynamicPath].name.c_str());
-  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Dynamic, *dynamicMap, {dynamicPath}, cfg.runsPerPath, 0,
-                             progress, &results, &error)) {
+  if (!agv::hil::runScenario(world, cfg, LocalizationMode::Dynamic, *dynamicMap, nullptr, {dynamicPath},
+                             cfg.runsPerPath, 0, progress, &results, &error)) {
     std::fprintf(stderr, "agvnav-hil: %s\n", error.c_str());
     return 2;
   }
@@ -412,7 +422,7 @@ int main(int argc, char** argv) {
         sumP2 += e * e;
         sumH2 += h * h;
         ++n;
-        met += meets(r.finalLocalized, r.finalTruth) ? 1 : 0;
+        met += runMeets(r) ? 1 : 0;
       }
       if (n == 0) {
         continue;
@@ -427,9 +437,9 @@ int main(int argc, char** argv) {
   int localizerMeetCount = 0;
   for (const RunResult& r : results) {
     allFinished = allFinished && r.finished;
-    localizerMeets = localizerMeets && meets(r.finalLocalized, r.finalTruth);
+    localizerMeets = localizerMeets && runMeets(r);
     ++localizerRuns;
-    localizerMeetCount += meets(r.finalLocalized, r.finalTruth) ? 1 : 0;
+    localizerMeetCount += runMeets(r) ? 1 : 0;
     if (r.mode == LocalizationMode::Reflectors) {
       ++drRuns;
       truthMeetCount += meets(r.finalWithTruth, r.finalTruth) ? 1 : 0;

@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <memory>
-#include <random>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
+#include <random>
 
 #include "agv/falko/falko_detector.hpp"
 #include "agv/hal/plc_messages.hpp"
@@ -60,17 +60,54 @@ Status buildSurveyedReflectorMap(const sim::World& world, double sigma, std::uin
   return Status::Ok;
 }
 
-std::size_t freezeCorners(const LandmarkMap& mapped, int minHits, LandmarkMap& frozen) {
-  frozen.clear();
-  std::size_t n = 0;
-  mapped.forEach([&](LandmarkIndex, const Landmark& l) {
-    if (l.kind == LandmarkKind::Corner && l.hits >= minHits &&
-        frozen.addSurveyed(LandmarkKind::Corner, l.x, l.y, std::sqrt(l.variance), l.id).ok()) {
-      ++n;
+void CornerMapper::add(double x, double y) {
+  Cluster* best = nullptr;
+  double bestD2 = kMergeRadius * kMergeRadius;
+  for (Cluster& c : clusters_) {
+    const double n = static_cast<double>(c.n);
+    const double dx = c.sx / n - x;
+    const double dy = c.sy / n - y;
+    if (dx * dx + dy * dy < bestD2) {
+      bestD2 = dx * dx + dy * dy;
+      best = &c;
     }
-  });
+  }
+  if (best == nullptr) {
+    clusters_.push_back(Cluster{});
+    best = &clusters_.back();
+  }
+  best->sx += x;
+  best->sy += y;
+  best->sxx += x * x;
+  best->syy += y * y;
+  ++best->n;
+}
+
+std::size_t CornerMapper::freeze(int minSightings, double maxScatter, LandmarkMap& frozen) const {
+  frozen.clear();
+  std::size_t count = 0;
+  std::uint32_t id = 1;
+  for (const Cluster& c : clusters_) {
+    if (c.n < minSightings) {
+      continue;
+    }
+    const double n = static_cast<double>(c.n);
+    const double mx = c.sx / n;
+    const double my = c.sy / n;
+    // Scatter of the sightings: a true corner's apex is seen at one place from everywhere; a
+    // pillar's or a pole's "corner" moves with the viewpoint.
+    const double var = std::max(0.0, (c.sxx / n - mx * mx) + (c.syy / n - my * my)) / 2.0;
+    if (std::sqrt(var) > maxScatter) {
+      continue;
+    }
+    // The landmark's sigma: the scatter of one sighting (not of the mean: sightings from one
+    // run share the pose error of the mapping localizer).
+    if (frozen.addSurveyed(LandmarkKind::Corner, mx, my, std::sqrt(var), id++).ok()) {
+      ++count;
+    }
+  }
   frozen.setMode(MapMode::Static);
-  return n;
+  return count;
 }
 
 namespace {
@@ -121,7 +158,7 @@ class Navigation {
   Navigation(const ScenarioConfig& cfg, LocalizationMode mode)
       : mode_(mode),
         odometry_(cfg.estimate.kinematics, noiseParams(cfg)),
-        localizer_(std::make_unique<Localizer>(localizerParams(cfg))),
+        localizer_(std::make_unique<Localizer>(localizerParams(cfg, mode))),
         detector_(std::make_unique<FalkoDetector>()),
         keypoints_(std::make_unique<FalkoKeypoints>()),
         observations_(std::make_unique<ScanObservations>()),
@@ -154,8 +191,9 @@ class Navigation {
     history_.add(sample.stamp, deadReckoning);
   }
 
-  /// One laser sweep.
-  const LocalizerHealth& correct(const hal::LaserMeasurement& m, LandmarkMap& map) {
+  /// One laser sweep. In Mapping mode the localizer corrects on the reflectors against `map`
+  /// and the FALKO corners are accumulated into `cornerMap` at the corrected pose.
+  const LocalizerHealth& correct(const hal::LaserMeasurement& m, LandmarkMap& map, CornerMapper* cornerMap) {
     ScanObservations& obs = *observations_;
     obs.points.clear();
     const Timestamp tRef = m.scan.stamp + m.scan.sweepDuration;
@@ -164,11 +202,10 @@ class Navigation {
     const Pose2d laserRef = history_.at(tRef) * mount_;
     const double sweep = m.scan.sweepDuration.seconds();
     // A point seen at sweep fraction f, expressed in the sensor frame at the end of the sweep.
-    auto compensate = [&](double f, double x, double y, LandmarkKind kind) {
+    auto compensate = [&](double f, double x, double y) {
       const Timestamp tf = m.scan.stamp + Duration::fromSeconds(std::clamp(f, 0.0, 1.0) * sweep);
       const Pose2d rel = between(laserRef, history_.at(tf) * mount_);
-      const Pose2d::Vector2 p = rel.transformPoint(Pose2d::Vector2(x, y));
-      static_cast<void>(obs.points.push_back(PointObservation{p.x(), p.y(), kind}));
+      return rel.transformPoint(Pose2d::Vector2(x, y));
     };
     if (usesReflectors() && m.hasReflectors) {
       obs.kindsDetected |= landmarkKindBit(LandmarkKind::Reflector);
@@ -176,31 +213,45 @@ class Navigation {
         const double x = static_cast<double>(m.reflectors[i].x);
         const double y = static_cast<double>(m.reflectors[i].y);
         const double f = (std::atan2(y, x) - static_cast<double>(m.scan.angleMin)) / fieldOfView_;
-        compensate(f, x, y, LandmarkKind::Reflector);
+        const Pose2d::Vector2 p = compensate(f, x, y);
+        static_cast<void>(obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Reflector}));
       }
     }
     keypointCount_ = 0;
+    corners_.clear();
     if (usesCorners()) {
       keypoints_->clear();
-      const Status ds = detector_->detect(m.scan, *keypoints_);
-      if (std::getenv("HILDBG") != nullptr) {
-        std::fprintf(stderr, "falko %s raw %zu cand %zu\n", toString(ds), keypoints_->size(), detector_->lastCandidateCount());
-      }
-      if (ds == Status::Ok) {
-        obs.kindsDetected |= landmarkKindBit(LandmarkKind::Corner);
+      if (detector_->detect(m.scan, *keypoints_) == Status::Ok) {
         const double last = static_cast<double>(std::max<std::size_t>(1, m.scan.size() - 1));
         for (std::size_t i = 0; i < keypoints_->size(); ++i) {
           const FalkoKeypoint& k = (*keypoints_)[i];
           if (!k.refined) {
-            continue;
+            continue;  // the apex of an unrefined keypoint is only the nearest beam point
           }
           ++keypointCount_;
-          compensate(static_cast<double>(k.beamIndex) / last, static_cast<double>(k.x), static_cast<double>(k.y),
-                     LandmarkKind::Corner);
+          corners_.push_back(
+              compensate(static_cast<double>(k.beamIndex) / last, static_cast<double>(k.x), static_cast<double>(k.y)));
+        }
+        if (mode_ != LocalizationMode::Mapping) {
+          obs.kindsDetected |= landmarkKindBit(LandmarkKind::Corner);
+          for (const Pose2d::Vector2& p : corners_) {
+            static_cast<void>(obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Corner}));
+          }
         }
       }
     }
-    return localizer_->correct(obs, map);
+    const LocalizerHealth& h = localizer_->correct(obs, map);
+    if (mode_ == LocalizationMode::Mapping && cornerMap != nullptr && !localizer_->lost() &&
+        !hasFlag(h.flags, LocalizerFlag::NoFix)) {
+      // The corrected pose at the end of the sweep, from the newest one and the odometry between.
+      const Pose2d poseRef = localizer_->pose() * between(history_.at(localizer_->stamp()), history_.at(tRef));
+      const Pose2d laserWorld = poseRef * mount_;
+      for (const Pose2d::Vector2& p : corners_) {
+        const Pose2d::Vector2 w = laserWorld.transformPoint(p);
+        cornerMap->add(w.x(), w.y());
+      }
+    }
+    return h;
   }
 
   const Localizer& localizer() const noexcept { return *localizer_; }
@@ -213,7 +264,7 @@ class Navigation {
     n.samplesPerCorrection = std::max(1.0, cfg.laser.scanRate > 0.0 ? 100.0 / cfg.laser.scanRate : 1.0);
     return n;
   }
-  static LocalizerParams localizerParams(const ScenarioConfig& cfg) {
+  static LocalizerParams localizerParams(const ScenarioConfig& cfg, LocalizationMode mode) {
     LocalizerParams p;
     p.laser.mounting = cfg.estimate.laserMount;  // calibrated, never the true mount
     p.laser.rangeMin = std::max(0.3, cfg.laser.rangeMin);
@@ -229,6 +280,13 @@ class Navigation {
     // the end of the lane). The default 30 % matched fraction then declares the vehicle lost on
     // a correct pose; 15 % still trips when the associations stop (a wrong pose matches nothing).
     p.minMatchedFraction = 0.15;
+    if (mode != LocalizationMode::Reflectors && mode != LocalizationMode::Mapping) {
+      // A corner is visible only from its outer quadrant and FALKO finds it only from some
+      // viewpoints: the matched/expected check, which knows neither, latches "lost" on a correct
+      // pose within a few cycles. Corner modes rely on the covariance limit (10 cm / 2 deg)
+      // and report scans without a fix instead.
+      p.minExpectedForCheck = 0xFFFF;
+    }
     return p;
   }
 
@@ -242,6 +300,7 @@ class Navigation {
   double fieldOfView_;
   PoseHistory history_;
   std::size_t keypointCount_ = 0;
+  std::vector<Pose2d::Vector2> corners_;
 };
 
 /// Publishes the localizer's newest pose to the PLC peer.
@@ -260,7 +319,7 @@ void publish(const Localizer& loc, std::uint16_t visibleReflectors, hal::PlcLink
 /// One run of `path`: place the vehicle near the start, steer at rest, follow the path to its end
 /// and stop; the navigation side integrates the encoders and publishes to the PLC peer.
 RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, const ScenarioConfig& cfg,
-                 LocalizationMode mode, LandmarkMap& map, std::uint64_t seed) {
+                 LocalizationMode mode, LandmarkMap& map, CornerMapper* cornerMap, std::uint64_t seed) {
   RunResult r;
   r.path = path.name;
   r.run = run;
@@ -363,10 +422,7 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
           valid += scan.scan.isValid(i) ? 1U : 0U;
         }
         validSum += static_cast<double>(valid) / static_cast<double>(std::max<std::size_t>(1, scan.scan.size()));
-        const LocalizerHealth& h = nav.correct(scan, map);
-        if (std::getenv("HILDBG") != nullptr) {
-          std::fprintf(stderr, "cyc %u st %d fl %x obs %u used %u gate %u upd %u amb %u unm %u exp %u kp %zu ins %u psig %.4f\n", h.cycle, static_cast<int>(h.status), h.flags, h.observations, h.used, h.rejectedGate, h.rejectedUpdate, h.rejectedAmbiguous, h.unmatched, h.expectedInView, nav.keypointCount(), h.inserted, h.positionSigma);
-        }
+        const LocalizerHealth& h = nav.correct(scan, map, cornerMap);
         usedSum += static_cast<double>(h.used);
         keypointSum += static_cast<double>(nav.keypointCount());
         r.scansWithoutFix += hasFlag(h.flags, LocalizerFlag::NoFix) ? 1U : 0U;
@@ -404,8 +460,8 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
 }  // namespace
 
 bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
-                 const std::vector<std::size_t>& pathIndices, int runsPerPath, std::uint64_t seedSalt,
-                 const std::function<void(const RunResult&, int index, int total)>& progress,
+                 CornerMapper* cornerMap, const std::vector<std::size_t>& pathIndices, int runsPerPath,
+                 std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
                  std::vector<RunResult>* results, std::string* error) {
   if (world.paths.empty()) {
     *error = "the world has no path to drive";
@@ -437,7 +493,7 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
     for (int run = 1; run <= runsPerPath; ++run) {
       const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
       const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + p * 1000U + runIndex;
-      results->push_back(runOne(caster, world.paths[p], run, config, mode, map, seed));
+      results->push_back(runOne(caster, world.paths[p], run, config, mode, map, cornerMap, seed));
       ++index;
       if (progress) {
         progress(results->back(), index, total);

@@ -26,12 +26,33 @@ struct NominalVehicle {
 /// What the localizer is fed with in a run (docs/hil.md, "Localization modes").
 enum class LocalizationMode {
   Reflectors,   ///< reflector centres against the surveyed reflector map (static)
-  Mapping,      ///< reflectors (surveyed) + FALKO corners inserted by the dynamic lifecycle
+  Mapping,      ///< reflectors (surveyed) for the pose; FALKO corners accumulated into a corner map
   StaticFalko,  ///< FALKO corners only, against the frozen map of the mapping runs
   Dynamic,      ///< FALKO corners only, dynamic map starting empty
 };
 /// JSON / printout name of a mode.
 const char* modeName(LocalizationMode mode) noexcept;
+
+/// The mapping side of the static FALKO mode: FALKO corners (world frame, at the localizer's
+/// pose) clustered by proximity, frozen into a static map when seen often and in one place.
+class CornerMapper {
+ public:
+  static constexpr double kMergeRadius = 0.2;  ///< [m] sightings closer than this to a cluster join it
+  /// One sighting at (x, y) [m], world frame.
+  void add(double x, double y);
+  /// Copies into `frozen` (cleared, then Static) every cluster of at least `minSightings`
+  /// sightings whose scatter (std per coordinate) is at most `maxScatter` [m], as a surveyed
+  /// corner at the mean with that scatter as sigma. Returns the number frozen.
+  std::size_t freeze(int minSightings, double maxScatter, LandmarkMap& frozen) const;
+  std::size_t clusters() const noexcept { return clusters_.size(); }
+
+ private:
+  struct Cluster {
+    double sx = 0.0, sy = 0.0, sxx = 0.0, syy = 0.0;
+    int n = 0;
+  };
+  std::vector<Cluster> clusters_;
+};
 
 /// Settings of one HIL session.
 struct ScenarioConfig {
@@ -83,22 +104,18 @@ struct RunResult {
 };
 
 /// Runs `runsPerPath` runs of `mode` on each path of `world` listed in `pathIndices` (all when
-/// empty), the localizer using `map` (modified by the lifecycle in Mapping and Dynamic modes;
-/// Dynamic mode clears it before each run); `seedSalt` separates the random streams of sessions
-/// that must not repeat each other (mapping runs). `progress` is called after each run.
+/// empty), the localizer using `map` (Dynamic mode clears it before each run and runs the
+/// lifecycle on it); in Mapping mode the FALKO corners are accumulated into `cornerMap`; `seedSalt` separates the
+/// random streams of sessions that must not repeat each other (mapping runs). `progress` is called after each run.
 /// Returns false (with `error`) on a setup problem (no path, invalid laser parameters).
 bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
-                 const std::vector<std::size_t>& pathIndices, int runsPerPath, std::uint64_t seedSalt,
-                 const std::function<void(const RunResult&, int index, int total)>& progress,
+                 CornerMapper* cornerMap, const std::vector<std::size_t>& pathIndices, int runsPerPath,
+                 std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
                  std::vector<RunResult>* results, std::string* error);
 
 /// The surveyed reflector map: every reflector pole centre of `world` with Gaussian survey noise
 /// `sigma` [m] per coordinate (seeded), as static surveyed landmarks with that sigma.
 Status buildSurveyedReflectorMap(const sim::World& world, double sigma, std::uint64_t seed, LandmarkMap& map);
-
-/// Copies the corners of `mapped` seen at least `minHits` times into `frozen` as surveyed
-/// landmarks (sigma from their variance) and sets it Static. Returns the number copied.
-std::size_t freezeCorners(const LandmarkMap& mapped, int minHits, LandmarkMap& frozen);
 
 /// Position error [m] and absolute heading error [rad] of `estimate` against `truth`.
 double positionError(const Pose2d& estimate, const Pose2d& truth) noexcept;

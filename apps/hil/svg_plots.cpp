@@ -82,16 +82,20 @@ bool writeMapSvg(const std::string& file, const sim::World& world, const std::ve
     }
     s << "'/>\n<text x='" << X(p.start.x) << "' y='" << Y(p.start.y) << "' dx='-18' dy='4'>" << p.name << "</text>\n";
   }
-  // First run of each path.
-  const char* colours[4] = {"#000", "#1a9850", "#f46d43", "#2166ac"};
+  // First run of each path (reflector mode): truth, dead reckoning, localizer.
+  const char* colours[5] = {"#000", "#1a9850", "#f46d43", "#2166ac", "#762a83"};
   for (const RunResult& r : runs) {
-    if (r.run != 1) {
+    if (r.run != 1 || r.mode != LocalizationMode::Reflectors) {
       continue;
     }
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < 5; ++k) {
       s << "<polyline fill='none' stroke='" << colours[k] << "' stroke-width='1.2' points='";
       for (const TrajectorySample& t : r.history) {
-        const Pose2d& q = k == 0 ? t.truth : (k == 1 ? t.withTruth : (k == 2 ? t.withNominal : t.withEstimate));
+        const Pose2d& q = k == 0   ? t.truth
+                          : k == 1 ? t.withTruth
+                          : k == 2 ? t.withNominal
+                          : k == 3 ? t.withEstimate
+                                   : t.localized;
         s << X(q.x) << ',' << Y(q.y) << ' ';
       }
       s << "'/>\n";
@@ -101,7 +105,9 @@ bool writeMapSvg(const std::string& file, const sim::World& world, const std::ve
   s << "<text x='" << num(kMargin) << "' y='" << num(ly) << "'>"
     << "<tspan fill='#000'>truth</tspan>  <tspan fill='#1a9850'>dead reckoning, true parameters</tspan>  "
     << "<tspan fill='#f46d43'>dead reckoning, nominal parameters</tspan>  "
-    << "<tspan fill='#2166ac'>dead reckoning, estimated parameters</tspan>  <tspan fill='#e00000'>reflectors</tspan>  "
+    << "<tspan fill='#2166ac'>dead reckoning, estimated parameters</tspan>  <tspan fill='#762a83'>localizer "
+       "(reflectors)</tspan>  "
+    << "<tspan fill='#e00000'>reflectors</tspan>  "
     << "<tspan fill='#a0522d'>pallet blocks</tspan>  <tspan fill='#3060a0'>racks</tspan>  (1 px = 5 cm)</text>\n";
   s << "</svg>\n";
   return save(file, s.str());
@@ -150,8 +156,14 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
   s << "<text x='" << num(w - right - 4) << "' y='" << Y(requirement)
     << "' dy='-4' text-anchor='end' fill='#d73027'>requirement " << num(requirement * 100.0) << " cm</text>\n";
   for (const RunResult& r : runs) {
-    const char* colours[3] = {"#1a9850", "#f46d43", "#2166ac"};
-    for (int k = 0; k < 3; ++k) {
+    // Dead reckoning (once: every mode repeats the vehicle runs), then the localizer by mode.
+    const char* colours[4] = {"#1a9850", "#f46d43", "#2166ac", "#762a83"};
+    if (r.mode == LocalizationMode::StaticFalko) {
+      colours[3] = "#e08214";
+    } else if (r.mode == LocalizationMode::Dynamic) {
+      colours[3] = "#35978f";
+    }
+    for (int k = r.mode == LocalizationMode::Reflectors ? 0 : 3; k < 4; ++k) {
       s << "<polyline fill='none' stroke-opacity='0.6' stroke='" << colours[k] << "' points='";
       double lastD = -1.0;
       for (const TrajectorySample& t : r.history) {
@@ -159,7 +171,7 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
           continue;
         }
         lastD = t.distance;
-        const Pose2d& q = k == 0 ? t.withTruth : (k == 1 ? t.withNominal : t.withEstimate);
+        const Pose2d& q = k == 0 ? t.withTruth : (k == 1 ? t.withNominal : (k == 2 ? t.withEstimate : t.localized));
         s << X(t.distance) << ',' << Y(positionError(q, t.truth)) << ' ';
       }
       s << "'/>\n";
@@ -167,7 +179,9 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
   }
   s << "<text x='" << num(left + 8) << "' y='" << num(top + 14)
     << "'>dead reckoning with: <tspan fill='#1a9850'>true parameters</tspan>   "
-    << "<tspan fill='#f46d43'>nominal parameters</tspan>   <tspan fill='#2166ac'>estimated parameters</tspan></text>\n";
+    << "<tspan fill='#f46d43'>nominal parameters</tspan>   <tspan fill='#2166ac'>estimated parameters</tspan>; "
+       "localizer: <tspan fill='#762a83'>reflectors</tspan> "
+    << "<tspan fill='#e08214'>static FALKO</tspan> <tspan fill='#35978f'>dynamic</tspan></text>\n";
   s << "</svg>\n";
   return save(file, s.str());
 }
