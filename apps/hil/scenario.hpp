@@ -1,7 +1,8 @@
 #pragma once
 /// @file scenario.hpp
 /// The HIL scenario: the simulated vehicle drives the world's paths while the navigation side
-/// (today: dead reckoning) estimates its pose; results per run with the trajectories for plots.
+/// (the localizer, with dead reckoning as a comparison) estimates its pose; results per run with the
+/// trajectories for plots.
 
 #include <cstdint>
 #include <functional>
