@@ -1,6 +1,7 @@
 #include "agv/drivers/plc/plc_register_map.hpp"
 
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 
 #include "agv/core/angle.hpp"
