@@ -178,3 +178,22 @@ TEST_CASE("Command writes: whitelist, whole 32-bit fields, bounds", "[drivers][m
   AGV_CHECK_NEAR(c.value().pose.theta, 1.5, 1e-7);
   CHECK(c.value().plcHeartbeat == 99);
 }
+
+TEST_CASE("Register map encoding and checks do not allocate", "[drivers][modbus]") {
+  PlcRegisterMap map;
+  static std::uint16_t table[PlcRegisterMap::kRegisterCount] = {};
+  PlcStatus s;
+  s.pose = agv::Pose2d(1.0, 2.0, 0.5);
+  const std::uint16_t write[2] = {1, 2};
+  Status a = Status::NotInitialized;
+  Status b = Status::NotInitialized;
+  bool decoded = false;
+  AGV_CHECK_NO_ALLOCATIONS({
+    a = map.encodeStatus(s, Span<std::uint16_t>(table));
+    b = map.checkWrite(100, Span<const std::uint16_t>(write, 2), Span<const std::uint16_t>(table, PlcRegisterMap::kRegisterCount));
+    decoded = map.decodeCommand(Span<const std::uint16_t>(table, PlcRegisterMap::kRegisterCount)).ok();
+  });
+  CHECK(a == Status::Ok);
+  CHECK(b == Status::Ok);
+  CHECK(decoded);
+}
