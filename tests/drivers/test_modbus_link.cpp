@@ -299,3 +299,63 @@ TEST_CASE("Link used before open() says so", "[drivers][modbus]") {
   ModbusPlcLink link(ModbusPlcLinkConfig{});
   CHECK(link.cycle(sampleStatus(0), monotonicNow(), Duration::fromMilliseconds(1)) == Status::NotInitialized);
 }
+
+TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connections do not block other PLCs", "[drivers][modbus]") {
+  ModbusPlcLinkConfig cfg;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = 0;
+  cfg.maxConnections = 2;
+  cfg.responseTimeout = Duration::fromMilliseconds(50);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  auto rawConnect = [&] {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = htons(link.boundPort());
+    ::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    return fd;
+  };
+  // A PLC that sends 5 bytes of a 12-byte read request and then nothing.
+  const int stalled = rawConnect();
+  const std::uint8_t half[5] = {0x00, 0x01, 0x00, 0x00, 0x00};
+  REQUIRE(::send(stalled, half, sizeof half, MSG_NOSIGNAL) == 5);
+  for (int i = 0; i < 10; ++i) {
+    REQUIRE(link.cycle(sampleStatus(static_cast<std::uint16_t>(i)), monotonicNow(), Duration::fromMilliseconds(10)) == Status::Ok);
+  }
+  CHECK(link.counters().requestErrors >= 1U);  // the half request timed out ...
+  CHECK(link.counters().disconnects >= 1U);    // ... and its connection was dropped
+  ::close(stalled);
+
+  // Two well-behaved PLCs fill the connection slots; a third is refused; the two are served.
+  std::atomic<int> reads{0};
+  std::atomic<bool> done{false};
+  std::thread plcs([&] {
+    modbus_t* a = modbus_new_tcp("127.0.0.1", link.boundPort());
+    modbus_t* b = modbus_new_tcp("127.0.0.1", link.boundPort());
+    modbus_set_response_timeout(a, 2, 0);
+    modbus_set_response_timeout(b, 2, 0);
+    if (modbus_connect(a) == 0 && modbus_connect(b) == 0) {
+      sleepMs(200);  // both accepted before the surplus one arrives
+      const int extra = rawConnect();  // over maxConnections
+      std::uint16_t r[4];
+      for (int i = 0; i < 5; ++i) {
+        if (modbus_read_registers(a, 0, 4, r) == 4) ++reads;
+        if (modbus_read_registers(b, 4, 4, r) == 4) ++reads;
+      }
+      ::close(extra);
+      modbus_close(a);
+      modbus_close(b);
+    }
+    modbus_free(a);
+    modbus_free(b);
+    done = true;
+  });
+  for (int i = 0; i < 1000 && !done; ++i) {
+    REQUIRE(link.cycle(sampleStatus(static_cast<std::uint16_t>(i)), monotonicNow(), Duration::fromMilliseconds(10)) == Status::Ok);
+  }
+  plcs.join();
+  CHECK(reads.load() == 10);
+  CHECK(link.counters().connectFailures >= 1U);  // the surplus connection was refused
+}
