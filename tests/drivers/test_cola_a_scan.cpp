@@ -167,3 +167,41 @@ TEST_CASE("Decoding a scan does not allocate", "[drivers][laser]") {
   AGV_CHECK_NO_ALLOCATIONS(s = parse(text, scan));
   CHECK(s == Status::Ok);
 }
+
+TEST_CASE("Simulator encoding: encodeColaAScan round-trips through the framer and the decoder", "[drivers][laser]") {
+  static LaserScan truth;
+  truth.angleMin = static_cast<float>(agv::deg2rad(-135.0));
+  truth.angleIncrement = static_cast<float>(agv::deg2rad(0.25));
+  truth.rangeMin = 0.05F;
+  truth.rangeMax = 80.0F;
+  for (int i = 0; i < 1081; ++i) {
+    const double r = roomRange(static_cast<double>(truth.angle(static_cast<std::size_t>(i))));
+    REQUIRE(truth.ranges.push_back(i == 500 ? std::numeric_limits<float>::infinity() : static_cast<float>(r)) == Status::Ok);
+  }
+  for (float scale : {1.0F, 2.0F}) {
+    agv::drivers::sick::ColaAScanEncodeParams p;
+    p.scaleFactor = scale;
+    p.scanCounter = 77;
+    static std::uint8_t buf[16384];
+    const std::size_t n = agv::drivers::sick::encodeColaAScan(truth, p, Span<std::uint8_t>(buf));
+    REQUIRE(n > 0U);
+    REQUIRE(buf[0] == 0x02);
+    REQUIRE(buf[n - 1] == 0x03);
+    static LaserScan back;
+    ColaAScanInfo info;
+    REQUIRE(parseColaAScan(Span<const std::uint8_t>(buf + 1, n - 2), ColaAScanConfig{}, Timestamp{}, back, &info) == Status::Ok);
+    CHECK(info.scanCounter == 77U);
+    REQUIRE(back.size() == truth.size());
+    AGV_CHECK_NEAR(back.angleMin, truth.angleMin, 1e-6);
+    AGV_CHECK_NEAR(back.angleIncrement, truth.angleIncrement, 1e-7);
+    for (std::size_t i = 0; i < back.size(); ++i) {
+      if (i == 500) {
+        CHECK_FALSE(back.isValid(i));
+        continue;
+      }
+      AGV_CHECK_NEAR(back.ranges[i], truth.ranges[i], 0.5e-3 * scale + 1e-5);
+    }
+    static std::uint8_t small[100];
+    CHECK(agv::drivers::sick::encodeColaAScan(truth, p, Span<std::uint8_t>(small)) == 0U);
+  }
+}

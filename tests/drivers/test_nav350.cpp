@@ -192,3 +192,67 @@ TEST_CASE("NAV350: framed reply through the framer, decoded without allocation",
   CHECK(s == Status::Ok);
   CHECK(r.scan.size() == 1440U);
 }
+
+TEST_CASE("Simulator encoding: encodeNav350PoseReply round-trips through CoLa B and the decoder", "[drivers][laser]") {
+  static Nav350PoseReply truth;
+  truth.version = 1;
+  truth.mask = 2;
+  truth.poseValid = true;
+  truth.pose = agv::Pose2d(-12.3456, 7.891, -2.9);
+  truth.poseDetailsValid = true;
+  truth.meanDeviation = 0.015;
+  truth.usedReflectors = 4;
+  truth.landmarksValid = true;
+  for (int i = 0; i < 5; ++i) {
+    Nav350Reflector f;
+    f.hasCartesian = true;
+    f.x = 3.0 * i - 4.0;
+    f.y = -1.5 * i;
+    f.hasPolar = true;
+    f.range = 2.0 + i;
+    f.bearing = -3.0 + 1.4 * i;
+    f.hasDetails = i % 2 == 0;
+    f.globalId = static_cast<std::uint16_t>(10 + i);
+    f.size = 0.08;
+    REQUIRE(truth.reflectors.push_back(f) == Status::Ok);
+  }
+  truth.scanValid = true;
+  Nav350Config cfg;
+  cfg.angleOffset = -agv::kPi<double>;
+  truth.scan.angleMin = static_cast<float>(-agv::kPi<double>);
+  truth.scan.angleIncrement = static_cast<float>(agv::deg2rad(0.25));
+  truth.scan.rangeMin = cfg.rangeMin;
+  truth.scan.rangeMax = cfg.rangeMax;
+  for (int i = 0; i < 1440; ++i) REQUIRE(truth.scan.ranges.push_back(1.0F + 0.01F * static_cast<float>(i % 300)) == Status::Ok);
+
+  static std::uint8_t payload[16384];
+  static std::uint8_t telegram[16384 + 9];
+  const std::size_t n = encodeNav350PoseReply(truth, cfg, Span<std::uint8_t>(payload));
+  REQUIRE(n > 0U);
+  const std::size_t m = encodeColaB(Span<const std::uint8_t>(payload, n), Span<std::uint8_t>(telegram));
+  REQUIRE(m == n + 9);
+  static TelegramFramer framer(Framing::ColaB);
+  REQUIRE(framer.feed(Span<const std::uint8_t>(telegram, m)) == m);
+  Span<const std::uint8_t> t;
+  REQUIRE(framer.next(t));
+  static Nav350PoseReply back;
+  REQUIRE(parseNav350PoseReply(t, cfg, Timestamp{}, back) == Status::Ok);
+  REQUIRE(back.poseValid);
+  AGV_CHECK_NEAR(back.pose.x, truth.pose.x, 0.5e-3 + 1e-9);
+  AGV_CHECK_NEAR(back.pose.y, truth.pose.y, 0.5e-3 + 1e-9);
+  AGV_CHECK_NEAR(agv::angleDiff(back.pose.theta, truth.pose.theta), 0.0, agv::deg2rad(0.5e-3) + 1e-9);
+  AGV_CHECK_NEAR(back.meanDeviation, 0.015, 1e-9);
+  REQUIRE(back.reflectors.size() == 5U);
+  for (std::size_t i = 0; i < 5; ++i) {
+    AGV_CHECK_NEAR(back.reflectors[i].x, truth.reflectors[i].x, 0.5e-3 + 1e-9);
+    AGV_CHECK_NEAR(back.reflectors[i].range, truth.reflectors[i].range, 0.5e-3 + 1e-9);
+    AGV_CHECK_NEAR(agv::angleDiff(back.reflectors[i].bearing, truth.reflectors[i].bearing), 0.0, agv::deg2rad(0.5e-3) + 1e-9);
+    CHECK(back.reflectors[i].hasDetails == truth.reflectors[i].hasDetails);
+  }
+  REQUIRE(back.scanValid);
+  REQUIRE(back.scan.size() == 1440U);
+  AGV_CHECK_NEAR(agv::angleDiff(static_cast<double>(back.scan.angleMin), static_cast<double>(truth.scan.angleMin)), 0.0, 1e-6);
+  for (std::size_t i = 0; i < 1440; ++i) AGV_CHECK_NEAR(back.scan.ranges[i], truth.scan.ranges[i], 0.5e-3 + 1e-6);
+  static std::uint8_t small[64];
+  CHECK(encodeNav350PoseReply(truth, cfg, Span<std::uint8_t>(small)) == 0U);
+}

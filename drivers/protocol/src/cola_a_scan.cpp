@@ -253,3 +253,102 @@ Status parseColaAScan(Span<const std::uint8_t> telegram, const ColaAScanConfig& 
 }
 
 }  // namespace agv::drivers::sick
+
+namespace agv::drivers::sick {
+namespace {
+/// Appends text to a bounded buffer; remembers an overflow.
+class TextOut {
+ public:
+  explicit TextOut(Span<std::uint8_t> out) noexcept : out_(out) {}
+  void byte(std::uint8_t c) noexcept {
+    if (n_ < out_.size()) {
+      out_[n_++] = c;
+    } else {
+      overflow_ = true;
+    }
+  }
+  void text(const char* s) noexcept {
+    for (; *s != '\0'; ++s) {
+      byte(static_cast<std::uint8_t>(*s));
+    }
+  }
+  /// " " + uppercase hexadecimal without leading zeros.
+  void hex(std::uint32_t v) noexcept {
+    byte(' ');
+    char digits[8];
+    int k = 0;
+    do {
+      const std::uint32_t d = v & 0xFU;
+      digits[k++] = static_cast<char>(d < 10U ? '0' + static_cast<int>(d) : 'A' + static_cast<int>(d - 10U));
+      v >>= 4U;
+    } while (v != 0U && k < 8);
+    while (k > 0) {
+      byte(static_cast<std::uint8_t>(digits[--k]));
+    }
+  }
+  std::size_t size() const noexcept { return overflow_ ? 0U : n_; }
+
+ private:
+  Span<std::uint8_t> out_;
+  std::size_t n_ = 0;
+  bool overflow_ = false;
+};
+
+std::uint32_t floatBits(float f) noexcept {
+  std::uint32_t u = 0;
+  std::memcpy(&u, &f, sizeof u);
+  return u;
+}
+}  // namespace
+
+std::size_t encodeColaAScan(const LaserScan& scan, const ColaAScanEncodeParams& p, Span<std::uint8_t> out) noexcept {
+  if (!(p.scaleFactor > 0.0F) || !std::isfinite(p.scaleFactor) || scan.size() > 0xFFFFU) {
+    return 0;
+  }
+  TextOut t(out);
+  t.byte(0x02);
+  t.text("sSN LMDscandata");
+  t.hex(1);  // version
+  t.hex(1);  // device number
+  t.hex(p.serialNumber);
+  t.hex(0);  // device status
+  t.hex(0);
+  t.hex(p.telegramCounter);
+  t.hex(p.scanCounter);
+  t.hex(p.timeSinceStartupUs);
+  t.hex(p.timeOfTransmissionUs);
+  for (int i = 0; i < 5; ++i) {
+    t.hex(0);  // inputs (2), outputs (2), reserved
+  }
+  t.hex(static_cast<std::uint32_t>(std::lround(p.scanFrequency * 100.0)));
+  t.hex(static_cast<std::uint32_t>(std::lround(p.scanFrequency * static_cast<double>(scan.size()) / 100.0)));
+  t.hex(0);  // encoders
+  t.hex(1);  // one 16-bit channel
+  t.text(" DIST1");
+  t.hex(floatBits(p.scaleFactor));
+  t.hex(floatBits(0.0F));
+  const double startDeg = rad2deg(static_cast<double>(scan.angleMin) - p.angleOffset);
+  const double stepDeg = rad2deg(static_cast<double>(scan.angleIncrement));
+  t.hex(static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround(startDeg * 1e4))));
+  t.hex(static_cast<std::uint32_t>(std::lround(stepDeg * 1e4)) & 0xFFFFU);
+  t.hex(static_cast<std::uint32_t>(scan.size()));
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    std::uint32_t raw = 0;
+    if (scan.isValid(i)) {
+      const double counts = static_cast<double>(scan.ranges[i]) * 1000.0 / static_cast<double>(p.scaleFactor);
+      raw = counts >= 65535.0 ? 0xFFFFU : static_cast<std::uint32_t>(std::lround(counts));
+      if (raw == 0U) {
+        raw = 1U;  // a valid reading never reads as "no echo"
+      }
+    }
+    t.hex(raw);
+  }
+  t.hex(0);  // 8-bit channels
+  for (int i = 0; i < 5; ++i) {
+    t.hex(0);  // position, name, comment, time, event
+  }
+  t.byte(0x03);
+  return t.size();
+}
+
+}  // namespace agv::drivers::sick

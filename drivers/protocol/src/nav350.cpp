@@ -277,3 +277,132 @@ Status parseNav350PoseReply(Span<const std::uint8_t> payload, const Nav350Config
 }
 
 }  // namespace agv::drivers::sick
+
+namespace agv::drivers::sick {
+namespace {
+/// Big-endian writer into a bounded buffer; remembers an overflow.
+class BeOut {
+ public:
+  explicit BeOut(Span<std::uint8_t> out) noexcept : out_(out) {}
+  void u8(std::uint32_t v) noexcept {
+    if (n_ < out_.size()) {
+      out_[n_++] = static_cast<std::uint8_t>(v & 0xFFU);
+    } else {
+      overflow_ = true;
+    }
+  }
+  void u16(std::uint32_t v) noexcept {
+    u8(v >> 8U);
+    u8(v);
+  }
+  void u32(std::uint32_t v) noexcept {
+    u16(v >> 16U);
+    u16(v & 0xFFFFU);
+  }
+  void i32(std::int64_t v) noexcept { u32(static_cast<std::uint32_t>(static_cast<std::int32_t>(v))); }
+  void f32(float f) noexcept {
+    std::uint32_t b = 0;
+    std::memcpy(&b, &f, sizeof b);
+    u32(b);
+  }
+  void text(const char* s) noexcept {
+    for (; *s != '\0'; ++s) {
+      u8(static_cast<std::uint8_t>(*s));
+    }
+  }
+  std::size_t size() const noexcept { return overflow_ ? 0U : n_; }
+
+ private:
+  Span<std::uint8_t> out_;
+  std::size_t n_ = 0;
+  bool overflow_ = false;
+};
+
+std::int64_t toMm(double m) noexcept {
+  const double mm = std::round(m * 1000.0);
+  return mm > 2147483647.0 ? 2147483647 : (mm < -2147483648.0 ? -2147483647 - 1 : static_cast<std::int64_t>(mm));
+}
+
+/// Device angle [mdeg] in [0, 360000) of a sensor-frame angle.
+std::uint32_t toMdeg(double rad, double offset) noexcept {
+  double d = rad2deg(normalizeAngle(rad - offset)) * 1000.0;
+  if (d < 0.0) {
+    d += 360000.0;
+  }
+  const auto v = static_cast<std::uint32_t>(std::lround(d));
+  return v >= 360000U ? v - 360000U : v;
+}
+}  // namespace
+
+std::size_t encodeNav350PoseReply(const Nav350PoseReply& r, const Nav350Config& config, Span<std::uint8_t> out) noexcept {
+  BeOut w(out);
+  w.text(kReply);
+  w.u16(r.version);
+  w.u8(r.errorCode);
+  w.u8(r.wait);
+  w.u8(r.mask);
+  w.u16(r.poseValid ? 1U : 0U);
+  if (r.poseValid) {
+    w.i32(toMm(r.pose.x));
+    w.i32(toMm(r.pose.y));
+    w.u32(toMdeg(r.pose.theta, 0.0));
+    w.u16(r.poseDetailsValid ? 1U : 0U);
+    if (r.poseDetailsValid) {
+      w.u8(r.outputMode);
+      w.u32(r.poseTimestampMs);
+      w.i32(toMm(r.meanDeviation));
+      w.u8(r.navigationMode);
+      w.u32(r.infoState);
+      w.u8(r.usedReflectors);
+    }
+  }
+  w.u16(r.landmarksValid ? 1U : 0U);
+  if (r.landmarksValid) {
+    w.u8(r.landmarkFilter);
+    w.u16(static_cast<std::uint32_t>(r.reflectors.size()));
+    for (const Nav350Reflector& f : r.reflectors) {
+      w.u16(f.hasCartesian ? 1U : 0U);
+      if (f.hasCartesian) {
+        w.i32(toMm(f.x));
+        w.i32(toMm(f.y));
+      }
+      w.u16(f.hasPolar ? 1U : 0U);
+      if (f.hasPolar) {
+        w.u32(static_cast<std::uint32_t>(toMm(f.range < 0.0 ? 0.0 : f.range)));
+        w.u32(toMdeg(f.bearing, config.angleOffset));
+      }
+      w.u16(f.hasDetails ? 1U : 0U);
+      if (f.hasDetails) {
+        w.u16(f.localId);
+        w.u16(f.globalId);
+        w.u8(f.type);
+        w.u16(f.subType);
+        w.u16(f.quality);
+        w.u32(f.timestampMs);
+        w.u16(static_cast<std::uint32_t>(toMm(f.size)) & 0xFFFFU);
+        w.u16(f.hitCount);
+        w.u16(f.meanEcho);
+        w.u16(f.startIndex);
+        w.u16(f.endIndex);
+      }
+    }
+  }
+  const LaserScan& scan = r.scan;
+  w.u16(r.scanValid ? 1U : 0U);
+  if (r.scanValid) {
+    w.text("DIST1");
+    w.f32(1.0F);
+    w.f32(0.0F);
+    w.i32(static_cast<std::int32_t>(toMdeg(static_cast<double>(scan.angleMin), config.angleOffset)));
+    w.u16(static_cast<std::uint32_t>(std::lround(rad2deg(static_cast<double>(scan.angleIncrement)) * 1000.0)) & 0xFFFFU);
+    w.u32(r.scanTimestampMs);
+    w.u16(static_cast<std::uint32_t>(scan.size()) & 0xFFFFU);
+    for (std::size_t i = 0; i < scan.size(); ++i) {
+      w.u32(scan.isValid(i) ? static_cast<std::uint32_t>(toMm(static_cast<double>(scan.ranges[i]))) : 0U);
+    }
+  }
+  w.u16(0);  // no remission channel
+  return w.size();
+}
+
+}  // namespace agv::drivers::sick

@@ -14,6 +14,7 @@
 /// deg), value count (uint16), values. Distance [mm] = value * scale factor + scale offset; the
 /// scale factor is always applied (LMS5xx sends 2.0 in some resolutions).
 
+#include <cstddef>
 #include <cstdint>
 
 #include "agv/core/span.hpp"
@@ -60,5 +61,27 @@ struct ColaAScanInfo {
 /// refused in `scan.ranges`). On error other than CapacityExceeded `scan` is left empty.
 Status parseColaAScan(Span<const std::uint8_t> telegram, const ColaAScanConfig& config, Timestamp receivedAt,
                       LaserScan& scan, ColaAScanInfo* info = nullptr) noexcept;
+
+}  // namespace agv::drivers::sick
+
+namespace agv::drivers::sick {
+
+/// Device-side values of a simulated LMDscandata telegram.
+struct ColaAScanEncodeParams {
+  double angleOffset = -1.5707963267948966;  ///< [rad] the same offset the decoder's config uses
+  double scanFrequency = 50.0;               ///< [Hz]
+  float scaleFactor = 1.0F;                  ///< device scale factor (LMS5xx: 2.0 in some resolutions)
+  std::uint32_t serialNumber = 0x1234567U;
+  std::uint16_t telegramCounter = 0;
+  std::uint16_t scanCounter = 0;
+  std::uint32_t timeSinceStartupUs = 0;
+  std::uint32_t timeOfTransmissionUs = 0;
+};
+
+/// The inverse of `parseColaAScan`, for the simulator: writes a complete `sSN LMDscandata`
+/// telegram (STX ... ETX) of `scan` into `out` and returns its length, 0 if `out` is too small
+/// (at most 160 + 5 x beams bytes are needed). Invalid readings are sent as 0 (no echo); ranges
+/// are rounded to the device resolution (scale factor, in mm) and clamped to 0xFFFF counts.
+std::size_t encodeColaAScan(const LaserScan& scan, const ColaAScanEncodeParams& params, Span<std::uint8_t> out) noexcept;
 
 }  // namespace agv::drivers::sick

@@ -109,4 +109,11 @@ struct Nav350Config {
 Status parseNav350PoseReply(Span<const std::uint8_t> payload, const Nav350Config& config, Timestamp receivedAt,
                             Nav350PoseReply& reply) noexcept;
 
+/// The inverse of `parseNav350PoseReply`, for the simulator: writes the reply payload of `reply`
+/// (pose if poseValid, with details if poseDetailsValid; reflectors if landmarksValid, each with
+/// the parts it has; the scan as a DIST1 channel if scanValid) into `out`; frame it with
+/// `encodeColaB`. Returns the payload length, 0 if `out` is too small. Values are rounded to the
+/// device units (mm, mdeg); invalid readings are sent as 0.
+std::size_t encodeNav350PoseReply(const Nav350PoseReply& reply, const Nav350Config& config, Span<std::uint8_t> out) noexcept;
+
 }  // namespace agv::drivers::sick
