@@ -13,7 +13,7 @@
 #include "agv/core/status.hpp"
 
 namespace {
-constexpr double kPositionRequirement = 0.02;  // [m]
+constexpr double kPositionRequirement = 0.02;   // [m]
 constexpr double kHeadingRequirementDeg = 0.1;  // [deg]
 }  // namespace
 
@@ -46,9 +46,10 @@ int main() {
   const agv::Pose2d laser = vehicle.compose(laserMount);
   const double posErr = std::hypot(vehicle.x, vehicle.y);
   const double headErrDeg = std::fabs(agv::rad2deg(vehicle.theta));
-  std::printf("loop of %zu increments: final vehicle pose (%.2e m, %.2e m, %.2e deg), laser at (%.3f, %.3f, %.2f deg)\n",
-              increments.size(), vehicle.x, vehicle.y, agv::rad2deg(vehicle.theta), laser.x, laser.y,
-              agv::rad2deg(laser.theta));
+  std::printf(
+      "loop of %zu increments: final vehicle pose (%.2e m, %.2e m, %.2e deg), laser at (%.3f, %.3f, %.2f deg)\n",
+      increments.size(), vehicle.x, vehicle.y, agv::rad2deg(vehicle.theta), laser.x, laser.y,
+      agv::rad2deg(laser.theta));
   const bool met = posErr <= kPositionRequirement && headErrDeg <= kHeadingRequirementDeg;
   std::printf("loop closure %.2e m / %.2e deg against %.2f m / %.1f deg: %s\n", posErr, headErrDeg,
               kPositionRequirement, kHeadingRequirementDeg, met ? "met" : "NOT met");

@@ -15,7 +15,9 @@
 
 namespace {
 std::string colaTelegram(int beams) {
-  std::string s = "sSN LMDscandata 1 1 89A27F 0 0 343 347 27477BA9 2747813B 0 0 7 0 0 1388 168 0 1 DIST1 3F800000 00000000 FFF92230 1388 ";
+  std::string s =
+      "sSN LMDscandata 1 1 89A27F 0 0 343 347 27477BA9 2747813B 0 0 7 0 0 1388 168 0 1 DIST1 3F800000 00000000 "
+      "FFF92230 1388 ";
   char b[16];
   std::snprintf(b, sizeof b, "%X", beams);
   s += b;
@@ -27,7 +29,8 @@ std::string colaTelegram(int beams) {
 }
 
 void put32(std::vector<std::uint8_t>& v, std::uint32_t x) {
-  for (int k = 3; k >= 0; --k) v.push_back(static_cast<std::uint8_t>(x >> (8 * k)));
+  for (int k = 3; k >= 0; --k)
+    v.push_back(static_cast<std::uint8_t>(x >> (8 * k)));
 }
 void put16(std::vector<std::uint8_t>& v, std::uint32_t x) {
   v.push_back(static_cast<std::uint8_t>(x >> 8));
@@ -67,7 +70,8 @@ std::vector<std::uint8_t> navPayload(int beams, int reflectors) {
   put16(v, 250);
   put32(v, 0);
   put16(v, static_cast<std::uint32_t>(beams));
-  for (int i = 0; i < beams; ++i) put32(v, 1000U + static_cast<std::uint32_t>(i));
+  for (int i = 0; i < beams; ++i)
+    put32(v, 1000U + static_cast<std::uint32_t>(i));
   put16(v, 0);
   return v;
 }
@@ -77,7 +81,8 @@ void BM_ColaAScan(benchmark::State& state) {
   const agv::Span<const std::uint8_t> span(reinterpret_cast<const std::uint8_t*>(t.data()), t.size());
   static agv::LaserScan scan;
   for (auto _ : state) {
-    benchmark::DoNotOptimize(agv::drivers::sick::parseColaAScan(span, agv::drivers::sick::ColaAScanConfig{}, agv::Timestamp{}, scan));
+    benchmark::DoNotOptimize(
+        agv::drivers::sick::parseColaAScan(span, agv::drivers::sick::ColaAScanConfig{}, agv::Timestamp{}, scan));
   }
   state.SetBytesProcessed(state.iterations() * static_cast<std::int64_t>(t.size()));
 }
@@ -88,7 +93,8 @@ void BM_Nav350Reply(benchmark::State& state) {
   static agv::drivers::sick::Nav350PoseReply reply;
   for (auto _ : state) {
     benchmark::DoNotOptimize(agv::drivers::sick::parseNav350PoseReply(agv::Span<const std::uint8_t>(p.data(), p.size()),
-                                                                      agv::drivers::sick::Nav350Config{}, agv::Timestamp{}, reply));
+                                                                      agv::drivers::sick::Nav350Config{},
+                                                                      agv::Timestamp{}, reply));
   }
 }
 BENCHMARK(BM_Nav350Reply);
@@ -102,7 +108,8 @@ void BM_FramerColaA(benchmark::State& state) {
       const std::size_t n = std::min<std::size_t>(1460, t.size() - pos);
       pos += framer.feed(agv::Span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(t.data()) + pos, n));
       agv::Span<const std::uint8_t> tel;
-      while (framer.next(tel)) benchmark::DoNotOptimize(tel);
+      while (framer.next(tel))
+        benchmark::DoNotOptimize(tel);
     }
   }
   state.SetBytesProcessed(state.iterations() * static_cast<std::int64_t>(t.size()));

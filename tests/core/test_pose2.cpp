@@ -74,7 +74,7 @@ TEST_CASE("SE(2) group properties hold for random poses", "[core][pose2]") {
     CHECK(near(a.compose(a.inverse()), identity, 1e-9));
     CHECK(near(a.inverse().compose(a), identity, 1e-9));
     CHECK(near(a.compose(b).compose(c), a.compose(b.compose(c)), 1e-9));  // associativity
-    CHECK(near(agv::between(a, a.compose(b)), b, 1e-9));                 // relative pose round trip
+    CHECK(near(agv::between(a, a.compose(b)), b, 1e-9));                  // relative pose round trip
     CHECK(near(agv::between(a, b), a.inverse().compose(b), 1e-9));
     CHECK(near(a * b, a.compose(b), 0.0));
     CHECK(near(a.inverse().inverse(), a, 1e-9));

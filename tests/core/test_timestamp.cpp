@@ -24,5 +24,6 @@ TEST_CASE("Timestamp arithmetic is exact over a year of uptime", "[core][time]")
   CHECK((t0 - t1) == -(t1 - t0));
   CHECK(agv::Timestamp::fromSeconds(12.5).ns == 12500000000LL);
   CHECK(agv::Duration::fromMilliseconds(20) < agv::Duration::fromMilliseconds(50));
-  CHECK(agv::Duration::fromMilliseconds(20) + agv::Duration::fromMilliseconds(30) == agv::Duration::fromMilliseconds(50));
+  CHECK(agv::Duration::fromMilliseconds(20) + agv::Duration::fromMilliseconds(30) ==
+        agv::Duration::fromMilliseconds(50));
 }

@@ -51,7 +51,8 @@ struct ColaScanFields {
 inline std::string buildColaScan(const ColaScanFields& f) {
   std::string s = f.type + " LMDscandata 1 1 " + hexField(f.serial) + " 0 0 " + hexField(f.telegramCounter) + " " +
                   hexField(f.scanCounter) + " " + hexField(f.timeSinceStartup) + " " + hexField(f.timeOfTransmission) +
-                  " 0 0 7 0 0 " + hexField(f.scanFrequency) + " 168 " + hexField(static_cast<std::uint32_t>(f.encoders.size()));
+                  " 0 0 7 0 0 " + hexField(f.scanFrequency) + " 168 " +
+                  hexField(static_cast<std::uint32_t>(f.encoders.size()));
   for (const auto& e : f.encoders) {
     s += " " + hexField(e.first) + " " + hexField(e.second);
   }
@@ -148,11 +149,11 @@ inline std::vector<std::uint8_t> buildNavReply(const NavReplyFields& f) {
     w.u32(f.phiMdeg);
     w.u16(f.poseDetails ? 1 : 0);
     if (f.poseDetails) {
-      w.u8(0);           // output mode
-      w.u32(123456);     // timestamp ms
+      w.u8(0);        // output mode
+      w.u32(123456);  // timestamp ms
       w.i32(f.meanDevMm);
-      w.u8(4);           // navigation mode
-      w.u32(0);          // info state
+      w.u8(4);   // navigation mode
+      w.u32(0);  // info state
       w.u8(f.usedReflectors);
     }
   }
@@ -170,15 +171,15 @@ inline std::vector<std::uint8_t> buildNavReply(const NavReplyFields& f) {
       w.u16(1);
       w.u16(r.localId);
       w.u16(r.globalId);
-      w.u8(1);        // type
-      w.u16(2);       // subtype
+      w.u8(1);   // type
+      w.u16(2);  // subtype
       w.u16(r.quality);
       w.u32(123450);  // timestamp
       w.u16(r.sizeMm);
-      w.u16(7);       // hit count
-      w.u16(200);     // mean echo
-      w.u16(10);      // start index
-      w.u16(14);      // end index
+      w.u16(7);    // hit count
+      w.u16(200);  // mean echo
+      w.u16(10);   // start index
+      w.u16(14);   // end index
     }
   }
   const std::uint16_t channels = static_cast<std::uint16_t>(f.scan ? (f.angleChannel ? 2 : 1) : 0);
@@ -195,7 +196,8 @@ inline std::vector<std::uint8_t> buildNavReply(const NavReplyFields& f) {
   if (f.scan && f.angleChannel) {
     head("ANGL1", f.distMm.size());
     for (std::size_t i = 0; i < f.distMm.size(); ++i) {
-      w.u32(static_cast<std::uint32_t>(static_cast<std::int64_t>(f.startMdeg) * 10 + static_cast<std::int64_t>(i) * f.stepMdeg * 10));
+      w.u32(static_cast<std::uint32_t>(static_cast<std::int64_t>(f.startMdeg) * 10 +
+                                       static_cast<std::int64_t>(i) * f.stepMdeg * 10));
     }
   }
   if (f.scan) {

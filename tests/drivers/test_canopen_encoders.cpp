@@ -17,14 +17,17 @@ using agv::drivers::CanFrame;
 using namespace agv::drivers::canopen;
 
 namespace {
-Timestamp ms(std::int64_t v) { return Timestamp::fromNanoseconds(v * 1000000); }
+Timestamp ms(std::int64_t v) {
+  return Timestamp::fromNanoseconds(v * 1000000);
+}
 
 /// A drive TPDO with `raw` (little-endian) at the given mapping, built byte by byte.
 CanFrame rawPdo(std::uint16_t cob, std::uint8_t offset, std::uint8_t size, std::uint32_t raw, Timestamp t) {
   CanFrame f;
   f.id = cob;
   f.dlc = static_cast<std::uint8_t>(offset + size);
-  for (int i = 0; i < size; ++i) f.data[offset + i] = static_cast<std::uint8_t>((raw >> (8 * i)) & 0xFF);
+  for (int i = 0; i < size; ++i)
+    f.data[offset + i] = static_cast<std::uint8_t>((raw >> (8 * i)) & 0xFF);
   f.stamp = t;
   return f;
 }
@@ -79,7 +82,8 @@ TEST_CASE("Drive position: 32-bit wraparound unwrapped to int64, both directions
     CanopenEncoders dec(cfg);
     dec.onFrame(rawPdo(0x186, 0, 4, 8000, ms(0)));  // steering straight
     // Raw counts climbing through 0x7FFFFFFF and 0xFFFFFFFF (the device counter wraps twice).
-    const std::uint32_t raws[] = {0x7FFFFF00U, 0x7FFFFFFFU, 0x80000100U, 0xFFFFFF00U, 0x00000100U, 0x00000000U, 0xFFFFFFF0U};
+    const std::uint32_t raws[] = {0x7FFFFF00U, 0x7FFFFFFFU, 0x80000100U, 0xFFFFFF00U,
+                                  0x00000100U, 0x00000000U, 0xFFFFFFF0U};
     std::int64_t expected = static_cast<std::int64_t>(0x7FFFFF00) * direction;  // first value = absolute position
     std::uint32_t prev = raws[0];
     for (std::size_t i = 0; i < sizeof raws / sizeof raws[0]; ++i) {
@@ -88,7 +92,8 @@ TEST_CASE("Drive position: 32-bit wraparound unwrapped to int64, both directions
         expected += static_cast<std::int64_t>(static_cast<std::int32_t>(raws[i] - prev)) * direction;
         prev = raws[i];
       }
-      REQUIRE(dec.onFrame(rawPdo(0x185, 0, 4, raws[i], ms(10 * static_cast<std::int64_t>(i)))) == FrameKind::DrivePosition);
+      REQUIRE(dec.onFrame(rawPdo(0x185, 0, 4, raws[i], ms(10 * static_cast<std::int64_t>(i)))) ==
+              FrameKind::DrivePosition);
       agv::hal::EncoderSample s;
       REQUIRE(dec.takeSample(s));
       CHECK(s.driveTicks == expected);
@@ -108,7 +113,8 @@ TEST_CASE("Narrow PDO field at an offset: 16-bit counter unwrapped", "[drivers][
   dec.onFrame(rawPdo(0x186, 0, 4, 8000, ms(0)));
   std::int64_t truth = 30000;
   for (int i = 0; i < 200; ++i) {  // 200 x +500 ticks crosses the 16-bit wrap (65536) once
-    CHECK(dec.onFrame(rawPdo(0x285, 2, 2, static_cast<std::uint32_t>(truth & 0xFFFF), ms(i))) == FrameKind::DrivePosition);
+    CHECK(dec.onFrame(rawPdo(0x285, 2, 2, static_cast<std::uint32_t>(truth & 0xFFFF), ms(i))) ==
+          FrameKind::DrivePosition);
     truth += 500;
   }
   CHECK(dec.driveTicks() == truth - 500);
@@ -125,7 +131,10 @@ TEST_CASE("Steering angle: scaling, direction, zero near the wrap of a single-tu
     CanopenEncoders dec(cfg);
     const double perCount = agv::kTwoPi<double> / 8192.0;
     // raw 8000 = straight; raw 100 = 292 counts left of zero across the wrap; raw 7000 = 1000 counts right.
-    struct Case { std::uint32_t raw; std::int64_t counts; } cases[] = {{8000, 0}, {100, 292}, {7000, -1000}, {8191, 191}, {0, 192}};
+    struct Case {
+      std::uint32_t raw;
+      std::int64_t counts;
+    } cases[] = {{8000, 0}, {100, 292}, {7000, -1000}, {8191, 191}, {0, 192}};
     for (const auto& c : cases) {
       REQUIRE(dec.onFrame(rawPdo(0x186, 0, 4, c.raw, ms(1))) == FrameKind::SteeringPosition);
       AGV_CHECK_NEAR(dec.steeringAngle(), direction * c.counts * perCount, 1e-12);
@@ -146,7 +155,8 @@ TEST_CASE("Samples pair SYNC-driven PDOs; SYNC is produced on its period", "[dri
   int syncs = 0;
   for (int t = 0; t <= 100; ++t) {  // 100 ms of 1 ms service calls
     const std::size_t n = dec.service(ms(t), Span<CanFrame>(out));
-    for (std::size_t k = 0; k < n; ++k) syncs += out[k].id == 0x080U ? 1 : 0;
+    for (std::size_t k = 0; k < n; ++k)
+      syncs += out[k].id == 0x080U ? 1 : 0;
   }
   CHECK(syncs == 11);  // t = 0, 10, ..., 100
   // A late service call does not produce a burst.
@@ -218,9 +228,11 @@ TEST_CASE("EMCY frames are reported in order, a reset clears the fault, overflow
   CHECK_FALSE(dec.takeEmcy(r));
   dec.onFrame(encodeEmcy(5, 0x0000, 0x00, ms(3)));  // error reset
   CHECK(dec.health() == Status::Ok);
-  for (int i = 0; i < 12; ++i) dec.onFrame(encodeEmcy(6, static_cast<std::uint16_t>(0x1000 + i), 1, ms(4 + i)));
+  for (int i = 0; i < 12; ++i)
+    dec.onFrame(encodeEmcy(6, static_cast<std::uint16_t>(0x1000 + i), 1, ms(4 + i)));
   int got = 0;
-  while (dec.takeEmcy(r)) ++got;
+  while (dec.takeEmcy(r))
+    ++got;
   CHECK(got == 8);  // the reset record + 7 of the 12; the newest 5 dropped and counted
   CHECK(dec.emcyDropped() == 5U);
   CHECK(dec.steeringHealth().emcyCount == 12U);
@@ -232,11 +244,13 @@ TEST_CASE("EMCY frames are reported in order, a reset clears the fault, overflow
 TEST_CASE("Other frames are ignored: other ids, extended, remote, error frames", "[drivers][canopen]") {
   CanopenEncoders dec(baseConfig());
   CanFrame f = rawPdo(0x185, 0, 4, 42, ms(1));
-  f.flags = CanFrame::kExtended;
+  f.extended = true;
   CHECK(dec.onFrame(f) == FrameKind::Ignored);
-  f.flags = CanFrame::kRemote;
+  f.extended = false;
+  f.rtr = true;
   CHECK(dec.onFrame(f) == FrameKind::Ignored);
-  f.flags = CanFrame::kError;
+  f.rtr = false;
+  f.error = true;
   CHECK(dec.onFrame(f) == FrameKind::Ignored);
   CHECK(dec.onFrame(rawPdo(0x187, 0, 4, 42, ms(1))) == FrameKind::Ignored);
   CHECK(dec.onFrame(encodeHeartbeat(9, NmtState::Operational, ms(1))) == FrameKind::Ignored);
@@ -263,7 +277,8 @@ TEST_CASE("Bad configurations are refused", "[drivers][canopen]") {
   CHECK(bad([](CanopenEncodersConfig& c) { c.steering.pdo.size = 1; }) == Status::InvalidArgument);  // 8192 > 256
 }
 
-TEST_CASE("Simulator frames decode back to the true motion across the 32-bit wrap, without allocation", "[drivers][canopen]") {
+TEST_CASE("Simulator frames decode back to the true motion across the 32-bit wrap, without allocation",
+          "[drivers][canopen]") {
   auto cfg = baseConfig();
   cfg.drive.direction = -1;  // a drive mounted so that forward counts down
   cfg.steering.direction = -1;

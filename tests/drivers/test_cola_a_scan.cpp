@@ -24,10 +24,14 @@ double roomRange(double a, double sx = 1.0, double sy = 0.5) {
   const double c = std::cos(a);
   const double s = std::sin(a);
   double best = std::numeric_limits<double>::infinity();
-  if (c > 1e-12) best = std::min(best, (4.0 - sx) / c);
-  if (c < -1e-12) best = std::min(best, (-4.0 - sx) / c);
-  if (s > 1e-12) best = std::min(best, (3.0 - sy) / s);
-  if (s < -1e-12) best = std::min(best, (-3.0 - sy) / s);
+  if (c > 1e-12)
+    best = std::min(best, (4.0 - sx) / c);
+  if (c < -1e-12)
+    best = std::min(best, (-4.0 - sx) / c);
+  if (s > 1e-12)
+    best = std::min(best, (3.0 - sy) / s);
+  if (s < -1e-12)
+    best = std::min(best, (-3.0 - sy) / s);
   return best;
 }
 
@@ -148,7 +152,8 @@ TEST_CASE("Bad telegrams are refused with a reason and leave no data", "[drivers
   const std::size_t payloadEnd = good.find(" 0 0 0 0 0");
   for (std::size_t len = 0; len < payloadEnd; ++len) {
     std::vector<std::uint8_t> prefix(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(len));
-    const Status s = parseColaAScan(Span<const std::uint8_t>(prefix.data(), prefix.size()), ColaAScanConfig{}, Timestamp{}, scan);
+    const Status s =
+        parseColaAScan(Span<const std::uint8_t>(prefix.data(), prefix.size()), ColaAScanConfig{}, Timestamp{}, scan);
     // A cut inside the last value still forms a valid hex number: only the full length may pass.
     if (s == Status::Ok) {
       CHECK(len > good.rfind(' ', payloadEnd - 1));
@@ -176,7 +181,8 @@ TEST_CASE("Simulator encoding: encodeColaAScan round-trips through the framer an
   truth.rangeMax = 80.0F;
   for (int i = 0; i < 1081; ++i) {
     const double r = roomRange(static_cast<double>(truth.angle(static_cast<std::size_t>(i))));
-    REQUIRE(truth.ranges.push_back(i == 500 ? std::numeric_limits<float>::infinity() : static_cast<float>(r)) == Status::Ok);
+    REQUIRE(truth.ranges.push_back(i == 500 ? std::numeric_limits<float>::infinity() : static_cast<float>(r)) ==
+            Status::Ok);
   }
   for (float scale : {1.0F, 2.0F}) {
     agv::drivers::sick::ColaAScanEncodeParams p;
@@ -189,7 +195,8 @@ TEST_CASE("Simulator encoding: encodeColaAScan round-trips through the framer an
     REQUIRE(buf[n - 1] == 0x03);
     static LaserScan back;
     ColaAScanInfo info;
-    REQUIRE(parseColaAScan(Span<const std::uint8_t>(buf + 1, n - 2), ColaAScanConfig{}, Timestamp{}, back, &info) == Status::Ok);
+    REQUIRE(parseColaAScan(Span<const std::uint8_t>(buf + 1, n - 2), ColaAScanConfig{}, Timestamp{}, back, &info) ==
+            Status::Ok);
     CHECK(info.scanCounter == 77U);
     REQUIRE(back.size() == truth.size());
     AGV_CHECK_NEAR(back.angleMin, truth.angleMin, 1e-6);

@@ -26,7 +26,9 @@ using namespace agv::drivers;
 using namespace agv::drivers::plc;
 
 namespace {
-void sleepMs(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
+void sleepMs(int ms) {
+  std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+}
 
 PlcStatus sampleStatus(std::uint16_t heartbeat) {
   PlcStatus s;
@@ -54,14 +56,19 @@ class PlcServer {
   ~PlcServer() { stop(); }
   void stop() {
     stop_ = true;
-    if (thread_.joinable()) thread_.join();
-    if (client_ >= 0) ::close(client_);
+    if (thread_.joinable())
+      thread_.join();
+    if (client_ >= 0)
+      ::close(client_);
     client_ = -1;
-    if (listen_ >= 0) ::close(listen_);
+    if (listen_ >= 0)
+      ::close(listen_);
     listen_ = -1;
-    if (ctx_) modbus_free(ctx_);
+    if (ctx_)
+      modbus_free(ctx_);
     ctx_ = nullptr;
-    if (mapping_) modbus_mapping_free(mapping_);
+    if (mapping_)
+      modbus_mapping_free(mapping_);
     mapping_ = nullptr;
   }
   bool ok() const { return listen_ >= 0; }
@@ -79,10 +86,12 @@ class PlcServer {
   void run() {
     for (int guard = 0; guard < 100000 && !stop_; ++guard) {
       pollfd p[2] = {{listen_, POLLIN, 0}, {client_, POLLIN, 0}};
-      if (::poll(p, client_ >= 0 ? 2 : 1, 10) <= 0) continue;
+      if (::poll(p, client_ >= 0 ? 2 : 1, 10) <= 0)
+        continue;
       if (p[0].revents) {
         const int fd = ::accept(listen_, nullptr, nullptr);
-        if (client_ >= 0) ::close(client_);
+        if (client_ >= 0)
+          ::close(client_);
         client_ = fd;
         continue;
       }
@@ -111,7 +120,8 @@ class PlcServer {
 };
 }  // namespace
 
-TEST_CASE("Vehicle as Modbus server: a libmodbus PLC reads the map, writes commands, gets exceptions", "[drivers][modbus]") {
+TEST_CASE("Vehicle as Modbus server: a libmodbus PLC reads the map, writes commands, gets exceptions",
+          "[drivers][modbus]") {
   ModbusPlcLinkConfig cfg;
   cfg.role = PlcLinkRole::Server;
   std::strcpy(cfg.address, "127.0.0.1");
@@ -151,13 +161,19 @@ TEST_CASE("Vehicle as Modbus server: a libmodbus PLC reads the map, writes comma
         cmd[3 + 2 * i] = static_cast<std::uint16_t>(b >> 16);
       }
       seen.setPose = modbus_write_registers(plc, 100, 9, cmd);
-      if (modbus_write_register(plc, 4, 1) == -1) seen.errStatusWrite = errno;
-      if (modbus_write_register(plc, 100, 9) == -1) seen.errBadCode = errno;
-      if (modbus_write_register(plc, 102, 0) == -1) seen.errHalfFloat = errno;
+      if (modbus_write_register(plc, 4, 1) == -1)
+        seen.errStatusWrite = errno;
+      if (modbus_write_register(plc, 100, 9) == -1)
+        seen.errBadCode = errno;
+      if (modbus_write_register(plc, 102, 0) == -1)
+        seen.errHalfFloat = errno;
       std::uint16_t dummy[4];
-      if (modbus_read_registers(plc, 108, 4, dummy) == -1) seen.errReadPast = errno;
-      if (modbus_mask_write_register(plc, 100, 0xFFFF, 0) == -1) seen.errMask = errno;
-      if (modbus_write_bit(plc, 0, 1) == -1) seen.errCoil = errno;
+      if (modbus_read_registers(plc, 108, 4, dummy) == -1)
+        seen.errReadPast = errno;
+      if (modbus_mask_write_register(plc, 100, 0xFFFF, 0) == -1)
+        seen.errMask = errno;
+      if (modbus_write_bit(plc, 0, 1) == -1)
+        seen.errCoil = errno;
       sleepMs(50);
       modbus_read_registers(plc, 2, 1, &seen.healthAfterReject);
       modbus_read_registers(plc, 0, 1, &seen.hb1);
@@ -250,7 +266,8 @@ TEST_CASE("Vehicle as Modbus client: writes status, reads commands, survives the
   plc->stop();
   int lost = 0;
   for (int i = 0; i < 20; ++i) {
-    if (cycle() == Status::Lost) ++lost;
+    if (cycle() == Status::Lost)
+      ++lost;
     sleepMs(10);
   }
   CHECK(lost >= 19);  // the first may still succeed on the half-closed connection
@@ -263,7 +280,8 @@ TEST_CASE("Vehicle as Modbus client: writes status, reads commands, survives the
   REQUIRE(plc->ok());
   int ok = 0;
   for (int i = 0; i < 100 && ok < 3; ++i) {
-    if (cycle() == Status::Ok) ++ok;
+    if (cycle() == Status::Ok)
+      ++ok;
     sleepMs(10);
   }
   CHECK(ok == 3);
@@ -300,7 +318,8 @@ TEST_CASE("Link used before open() says so", "[drivers][modbus]") {
   CHECK(link.cycle(sampleStatus(0), monotonicNow(), Duration::fromMilliseconds(1)) == Status::NotInitialized);
 }
 
-TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connections do not block other PLCs", "[drivers][modbus]") {
+TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connections do not block other PLCs",
+          "[drivers][modbus]") {
   ModbusPlcLinkConfig cfg;
   std::strcpy(cfg.address, "127.0.0.1");
   cfg.port = 0;
@@ -322,7 +341,8 @@ TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connecti
   const std::uint8_t half[5] = {0x00, 0x01, 0x00, 0x00, 0x00};
   REQUIRE(::send(stalled, half, sizeof half, MSG_NOSIGNAL) == 5);
   for (int i = 0; i < 10; ++i) {
-    REQUIRE(link.cycle(sampleStatus(static_cast<std::uint16_t>(i)), monotonicNow(), Duration::fromMilliseconds(10)) == Status::Ok);
+    REQUIRE(link.cycle(sampleStatus(static_cast<std::uint16_t>(i)), monotonicNow(), Duration::fromMilliseconds(10)) ==
+            Status::Ok);
   }
   CHECK(link.counters().requestErrors >= 1U);  // the half request timed out ...
   CHECK(link.counters().disconnects >= 1U);    // ... and its connection was dropped
@@ -337,12 +357,14 @@ TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connecti
     modbus_set_response_timeout(a, 2, 0);
     modbus_set_response_timeout(b, 2, 0);
     if (modbus_connect(a) == 0 && modbus_connect(b) == 0) {
-      sleepMs(200);  // both accepted before the surplus one arrives
+      sleepMs(200);                    // both accepted before the surplus one arrives
       const int extra = rawConnect();  // over maxConnections
       std::uint16_t r[4];
       for (int i = 0; i < 5; ++i) {
-        if (modbus_read_registers(a, 0, 4, r) == 4) ++reads;
-        if (modbus_read_registers(b, 4, 4, r) == 4) ++reads;
+        if (modbus_read_registers(a, 0, 4, r) == 4)
+          ++reads;
+        if (modbus_read_registers(b, 4, 4, r) == 4)
+          ++reads;
       }
       ::close(extra);
       modbus_close(a);
@@ -353,7 +375,8 @@ TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connecti
     done = true;
   });
   for (int i = 0; i < 1000 && !done; ++i) {
-    REQUIRE(link.cycle(sampleStatus(static_cast<std::uint16_t>(i)), monotonicNow(), Duration::fromMilliseconds(10)) == Status::Ok);
+    REQUIRE(link.cycle(sampleStatus(static_cast<std::uint16_t>(i)), monotonicNow(), Duration::fromMilliseconds(10)) ==
+            Status::Ok);
   }
   plcs.join();
   CHECK(reads.load() == 10);

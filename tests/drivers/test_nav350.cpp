@@ -32,7 +32,8 @@ agv::test::NavReplyFields scene() {
     const double dy = world[i][1] + 6.789;
     const double bearing = agv::normalizeAngle(std::atan2(dy, dx) - agv::deg2rad(-10.0));
     double deg = agv::rad2deg(bearing);
-    if (deg < 0) deg += 360.0;
+    if (deg < 0)
+      deg += 360.0;
     agv::test::NavReflectorFields r;
     r.xMm = static_cast<std::int32_t>(std::lround(world[i][0] * 1000));
     r.yMm = static_cast<std::int32_t>(std::lround(world[i][1] * 1000));
@@ -223,7 +224,8 @@ TEST_CASE("Simulator encoding: encodeNav350PoseReply round-trips through CoLa B 
   truth.scan.angleIncrement = static_cast<float>(agv::deg2rad(0.25));
   truth.scan.rangeMin = cfg.rangeMin;
   truth.scan.rangeMax = cfg.rangeMax;
-  for (int i = 0; i < 1440; ++i) REQUIRE(truth.scan.ranges.push_back(1.0F + 0.01F * static_cast<float>(i % 300)) == Status::Ok);
+  for (int i = 0; i < 1440; ++i)
+    REQUIRE(truth.scan.ranges.push_back(1.0F + 0.01F * static_cast<float>(i % 300)) == Status::Ok);
 
   static std::uint8_t payload[16384];
   static std::uint8_t telegram[16384 + 9];
@@ -246,13 +248,16 @@ TEST_CASE("Simulator encoding: encodeNav350PoseReply round-trips through CoLa B 
   for (std::size_t i = 0; i < 5; ++i) {
     AGV_CHECK_NEAR(back.reflectors[i].x, truth.reflectors[i].x, 0.5e-3 + 1e-9);
     AGV_CHECK_NEAR(back.reflectors[i].range, truth.reflectors[i].range, 0.5e-3 + 1e-9);
-    AGV_CHECK_NEAR(agv::angleDiff(back.reflectors[i].bearing, truth.reflectors[i].bearing), 0.0, agv::deg2rad(0.5e-3) + 1e-9);
+    AGV_CHECK_NEAR(agv::angleDiff(back.reflectors[i].bearing, truth.reflectors[i].bearing), 0.0,
+                   agv::deg2rad(0.5e-3) + 1e-9);
     CHECK(back.reflectors[i].hasDetails == truth.reflectors[i].hasDetails);
   }
   REQUIRE(back.scanValid);
   REQUIRE(back.scan.size() == 1440U);
-  AGV_CHECK_NEAR(agv::angleDiff(static_cast<double>(back.scan.angleMin), static_cast<double>(truth.scan.angleMin)), 0.0, 1e-6);
-  for (std::size_t i = 0; i < 1440; ++i) AGV_CHECK_NEAR(back.scan.ranges[i], truth.scan.ranges[i], 0.5e-3 + 1e-6);
+  AGV_CHECK_NEAR(agv::angleDiff(static_cast<double>(back.scan.angleMin), static_cast<double>(truth.scan.angleMin)), 0.0,
+                 1e-6);
+  for (std::size_t i = 0; i < 1440; ++i)
+    AGV_CHECK_NEAR(back.scan.ranges[i], truth.scan.ranges[i], 0.5e-3 + 1e-6);
   static std::uint8_t small[64];
   CHECK(encodeNav350PoseReply(truth, cfg, Span<std::uint8_t>(small)) == 0U);
 }

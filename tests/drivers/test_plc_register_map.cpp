@@ -19,16 +19,22 @@ using namespace agv::drivers::plc;
 namespace {
 float libmodbusGet(const std::uint16_t* r, WordOrder o) {
   switch (o) {
-    case WordOrder::ABCD: return modbus_get_float_abcd(r);
-    case WordOrder::CDAB: return modbus_get_float_cdab(r);
-    case WordOrder::BADC: return modbus_get_float_badc(r);
-    case WordOrder::DCBA: return modbus_get_float_dcba(r);
+    case WordOrder::ABCD:
+      return modbus_get_float_abcd(r);
+    case WordOrder::CDAB:
+      return modbus_get_float_cdab(r);
+    case WordOrder::BADC:
+      return modbus_get_float_badc(r);
+    case WordOrder::DCBA:
+      return modbus_get_float_dcba(r);
   }
   return 0.0F;
 }
 const WordOrder kOrders[] = {WordOrder::ABCD, WordOrder::CDAB, WordOrder::BADC, WordOrder::DCBA};
 
-bool sameBits(float a, float b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+bool sameBits(float a, float b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
 }  // namespace
 
 TEST_CASE("Float word orders: the IEEE-754 layout of 1.0f and agreement with modbus_get_float_*", "[drivers][modbus]") {
@@ -45,13 +51,14 @@ TEST_CASE("Float word orders: the IEEE-754 layout of 1.0f and agreement with mod
 
   std::mt19937 rng(7);
   std::uniform_int_distribution<std::uint32_t> bits;
-  std::vector<float> values = {0.0F, -0.0F, 1.0F, -2.5F, 3.14159265F, 1e-40F, 3.4e38F, -1e-3F,
-                               std::numeric_limits<float>::infinity()};
+  std::vector<float> values = {
+      0.0F, -0.0F, 1.0F, -2.5F, 3.14159265F, 1e-40F, 3.4e38F, -1e-3F, std::numeric_limits<float>::infinity()};
   for (int i = 0; i < 2000; ++i) {
     const std::uint32_t b = bits(rng);
     float f;
     std::memcpy(&f, &b, sizeof f);
-    if (!std::isnan(f)) values.push_back(f);
+    if (!std::isnan(f))
+      values.push_back(f);
   }
   for (WordOrder o : kOrders) {
     for (float v : values) {
@@ -62,7 +69,8 @@ TEST_CASE("Float word orders: the IEEE-754 layout of 1.0f and agreement with mod
   }
 }
 
-TEST_CASE("libmodbus 3.1.6 modbus_set_float_abcd does not produce ABCD on this host (why we pack ourselves)", "[drivers][modbus]") {
+TEST_CASE("libmodbus 3.1.6 modbus_set_float_abcd does not produce ABCD on this host (why we pack ourselves)",
+          "[drivers][modbus]") {
   std::uint16_t ours[2];
   std::uint16_t theirs[2];
   packFloat(1.0F, WordOrder::ABCD, ours);
@@ -112,7 +120,8 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     AGV_CHECK_NEAR(f(6), -78.9, 1e-5);
     AGV_CHECK_NEAR(f(8), -2.5, 1e-7);
     const double cov[6] = {1e-4, -2e-5, 3e-6, 4e-4, 5e-6, 6e-5};
-    for (int i = 0; i < 6; ++i) AGV_CHECK_NEAR(f(10 + 2 * i), cov[i], std::fabs(cov[i]) * 1e-6);
+    for (int i = 0; i < 6; ++i)
+      AGV_CHECK_NEAR(f(10 + 2 * i), cov[i], std::fabs(cov[i]) * 1e-6);
     CHECK(unpackU32(&table[22], o) == 123U);  // 2^32 ms + 123 ms, modulo 2^32
     CHECK(table[24] == 7);
     CHECK(table[25] == 9);
@@ -127,7 +136,8 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
   }
   PlcRegisterMap map;
   std::vector<std::uint16_t> shortTable(10);
-  CHECK(map.encodeStatus(PlcStatus{}, Span<std::uint16_t>(shortTable.data(), shortTable.size())) == Status::InvalidArgument);
+  CHECK(map.encodeStatus(PlcStatus{}, Span<std::uint16_t>(shortTable.data(), shortTable.size())) ==
+        Status::InvalidArgument);
 }
 
 TEST_CASE("Command writes: whitelist, whole 32-bit fields, bounds", "[drivers][modbus]") {
@@ -152,8 +162,8 @@ TEST_CASE("Command writes: whitelist, whole 32-bit fields, bounds", "[drivers][m
   for (std::uint16_t a : {0, 1, 4, 39, 40, 99, 109, 200}) {
     CHECK(write(a, {1}) == Status::OutOfRange);
   }
-  CHECK(write(99, {0, 1}) == Status::OutOfRange);        // straddles the block start
-  CHECK(write(107, {0, 0, 0}) == Status::OutOfRange);   // runs past the block end
+  CHECK(write(99, {0, 1}) == Status::OutOfRange);      // straddles the block start
+  CHECK(write(107, {0, 0, 0}) == Status::OutOfRange);  // runs past the block end
   // Half of a float.
   CHECK(write(102, {x[0]}) == Status::Malformed);
   CHECK(write(103, {x[1], y[0], y[1]}) == Status::Malformed);
@@ -190,7 +200,8 @@ TEST_CASE("Register map encoding and checks do not allocate", "[drivers][modbus]
   bool decoded = false;
   AGV_CHECK_NO_ALLOCATIONS({
     a = map.encodeStatus(s, Span<std::uint16_t>(table));
-    b = map.checkWrite(100, Span<const std::uint16_t>(write, 2), Span<const std::uint16_t>(table, PlcRegisterMap::kRegisterCount));
+    b = map.checkWrite(100, Span<const std::uint16_t>(write, 2),
+                       Span<const std::uint16_t>(table, PlcRegisterMap::kRegisterCount));
     decoded = map.decodeCommand(Span<const std::uint16_t>(table, PlcRegisterMap::kRegisterCount)).ok();
   });
   CHECK(a == Status::Ok);

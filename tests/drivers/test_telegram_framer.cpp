@@ -12,7 +12,9 @@ using agv::drivers::sick::Framing;
 using agv::drivers::sick::TelegramFramer;
 
 namespace {
-std::vector<std::uint8_t> bytes(const std::string& s) { return std::vector<std::uint8_t>(s.begin(), s.end()); }
+std::vector<std::uint8_t> bytes(const std::string& s) {
+  return std::vector<std::uint8_t>(s.begin(), s.end());
+}
 
 /// Feeds `stream` in chunks of `chunk` bytes and collects every telegram.
 std::vector<std::string> run(TelegramFramer& f, const std::vector<std::uint8_t>& stream, std::size_t chunk) {
@@ -33,7 +35,9 @@ std::vector<std::string> run(TelegramFramer& f, const std::vector<std::uint8_t>&
   return out;
 }
 
-void append(std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b) { a.insert(a.end(), b.begin(), b.end()); }
+void append(std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+}
 }  // namespace
 
 TEST_CASE("CoLa A telegrams are delivered whole for every read size, garbage counted", "[drivers][laser]") {
@@ -94,7 +98,8 @@ TEST_CASE("CoLa A: reset in the middle of a telegram counts it as truncated", "[
 }
 
 TEST_CASE("CoLa B telegrams survive any split, garbage and a run of 0x02 before the marker", "[drivers][laser]") {
-  const std::vector<std::uint8_t> p1 = bytes("sAN mNPOSGetData \x01\x02\x03\x02\x02\x02\x02");  // payload holding a marker
+  const std::vector<std::uint8_t> p1 =
+      bytes("sAN mNPOSGetData \x01\x02\x03\x02\x02\x02\x02");  // payload holding a marker
   const std::vector<std::uint8_t> p2(300, 0x55);
   std::vector<std::uint8_t> stream = bytes("xy\x02\x02");
   append(stream, agv::test::colaB(p1));

@@ -15,8 +15,10 @@
 #include <cmath>
 
 /// |a - b| <= tol, printed with both values on failure (Catch2) or the expression (MCU).
-#define AGV_CHECK_NEAR(a, b, tol) CHECK(std::fabs(static_cast<double>(a) - static_cast<double>(b)) <= static_cast<double>(tol))
-#define AGV_REQUIRE_NEAR(a, b, tol) REQUIRE(std::fabs(static_cast<double>(a) - static_cast<double>(b)) <= static_cast<double>(tol))
+#define AGV_CHECK_NEAR(a, b, tol) \
+  CHECK(std::fabs(static_cast<double>(a) - static_cast<double>(b)) <= static_cast<double>(tol))
+#define AGV_REQUIRE_NEAR(a, b, tol) \
+  REQUIRE(std::fabs(static_cast<double>(a) - static_cast<double>(b)) <= static_cast<double>(tol))
 
 #ifdef AGV_TEST_MCU
 // On the MCU no allocator is linked at all (the image's symbol check proves it), so a block that
@@ -28,6 +30,5 @@
 #else
 #include "alloc_counter.hpp"
 /// Runs the statements and checks that they performed no heap allocation of any kind.
-#define AGV_CHECK_NO_ALLOCATIONS(...) \
-  CHECK(::agv::test::countAllocations([&]() { __VA_ARGS__; }) == 0U)
+#define AGV_CHECK_NO_ALLOCATIONS(...) CHECK(::agv::test::countAllocations([&]() { __VA_ARGS__; }) == 0U)
 #endif

@@ -36,16 +36,24 @@ namespace agv::test {
 AllocationStats allocationStats() noexcept {
   return {g_allocations.load(std::memory_order_relaxed), g_deallocations.load(std::memory_order_relaxed)};
 }
-bool allocationCountingActive() noexcept { return g_active.load(); }
+bool allocationCountingActive() noexcept {
+  return g_active.load();
+}
 }  // namespace agv::test
 
 #ifdef AGV_ALLOC_VIA_SANITIZER_HOOKS
 // ---- AddressSanitizer build: the sanitizer's allocator calls these for every (de)allocation ----
-#include <sanitizer/allocator_interface.h>
+// Declared by the sanitizer runtime (GCC ships no header for it).
+extern "C" int __sanitizer_install_malloc_and_free_hooks(void (*malloc_hook)(const volatile void*, std::size_t),
+                                                         void (*free_hook)(const volatile void*));
 
 namespace {
-void mallocHook(const volatile void* p, std::size_t /*size*/) { noteAllocation(const_cast<const void*>(p)); }
-void freeHook(const volatile void* p) { noteDeallocation(const_cast<const void*>(p)); }
+void mallocHook(const volatile void* p, std::size_t /*size*/) {
+  noteAllocation(const_cast<const void*>(p));
+}
+void freeHook(const volatile void* p) {
+  noteDeallocation(const_cast<const void*>(p));
+}
 struct InstallHooks {
   InstallHooks() noexcept { g_active = __sanitizer_install_malloc_and_free_hooks(mallocHook, freeHook) != 0; }
 } g_installHooks;
@@ -84,7 +92,9 @@ void* memalign(std::size_t alignment, std::size_t size) {
   noteAllocation(p);
   return p;
 }
-void* aligned_alloc(std::size_t alignment, std::size_t size) { return memalign(alignment, size); }
+void* aligned_alloc(std::size_t alignment, std::size_t size) {
+  return memalign(alignment, size);
+}
 int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
   if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0) {
     return EINVAL;
@@ -137,12 +147,24 @@ void* alignedNewOrThrow(std::size_t size, std::align_val_t al) {
 }
 }  // namespace
 
-void* operator new(std::size_t size) { return newOrThrow(size); }
-void* operator new[](std::size_t size) { return newOrThrow(size); }
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept { return malloc(size == 0 ? 1 : size); }
-void* operator new[](std::size_t size, const std::nothrow_t&) noexcept { return malloc(size == 0 ? 1 : size); }
-void* operator new(std::size_t size, std::align_val_t al) { return alignedNewOrThrow(size, al); }
-void* operator new[](std::size_t size, std::align_val_t al) { return alignedNewOrThrow(size, al); }
+void* operator new(std::size_t size) {
+  return newOrThrow(size);
+}
+void* operator new[](std::size_t size) {
+  return newOrThrow(size);
+}
+void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
+  return malloc(size == 0 ? 1 : size);
+}
+void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
+  return malloc(size == 0 ? 1 : size);
+}
+void* operator new(std::size_t size, std::align_val_t al) {
+  return alignedNewOrThrow(size, al);
+}
+void* operator new[](std::size_t size, std::align_val_t al) {
+  return alignedNewOrThrow(size, al);
+}
 void* operator new(std::size_t size, std::align_val_t al, const std::nothrow_t&) noexcept {
   return memalign(static_cast<std::size_t>(al) < sizeof(void*) ? sizeof(void*) : static_cast<std::size_t>(al),
                   size == 0 ? 1 : size);
@@ -150,16 +172,40 @@ void* operator new(std::size_t size, std::align_val_t al, const std::nothrow_t&)
 void* operator new[](std::size_t size, std::align_val_t al, const std::nothrow_t& tag) noexcept {
   return operator new(size, al, tag);
 }
-void operator delete(void* p) noexcept { free(p); }
-void operator delete[](void* p) noexcept { free(p); }
-void operator delete(void* p, std::size_t) noexcept { free(p); }
-void operator delete[](void* p, std::size_t) noexcept { free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { free(p); }
-void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { free(p); }
-void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { free(p); }
+void operator delete(void* p) noexcept {
+  free(p);
+}
+void operator delete[](void* p) noexcept {
+  free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  free(p);
+}
+void operator delete[](void* p, std::size_t) noexcept {
+  free(p);
+}
+void operator delete(void* p, const std::nothrow_t&) noexcept {
+  free(p);
+}
+void operator delete[](void* p, const std::nothrow_t&) noexcept {
+  free(p);
+}
+void operator delete(void* p, std::align_val_t) noexcept {
+  free(p);
+}
+void operator delete[](void* p, std::align_val_t) noexcept {
+  free(p);
+}
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept {
+  free(p);
+}
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept {
+  free(p);
+}
+void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept {
+  free(p);
+}
+void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept {
+  free(p);
+}
 #endif

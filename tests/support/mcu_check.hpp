@@ -23,24 +23,24 @@ int runAll() noexcept;
 
 #define AGV_MCU_CAT2(a, b) a##b
 #define AGV_MCU_CAT(a, b) AGV_MCU_CAT2(a, b)
-#define AGV_MCU_TEST_IMPL(fn, name)                                       \
-  static void fn();                                                       \
+#define AGV_MCU_TEST_IMPL(fn, name)                                        \
+  static void fn();                                                        \
   static const ::agv::mcutest::Registrar AGV_MCU_CAT(fn, _reg)(name, &fn); \
   static void fn()
 #define TEST_CASE(name, ...) AGV_MCU_TEST_IMPL(AGV_MCU_CAT(agv_mcu_test_, __LINE__), name)
 
-#define CHECK(...)                                             \
-  do {                                                         \
-    if (!(__VA_ARGS__)) {                                      \
-      ::agv::mcutest::fail(__FILE__, __LINE__, #__VA_ARGS__);  \
-    }                                                          \
+#define CHECK(...)                                            \
+  do {                                                        \
+    if (!(__VA_ARGS__)) {                                     \
+      ::agv::mcutest::fail(__FILE__, __LINE__, #__VA_ARGS__); \
+    }                                                         \
   } while (0)
 #define CHECK_FALSE(...) CHECK(!(__VA_ARGS__))
-#define REQUIRE(...)                                           \
-  do {                                                         \
-    if (!(__VA_ARGS__)) {                                      \
-      ::agv::mcutest::fail(__FILE__, __LINE__, #__VA_ARGS__);  \
-      return;                                                  \
-    }                                                          \
+#define REQUIRE(...)                                          \
+  do {                                                        \
+    if (!(__VA_ARGS__)) {                                     \
+      ::agv::mcutest::fail(__FILE__, __LINE__, #__VA_ARGS__); \
+      return;                                                 \
+    }                                                         \
   } while (0)
 #define REQUIRE_FALSE(...) REQUIRE(!(__VA_ARGS__))

@@ -75,4 +75,6 @@ int runAll() noexcept {
 
 }  // namespace agv::mcutest
 
-int main() { return agv::mcutest::runAll() == 0 ? 0 : 1; }
+int main() {
+  return agv::mcutest::runAll() == 0 ? 0 : 1;
+}

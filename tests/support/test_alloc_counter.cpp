@@ -13,7 +13,9 @@ struct alignas(64) OverAligned {
   double v[8];
 };
 // Keeps the optimiser from removing an allocation whose result is otherwise unused.
-void escape(void* p) { asm volatile("" : : "g"(p) : "memory"); }
+void escape(void* p) {
+  asm volatile("" : : "g"(p) : "memory");
+}
 }  // namespace
 
 TEST_CASE("the allocation counter is active in test binaries", "[alloc]") {

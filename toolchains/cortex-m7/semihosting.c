@@ -13,14 +13,18 @@ static int semihosting_call(int op, const void* arg) {
   return r0;
 }
 
-void semihosting_write0(const char* text) { (void)semihosting_call(SYS_WRITE0, text); }
+void semihosting_write0(const char* text) {
+  (void)semihosting_call(SYS_WRITE0, text);
+}
 
-int semihosting_clock_cs(void) { return semihosting_call(SYS_CLOCK, 0); }
+int semihosting_clock_cs(void) {
+  return semihosting_call(SYS_CLOCK, 0);
+}
 
 void semihosting_exit(int status) {
   /* AArch32 SYS_EXIT takes the reason code itself: ApplicationExit -> host exit 0, else 1. */
-  (void)semihosting_call(SYS_EXIT, (const void*)(status == 0 ? ADP_STOPPED_APPLICATION_EXIT
-                                                             : ADP_STOPPED_RUNTIME_ERROR_UNKNOWN));
+  (void)semihosting_call(SYS_EXIT,
+                         (const void*)(status == 0 ? ADP_STOPPED_APPLICATION_EXIT : ADP_STOPPED_RUNTIME_ERROR_UNKNOWN));
   for (;;) {
   }
 }

@@ -12,7 +12,9 @@ namespace agv::drivers {
 namespace {
 constexpr int kMaxRequestsPerCycle = 16;  // bound of the server loop in one cycle
 
-modbus_mapping_t* asMapping(void* p) noexcept { return static_cast<modbus_mapping_t*>(p); }
+modbus_mapping_t* asMapping(void* p) noexcept {
+  return static_cast<modbus_mapping_t*>(p);
+}
 
 void setTimeout(modbus_t* ctx, Duration d, int (*setter)(modbus_t*, std::uint32_t, std::uint32_t)) noexcept {
   const std::int64_t us = d.ns > 0 ? d.ns / 1000 : 1000;
@@ -27,7 +29,9 @@ int pollMs(Duration d) noexcept {
   return ms > 10000 ? 10000 : static_cast<int>(ms);
 }
 
-std::uint16_t be16(const std::uint8_t* p) noexcept { return static_cast<std::uint16_t>((p[0] << 8U) | p[1]); }
+std::uint16_t be16(const std::uint8_t* p) noexcept {
+  return static_cast<std::uint16_t>((p[0] << 8U) | p[1]);
+}
 }  // namespace
 
 ModbusPlcLink::ModbusPlcLink(const ModbusPlcLinkConfig& config) noexcept : config_(config), map_(config.map) {
@@ -145,14 +149,17 @@ Status ModbusPlcLink::cycle(const plc::PlcStatus& status, Timestamp now, Duratio
   }
   plc::PlcStatus published = status;
   if (!plcAlive_) {
-    published.health = static_cast<std::uint16_t>(published.health | static_cast<std::uint16_t>(plc::PlcHealthBit::PlcHeartbeatLost));
+    published.health =
+        static_cast<std::uint16_t>(published.health | static_cast<std::uint16_t>(plc::PlcHealthBit::PlcHeartbeatLost));
   }
   if (lastRejected_) {
-    published.health = static_cast<std::uint16_t>(published.health | static_cast<std::uint16_t>(plc::PlcHealthBit::CommandRejected));
+    published.health =
+        static_cast<std::uint16_t>(published.health | static_cast<std::uint16_t>(plc::PlcHealthBit::CommandRejected));
   }
   if (config_.role == PlcLinkRole::Server) {
     modbus_mapping_t* m = asMapping(mapping_);
-    (void)map_.encodeStatus(published, Span<std::uint16_t>(m->tab_registers, static_cast<std::size_t>(m->nb_registers)));
+    (void)map_.encodeStatus(published,
+                            Span<std::uint16_t>(m->tab_registers, static_cast<std::size_t>(m->nb_registers)));
     return serve(now, budget);
   }
   (void)map_.encodeStatus(published, Span<std::uint16_t>(table_.data(), table_.size()));
@@ -283,11 +290,13 @@ void ModbusPlcLink::handleRequest(int fd, Timestamp now) noexcept {
     return;
   }
   if (isWrite) {
-    const Status s = malformed ? Status::Malformed : map_.checkWrite(address, Span<const std::uint16_t>(values, count), table);
+    const Status s =
+        malformed ? Status::Malformed : map_.checkWrite(address, Span<const std::uint16_t>(values, count), table);
     if (s != Status::Ok) {
       ++counters_.rejectedWrites;
       lastRejected_ = true;
-      const unsigned code = s == Status::OutOfRange ? MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS : MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
+      const unsigned code =
+          s == Status::OutOfRange ? MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS : MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
       (void)modbus_reply_exception(ctx_, query, code);
       ++counters_.requests;
       return;

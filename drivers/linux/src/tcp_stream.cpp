@@ -1,7 +1,6 @@
 #include "agv/drivers/linux/tcp_stream.hpp"
 
 #include <arpa/inet.h>
-#include <cerrno>
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -9,6 +8,7 @@
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
+#include <cerrno>
 
 namespace agv::drivers {
 namespace {
@@ -20,12 +20,6 @@ int toPollMs(Duration d) noexcept {
   return ms > 60000 ? 60000 : static_cast<int>(ms);
 }
 }  // namespace
-
-Timestamp monotonicNow() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return Timestamp{static_cast<std::int64_t>(ts.tv_sec) * 1000000000 + static_cast<std::int64_t>(ts.tv_nsec)};
-}
 
 TcpStream::TcpStream(const TcpStreamConfig& config) noexcept : config_(config) {
   config_.host[sizeof(config_.host) - 1] = '\0';

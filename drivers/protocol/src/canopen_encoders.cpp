@@ -101,7 +101,8 @@ CanFrame encodeHeartbeat(std::uint8_t nodeId, NmtState state, Timestamp stamp) n
   return f;
 }
 
-CanFrame encodeEmcy(std::uint8_t nodeId, std::uint16_t errorCode, std::uint8_t errorRegister, Timestamp stamp) noexcept {
+CanFrame encodeEmcy(std::uint8_t nodeId, std::uint16_t errorCode, std::uint8_t errorRegister,
+                    Timestamp stamp) noexcept {
   CanFrame f;
   f.id = kEmcyBase + nodeId;
   f.dlc = 8;
@@ -161,7 +162,8 @@ Status CanopenEncoders::validate() const noexcept {
   if (!std::isfinite(s.radiansPerCount) || !(s.radiansPerCount > 0.0)) {
     return Status::InvalidArgument;
   }
-  if (s.countsPerRevolution > 0U && (s.zeroCount >= s.countsPerRevolution || s.countsPerRevolution - 1U > mask(s.pdo.size))) {
+  if (s.countsPerRevolution > 0U &&
+      (s.zeroCount >= s.countsPerRevolution || s.countsPerRevolution - 1U > mask(s.pdo.size))) {
     return Status::InvalidArgument;
   }
   if (config_.heartbeatTimeout.ns < 0 || config_.syncPeriod.ns < 0) {
@@ -207,7 +209,7 @@ void CanopenEncoders::onEmcy(NodeHealth& h, std::uint8_t node, const CanFrame& f
   r.errorCode = static_cast<std::uint16_t>(f.data[0] | (f.data[1] << 8U));
   r.errorRegister = f.data[2];
   for (unsigned i = 0; i < 5U; ++i) {
-    r.vendor[i] = f.data[3 + i];
+    r.vendor[i] = 3U + i < f.dlc ? f.data[3 + i] : 0U;  // bytes past dlc are unspecified
   }
   r.stamp = f.stamp;
   ++h.emcyCount;
@@ -221,7 +223,7 @@ void CanopenEncoders::onEmcy(NodeHealth& h, std::uint8_t node, const CanFrame& f
 }
 
 FrameKind CanopenEncoders::onFrame(const CanFrame& f) noexcept {
-  if (f.extended() || f.remote() || f.error()) {
+  if (f.extended || f.rtr || f.error) {
     return FrameKind::Ignored;
   }
   const std::uint8_t dn = config_.drive.nodeId;
@@ -243,7 +245,8 @@ FrameKind CanopenEncoders::onFrame(const CanFrame& f) noexcept {
     lastRaw_ = raw & mask(size);
     ++drive_.pdoCount;
     driveUpdated_ = true;
-    if ((config_.trigger == SampleTrigger::DriveUpdated && haveSteer_) || (config_.trigger == SampleTrigger::BothUpdated && steerUpdated_)) {
+    if ((config_.trigger == SampleTrigger::DriveUpdated && haveSteer_) ||
+        (config_.trigger == SampleTrigger::BothUpdated && steerUpdated_)) {
       emit(f.stamp);
     }
     return FrameKind::DrivePosition;

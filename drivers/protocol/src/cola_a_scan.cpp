@@ -188,7 +188,8 @@ Status decodeDist1(Tokens& tk, const ChannelHead& ch, const ColaAScanConfig& con
       ++info.noReturnBeams;
     } else {
       // mm -> m in double: raw values reach 2^16 * scale, beyond float's exact integers after scaling.
-      r = static_cast<float>((static_cast<double>(raw) * static_cast<double>(ch.scale) + static_cast<double>(ch.offset)) * 1e-3);
+      r = static_cast<float>(
+          (static_cast<double>(raw) * static_cast<double>(ch.scale) + static_cast<double>(ch.offset)) * 1e-3);
     }
     if (scan.ranges.push_back(r) != Status::Ok) {
       result = Status::CapacityExceeded;

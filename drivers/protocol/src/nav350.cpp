@@ -14,7 +14,9 @@ using detail::BeReader;
 constexpr char kRequest[] = "sMN mNPOSGetData ";
 constexpr char kReply[] = "sAN mNPOSGetData ";
 
-double mdegToRad(double mdeg) noexcept { return deg2rad(mdeg * 1e-3); }
+double mdegToRad(double mdeg) noexcept {
+  return deg2rad(mdeg * 1e-3);
+}
 
 Status parsePose(BeReader& r, Nav350PoseReply& reply) noexcept {
   std::uint16_t valid = 0;
@@ -154,7 +156,8 @@ Status parseScan(BeReader& r, const Nav350Config& config, Timestamp receivedAt, 
       return Status::Malformed;
     }
     LaserScan& scan = reply.scan;
-    scan.angleMin = static_cast<float>(normalizeAngle(mdegToRad(static_cast<double>(ch.startMdeg)) + config.angleOffset));
+    scan.angleMin =
+        static_cast<float>(normalizeAngle(mdegToRad(static_cast<double>(ch.startMdeg)) + config.angleOffset));
     scan.angleIncrement = static_cast<float>(mdegToRad(static_cast<double>(ch.stepMdeg)));
     scan.rangeMin = config.rangeMin;
     scan.rangeMax = config.rangeMax;
@@ -165,7 +168,8 @@ Status parseScan(BeReader& r, const Nav350Config& config, Timestamp receivedAt, 
       AGV_TRY(r.u32(raw));
       float m = std::numeric_limits<float>::infinity();
       if (raw != 0U) {
-        m = static_cast<float>((static_cast<double>(raw) * static_cast<double>(ch.scale) + static_cast<double>(ch.offset)) * 1e-3);
+        m = static_cast<float>(
+            (static_cast<double>(raw) * static_cast<double>(ch.scale) + static_cast<double>(ch.offset)) * 1e-3);
       }
       if (scan.ranges.push_back(m) != Status::Ok) {
         overflow = true;
@@ -334,7 +338,8 @@ std::uint32_t toMdeg(double rad, double offset) noexcept {
 }
 }  // namespace
 
-std::size_t encodeNav350PoseReply(const Nav350PoseReply& r, const Nav350Config& config, Span<std::uint8_t> out) noexcept {
+std::size_t encodeNav350PoseReply(const Nav350PoseReply& r, const Nav350Config& config,
+                                  Span<std::uint8_t> out) noexcept {
   BeOut w(out);
   w.text(kReply);
   w.u16(r.version);
@@ -394,7 +399,8 @@ std::size_t encodeNav350PoseReply(const Nav350PoseReply& r, const Nav350Config& 
     w.f32(1.0F);
     w.f32(0.0F);
     w.i32(static_cast<std::int32_t>(toMdeg(static_cast<double>(scan.angleMin), config.angleOffset)));
-    w.u16(static_cast<std::uint32_t>(std::lround(rad2deg(static_cast<double>(scan.angleIncrement)) * 1000.0)) & 0xFFFFU);
+    w.u16(static_cast<std::uint32_t>(std::lround(rad2deg(static_cast<double>(scan.angleIncrement)) * 1000.0)) &
+          0xFFFFU);
     w.u32(r.scanTimestampMs);
     w.u16(static_cast<std::uint32_t>(scan.size()) & 0xFFFFU);
     for (std::size_t i = 0; i < scan.size(); ++i) {

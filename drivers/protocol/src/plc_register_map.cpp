@@ -18,7 +18,9 @@ constexpr std::uint16_t kCmdPlcHeartbeat = 8;
 constexpr std::uint16_t kMaxCommandCode = static_cast<std::uint16_t>(PlcCommandCode::AbortCalibration);
 
 /// Publishes a double as float; out-of-float-range values become +-inf, NaN stays NaN.
-float toFloat(double v) noexcept { return static_cast<float>(v); }
+float toFloat(double v) noexcept {
+  return static_cast<float>(v);
+}
 }  // namespace
 
 Status PlcRegisterMap::encodeStatus(const PlcStatus& s, Span<std::uint16_t> table) const noexcept {

@@ -9,12 +9,12 @@
 #include "agv/core/status.hpp"
 
 /// Returns the status of `expr` from the enclosing function unless it is Ok.
-#define AGV_TRY(expr)         \
-  do {                        \
+#define AGV_TRY(expr)                \
+  do {                               \
     const ::agv::Status s_ = (expr); \
     if (s_ != ::agv::Status::Ok) {   \
-      return s_;              \
-    }                         \
+      return s_;                     \
+    }                                \
   } while (0)
 
 namespace agv::drivers::detail {

@@ -12,14 +12,18 @@ constexpr std::size_t kColaBHeader = 8;  // 4 x STX + uint32 length
 // Its first byte is 0x01 or more, so a run of 0x02 before a real header is never mistaken for one.
 constexpr std::uint32_t kImplausibleLength = 1U << 24;
 
-bool magicAt(const std::uint8_t* p) noexcept { return p[0] == kStx && p[1] == kStx && p[2] == kStx && p[3] == kStx; }
+bool magicAt(const std::uint8_t* p) noexcept {
+  return p[0] == kStx && p[1] == kStx && p[2] == kStx && p[3] == kStx;
+}
 
 std::uint32_t be32(const std::uint8_t* p) noexcept {
   return (static_cast<std::uint32_t>(p[0]) << 24U) | (static_cast<std::uint32_t>(p[1]) << 16U) |
          (static_cast<std::uint32_t>(p[2]) << 8U) | static_cast<std::uint32_t>(p[3]);
 }
 
-std::uint32_t clampCount(std::size_t n) noexcept { return n > 0xFFFFFFFFU ? 0xFFFFFFFFU : static_cast<std::uint32_t>(n); }
+std::uint32_t clampCount(std::size_t n) noexcept {
+  return n > 0xFFFFFFFFU ? 0xFFFFFFFFU : static_cast<std::uint32_t>(n);
+}
 }  // namespace
 
 void TelegramFramer::compact() noexcept {

@@ -27,6 +27,9 @@
 #ifndef AGV_MAX_CALIB_SEGMENTS
 #define AGV_MAX_CALIB_SEGMENTS 64
 #endif
+#ifndef AGV_MAX_CAN_FILTERS
+#define AGV_MAX_CAN_FILTERS 16
+#endif
 #ifndef AGV_MAX_LASER_TELEGRAM_BYTES
 #define AGV_MAX_LASER_TELEGRAM_BYTES 32768
 #endif
@@ -48,6 +51,8 @@ inline constexpr std::size_t kMaxObservations = AGV_MAX_OBSERVATIONS;
 inline constexpr std::size_t kMaxLandmarks = AGV_MAX_LANDMARKS;
 /// Constant-steering path segments used by one calibration solve.
 inline constexpr std::size_t kMaxCalibSegments = AGV_MAX_CALIB_SEGMENTS;
+/// Receive filters of one CAN socket (one per node and object class leaves ample room).
+inline constexpr std::size_t kMaxCanFilters = AGV_MAX_CAN_FILTERS;
 
 /// Bytes of one laser telegram (framing included) a driver buffers: a CoLa A LMDscandata of
 /// 1141 beams with RSSI is ~12 KB, a NAV350 reply with 1440 beams and 64 reflectors ~8 KB.

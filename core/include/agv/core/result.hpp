@@ -21,7 +21,8 @@ class [[nodiscard]] Result {
 
  public:
   /// A successful result holding `value`.
-  constexpr Result(const T& value) noexcept(std::is_nothrow_copy_constructible_v<T>)  // NOLINT(google-explicit-constructor)
+  constexpr Result(const T& value) noexcept(
+      std::is_nothrow_copy_constructible_v<T>)  // NOLINT(google-explicit-constructor)
       : value_(value) {}
   /// A successful result holding `value`.
   constexpr Result(T&& value) noexcept(std::is_nothrow_move_constructible_v<T>)  // NOLINT(google-explicit-constructor)

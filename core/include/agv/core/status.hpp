@@ -12,6 +12,8 @@ namespace agv {
 /// One enum for the whole library so that a status can travel from any module to the PLC link
 /// and the logs unchanged. Append new reasons at the end: the numeric values are published on
 /// the PLC link and must stay stable.
+// (clang-format 14 misreads an attribute on an enum: formatting is fenced off here.)
+// clang-format off
 enum class [[nodiscard]] Status : std::uint8_t {
   Ok = 0,
   InvalidArgument,   ///< a parameter is out of its documented domain
@@ -33,6 +35,7 @@ enum class [[nodiscard]] Status : std::uint8_t {
   Lost,              ///< the localizer no longer trusts its pose
   DeviceFault,       ///< a device reported a fault (EMCY, bus-off, ...)
 };
+// clang-format on
 
 /// Number of enumerators in `Status` (keep equal to the last value + 1).
 inline constexpr std::uint8_t kStatusCount = static_cast<std::uint8_t>(Status::DeviceFault) + 1U;
@@ -41,6 +44,8 @@ inline constexpr std::uint8_t kStatusCount = static_cast<std::uint8_t>(Status::D
 const char* toString(Status status) noexcept;
 
 /// True when `status` is `Status::Ok`.
-constexpr bool isOk(Status status) noexcept { return status == Status::Ok; }
+constexpr bool isOk(Status status) noexcept {
+  return status == Status::Ok;
+}
 
 }  // namespace agv

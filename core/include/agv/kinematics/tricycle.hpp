@@ -16,10 +16,10 @@ namespace agv {
 
 /// Geometric and encoder parameters of a tricycle vehicle (the calibration's unknowns except L).
 struct TricycleParams {
-  double wheelbase = 1.5;          ///< L [m], known from the drawing
-  double driveScale = 5e-4;        ///< s_w [m/tick]: drive-wheel travel per encoder tick
-  double steerOffsetForward = 0.0; ///< alpha_F [rad]: added to the measured steering when driving forward
-  double steerOffsetBackward = 0.0;///< alpha_B [rad]: the same for backward motion (= alpha_F in the standard model)
+  double wheelbase = 1.5;            ///< L [m], known from the drawing
+  double driveScale = 5e-4;          ///< s_w [m/tick]: drive-wheel travel per encoder tick
+  double steerOffsetForward = 0.0;   ///< alpha_F [rad]: added to the measured steering when driving forward
+  double steerOffsetBackward = 0.0;  ///< alpha_B [rad]: the same for backward motion (= alpha_F in the standard model)
 };
 
 /// (1 - cos t) / t and sin t / t, evaluated without cancellation near t = 0 (series to t^4).

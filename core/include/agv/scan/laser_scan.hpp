@@ -19,12 +19,12 @@ namespace agv {
 /// "no return" value as-is (or as +inf) and set rangeMax so that it is invalid; algorithms must
 /// use `isValid()` and never treat an invalid reading as a point or a neighbour.
 struct LaserScan {
-  Timestamp stamp;             ///< time of the first beam on the vehicle's monotonic clock
-  Duration sweepDuration;      ///< time from the first to the last beam (0 if unknown)
-  float angleMin = 0.0F;       ///< [rad] angle of beam 0
-  float angleIncrement = 0.0F; ///< [rad] angle step between beams (> 0)
-  float rangeMin = 0.0F;       ///< [m] readings below are invalid
-  float rangeMax = 0.0F;       ///< [m] readings at or above are invalid ("no return")
+  Timestamp stamp;                           ///< time of the first beam on the vehicle's monotonic clock
+  Duration sweepDuration;                    ///< time from the first to the last beam (0 if unknown)
+  float angleMin = 0.0F;                     ///< [rad] angle of beam 0
+  float angleIncrement = 0.0F;               ///< [rad] angle step between beams (> 0)
+  float rangeMin = 0.0F;                     ///< [m] readings below are invalid
+  float rangeMax = 0.0F;                     ///< [m] readings at or above are invalid ("no return")
   FixedVector<float, kMaxScanBeams> ranges;  ///< [m]
 
   /// Beam count.

@@ -29,16 +29,17 @@ enum class PlcLinkRole : std::uint8_t {
 
 struct ModbusPlcLinkConfig {
   PlcLinkRole role = PlcLinkRole::Server;
-  char address[64] = "0.0.0.0";  ///< server: address to bind; client: the PLC's IPv4 address
-  std::uint16_t port = 502;      ///< server: 0 picks a free port (see boundPort())
-  plc::PlcMapConfig map;         ///< word order, set-pose bounds
+  char address[64] = "0.0.0.0";           ///< server: address to bind; client: the PLC's IPv4 address
+  std::uint16_t port = 502;               ///< server: 0 picks a free port (see boundPort())
+  plc::PlcMapConfig map;                  ///< word order, set-pose bounds
   std::uint16_t remoteStatusBase = 0;     ///< client: PLC holding register receiving the status block
   std::uint16_t remoteCommandBase = 100;  ///< client: PLC holding register of the command block
   bool clientReadsCommands = true;        ///< client: read the command block every cycle
   Duration responseTimeout = Duration::fromMilliseconds(50);  ///< one request / connect attempt
   Duration reconnectInterval = Duration::fromMilliseconds(1000);
-  Duration plcHeartbeatTimeout = Duration::fromMilliseconds(1000);  ///< PLC heartbeat register unchanged this long = lost
-  int maxConnections = 4;  ///< server: simultaneous PLC connections (more are refused)
+  Duration plcHeartbeatTimeout =
+      Duration::fromMilliseconds(1000);  ///< PLC heartbeat register unchanged this long = lost
+  int maxConnections = 4;                ///< server: simultaneous PLC connections (more are refused)
 };
 
 struct PlcLinkCounters {
@@ -47,8 +48,8 @@ struct PlcLinkCounters {
   std::uint32_t commands = 0;        ///< new commands accepted (sequence register changed)
   std::uint32_t connects = 0;
   std::uint32_t disconnects = 0;
-  std::uint32_t connectFailures = 0; ///< client attempts failed; server connections refused (full)
-  std::uint32_t requestErrors = 0;   ///< failed exchanges (timeouts, broken connections)
+  std::uint32_t connectFailures = 0;  ///< client attempts failed; server connections refused (full)
+  std::uint32_t requestErrors = 0;    ///< failed exchanges (timeouts, broken connections)
 };
 
 class ModbusPlcLink {

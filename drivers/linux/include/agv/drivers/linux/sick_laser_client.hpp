@@ -15,14 +15,14 @@ namespace agv::drivers {
 
 /// Counters of a laser client (the framer's and the socket's are available separately).
 struct LaserClientCounters {
-  std::uint32_t decoded = 0;        ///< scans / replies delivered
-  std::uint32_t decodeErrors = 0;   ///< telegrams of the expected kind that failed to decode
-  std::uint32_t otherTelegrams = 0; ///< telegrams of another kind (acknowledgements, events), ignored
+  std::uint32_t decoded = 0;         ///< scans / replies delivered
+  std::uint32_t decodeErrors = 0;    ///< telegrams of the expected kind that failed to decode
+  std::uint32_t otherTelegrams = 0;  ///< telegrams of another kind (acknowledgements, events), ignored
 };
 
 /// Configuration of the CoLa A scan client.
 struct ColaAScanClientConfig {
-  TcpStreamConfig tcp;            ///< default port 2111
+  TcpStreamConfig tcp;  ///< default port 2111
   sick::ColaAScanConfig scan;
   /// true: send `sEN LMDscandata 1` after each connection and receive the `sSN` stream;
   /// false: poll each scan with `sRN LMDscandata` (answered by `sRA`).
@@ -57,7 +57,7 @@ class ColaAScanClient {
 /// Configuration of the NAV350 client.
 struct Nav350ClientConfig {
   Nav350ClientConfig() noexcept { tcp.port = 2112; }
-  TcpStreamConfig tcp;            ///< default port 2112 (binary CoLa)
+  TcpStreamConfig tcp;  ///< default port 2112 (binary CoLa)
   sick::Nav350Config nav;
 };
 

@@ -15,15 +15,16 @@
 
 namespace agv::drivers {
 
-/// Reads CLOCK_MONOTONIC (the vehicle clock of the Linux drivers).
+/// Reads CLOCK_MONOTONIC, the vehicle clock of the Linux drivers (defined with the SocketCAN
+/// transport, declared in agv/drivers/socketcan_bus.hpp too).
 Timestamp monotonicNow() noexcept;
 
 /// Address and timing of a TCP peer.
 struct TcpStreamConfig {
-  char host[64] = "192.168.0.1";  ///< numeric IPv4 address of the device
-  std::uint16_t port = 2111;      ///< SICK CoLa A 2111, CoLa B 2112
-  Duration connectTimeout = Duration::fromMilliseconds(1000);   ///< bound of one connection attempt
-  Duration reconnectInterval = Duration::fromMilliseconds(500); ///< minimum time between attempts
+  char host[64] = "192.168.0.1";                                 ///< numeric IPv4 address of the device
+  std::uint16_t port = 2111;                                     ///< SICK CoLa A 2111, CoLa B 2112
+  Duration connectTimeout = Duration::fromMilliseconds(1000);    ///< bound of one connection attempt
+  Duration reconnectInterval = Duration::fromMilliseconds(500);  ///< minimum time between attempts
 };
 
 /// Counters of the connection's life.

@@ -16,7 +16,7 @@
 #include "agv/core/span.hpp"
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
-#include "agv/drivers/can/can_frame.hpp"
+#include "agv/drivers/can_frame.hpp"
 #include "agv/hal/encoder_sample.hpp"
 
 namespace agv::drivers::canopen {
@@ -57,9 +57,9 @@ struct DriveEncoderConfig {
 struct SteeringEncoderConfig {
   std::uint8_t nodeId = 2;
   PdoMapping pdo{0x182, 0, 4};
-  std::int8_t direction = 1;           ///< +1 or -1: sign that makes a left turn positive
-  double radiansPerCount = 0.0;        ///< [rad/count] at the steering axis (> 0)
-  std::uint32_t zeroCount = 0;         ///< raw count at straight ahead
+  std::int8_t direction = 1;     ///< +1 or -1: sign that makes a left turn positive
+  double radiansPerCount = 0.0;  ///< [rad/count] at the steering axis (> 0)
+  std::uint32_t zeroCount = 0;   ///< raw count at straight ahead
   /// Counts per encoder revolution when the encoder sits on the steering axis (the raw value
   /// wraps there, e.g. 8192 for 13 bits); 0 = the value is taken as a signed number of `size` bytes.
   std::uint32_t countsPerRevolution = 0;
@@ -67,8 +67,8 @@ struct SteeringEncoderConfig {
 
 /// When a sample is emitted.
 enum class SampleTrigger : std::uint8_t {
-  BothUpdated,  ///< when both positions were received since the last sample (SYNC-driven PDOs)
-  DriveUpdated, ///< on every drive position, with the latest steering angle
+  BothUpdated,   ///< when both positions were received since the last sample (SYNC-driven PDOs)
+  DriveUpdated,  ///< on every drive position, with the latest steering angle
 };
 
 struct CanopenEncodersConfig {
@@ -97,20 +97,20 @@ struct NodeHealth {
   Timestamp lastHeartbeat;
   bool heartbeatSeen = false;
   bool heartbeatTimedOut = false;
-  bool emcyActive = false;          ///< last EMCY had a non-zero error code
+  bool emcyActive = false;  ///< last EMCY had a non-zero error code
   std::uint32_t emcyCount = 0;
   std::uint32_t pdoCount = 0;
-  std::uint32_t bootUps = 0;        ///< boot-up messages (node restarted; NMT start re-sent)
+  std::uint32_t bootUps = 0;  ///< boot-up messages (node restarted; NMT start re-sent)
 };
 
 /// What a received frame was.
 enum class FrameKind : std::uint8_t {
-  Ignored,           ///< not for this decoder (other ids, extended, remote and error frames)
+  Ignored,  ///< not for this decoder (other ids, extended, remote and error frames)
   DrivePosition,
   SteeringPosition,
   Heartbeat,
   Emcy,
-  Malformed,         ///< one of our ids, but too short (or a steering value outside its revolution)
+  Malformed,  ///< one of our ids, but too short (or a steering value outside its revolution)
 };
 
 /// Builds the NMT frame `command` for `nodeId` (0 = all nodes).

@@ -54,31 +54,31 @@ enum class LocalizationState : std::uint16_t {
 
 /// Bits of the health word (register 2); a set bit means the condition holds.
 enum class PlcHealthBit : std::uint16_t {
-  LaserOk = 1U << 0U,          ///< scans arriving in time
-  EncodersOk = 1U << 1U,       ///< encoder samples arriving in time, heartbeats ok
+  LaserOk = 1U << 0U,     ///< scans arriving in time
+  EncodersOk = 1U << 1U,  ///< encoder samples arriving in time, heartbeats ok
   MapLoaded = 1U << 2U,
   CalibrationValid = 1U << 3U,
   LaserTimeout = 1U << 4U,
-  EncoderTimeout = 1U << 5U,   ///< CANopen heartbeat or PDO timeout
-  DeviceFault = 1U << 6U,      ///< EMCY received, bus-off
-  PlcHeartbeatLost = 1U << 7U, ///< the PLC's heartbeat register stopped changing
-  CommandRejected = 1U << 8U,  ///< the last PLC write was refused (whitelist or bounds)
+  EncoderTimeout = 1U << 5U,    ///< CANopen heartbeat or PDO timeout
+  DeviceFault = 1U << 6U,       ///< EMCY received, bus-off
+  PlcHeartbeatLost = 1U << 7U,  ///< the PLC's heartbeat register stopped changing
+  CommandRejected = 1U << 8U,   ///< the last PLC write was refused (whitelist or bounds)
 };
 
 /// Calibration values published read-only.
 struct PlcCalibration {
-  double driveScale = 0.0;          ///< s_w [m/tick]
-  double steerOffsetForward = 0.0;  ///< [rad]
-  double steerOffsetBackward = 0.0; ///< [rad]
-  Pose2d laserMount;                ///< l = (lx, ly, ltheta) [m, m, rad]
-  double wheelbase = 0.0;           ///< [m]
+  double driveScale = 0.0;           ///< s_w [m/tick]
+  double steerOffsetForward = 0.0;   ///< [rad]
+  double steerOffsetBackward = 0.0;  ///< [rad]
+  Pose2d laserMount;                 ///< l = (lx, ly, ltheta) [m, m, rad]
+  double wheelbase = 0.0;            ///< [m]
 };
 
 /// Everything the vehicle publishes each cycle.
 struct PlcStatus {
   std::uint16_t heartbeat = 0;
   LocalizationState state = LocalizationState::Uninitialized;
-  std::uint16_t health = 0;              ///< OR of PlcHealthBit
+  std::uint16_t health = 0;  ///< OR of PlcHealthBit
   Status lastStatus = Status::Ok;
   Pose2d pose;
   /// Covariance upper triangle: xx, xy, xtheta, yy, ytheta, thetatheta.
@@ -92,7 +92,7 @@ struct PlcStatus {
 /// PLC command codes (register 100).
 enum class PlcCommandCode : std::uint16_t {
   None = 0,
-  SetPose = 1,             ///< (re)initialize the localization at registers 102..107
+  SetPose = 1,  ///< (re)initialize the localization at registers 102..107
   PauseLocalization = 2,
   ResumeLocalization = 3,
   StartCalibration = 4,
@@ -103,7 +103,7 @@ enum class PlcCommandCode : std::uint16_t {
 struct PlcCommand {
   PlcCommandCode code = PlcCommandCode::None;
   std::uint16_t sequence = 0;
-  Pose2d pose;                 ///< for SetPose [m, m, rad]
+  Pose2d pose;  ///< for SetPose [m, m, rad]
   std::uint16_t plcHeartbeat = 0;
 };
 
@@ -135,7 +135,8 @@ class PlcRegisterMap {
   /// Ok; OutOfRange (an address is not writable: illegal data address); Malformed (only one
   /// register of a 32-bit field written); InvalidArgument (a value out of bounds or not finite:
   /// illegal data value). Nothing is written here.
-  Status checkWrite(std::uint16_t address, Span<const std::uint16_t> values, Span<const std::uint16_t> table) const noexcept;
+  Status checkWrite(std::uint16_t address, Span<const std::uint16_t> values,
+                    Span<const std::uint16_t> table) const noexcept;
 
   /// Decodes and bounds-checks the command block of `table` (size >= kRegisterCount); used by the
   /// server after an accepted write and by the client after reading the PLC's registers.

@@ -26,10 +26,22 @@ inline void packU32(std::uint32_t v, WordOrder order, std::uint16_t* dst) noexce
   const auto c = static_cast<std::uint16_t>((v >> 8U) & 0xFFU);
   const auto d = static_cast<std::uint16_t>(v & 0xFFU);
   switch (order) {
-    case WordOrder::ABCD: dst[0] = static_cast<std::uint16_t>((a << 8U) | b); dst[1] = static_cast<std::uint16_t>((c << 8U) | d); break;
-    case WordOrder::CDAB: dst[0] = static_cast<std::uint16_t>((c << 8U) | d); dst[1] = static_cast<std::uint16_t>((a << 8U) | b); break;
-    case WordOrder::BADC: dst[0] = static_cast<std::uint16_t>((b << 8U) | a); dst[1] = static_cast<std::uint16_t>((d << 8U) | c); break;
-    case WordOrder::DCBA: dst[0] = static_cast<std::uint16_t>((d << 8U) | c); dst[1] = static_cast<std::uint16_t>((b << 8U) | a); break;
+    case WordOrder::ABCD:
+      dst[0] = static_cast<std::uint16_t>((a << 8U) | b);
+      dst[1] = static_cast<std::uint16_t>((c << 8U) | d);
+      break;
+    case WordOrder::CDAB:
+      dst[0] = static_cast<std::uint16_t>((c << 8U) | d);
+      dst[1] = static_cast<std::uint16_t>((a << 8U) | b);
+      break;
+    case WordOrder::BADC:
+      dst[0] = static_cast<std::uint16_t>((b << 8U) | a);
+      dst[1] = static_cast<std::uint16_t>((d << 8U) | c);
+      break;
+    case WordOrder::DCBA:
+      dst[0] = static_cast<std::uint16_t>((d << 8U) | c);
+      dst[1] = static_cast<std::uint16_t>((b << 8U) | a);
+      break;
   }
 }
 
@@ -37,12 +49,26 @@ inline void packU32(std::uint32_t v, WordOrder order, std::uint16_t* dst) noexce
 inline std::uint32_t unpackU32(const std::uint16_t* src, WordOrder order) noexcept {
   std::uint32_t hi = 0;  // A B
   std::uint32_t lo = 0;  // C D
-  const auto swap = [](std::uint16_t w) noexcept { return static_cast<std::uint32_t>(((w & 0xFFU) << 8U) | (w >> 8U)); };
+  const auto swap = [](std::uint16_t w) noexcept {
+    return static_cast<std::uint32_t>(((w & 0xFFU) << 8U) | (w >> 8U));
+  };
   switch (order) {
-    case WordOrder::ABCD: hi = src[0]; lo = src[1]; break;
-    case WordOrder::CDAB: hi = src[1]; lo = src[0]; break;
-    case WordOrder::BADC: hi = swap(src[0]); lo = swap(src[1]); break;
-    case WordOrder::DCBA: hi = swap(src[1]); lo = swap(src[0]); break;
+    case WordOrder::ABCD:
+      hi = src[0];
+      lo = src[1];
+      break;
+    case WordOrder::CDAB:
+      hi = src[1];
+      lo = src[0];
+      break;
+    case WordOrder::BADC:
+      hi = swap(src[0]);
+      lo = swap(src[1]);
+      break;
+    case WordOrder::DCBA:
+      hi = swap(src[1]);
+      lo = swap(src[0]);
+      break;
   }
   return (hi << 16U) | lo;
 }

@@ -36,16 +36,16 @@ struct ColaAScanConfig {
 /// Header fields of a decoded telegram, for diagnostics and time stamping.
 struct ColaAScanInfo {
   std::uint32_t serialNumber = 0;
-  std::uint16_t deviceStatus = 0;     ///< first device-status word (0 = ok)
+  std::uint16_t deviceStatus = 0;  ///< first device-status word (0 = ok)
   std::uint16_t telegramCounter = 0;
   std::uint16_t scanCounter = 0;
-  std::uint32_t timeSinceStartupUs = 0;  ///< device clock at the scan [us]
-  std::uint32_t timeOfTransmissionUs = 0;///< device clock at transmission [us]
-  double scanFrequency = 0.0;         ///< [Hz]
-  double scaleFactor = 0.0;           ///< DIST1 scale factor as sent
-  double scaleOffset = 0.0;           ///< DIST1 scale offset as sent [mm]
-  std::uint16_t beamCount = 0;        ///< DIST1 value count as sent (may exceed kMaxScanBeams)
-  std::uint32_t noReturnBeams = 0;    ///< raw 0 values (no echo), stored as +inf
+  std::uint32_t timeSinceStartupUs = 0;    ///< device clock at the scan [us]
+  std::uint32_t timeOfTransmissionUs = 0;  ///< device clock at transmission [us]
+  double scanFrequency = 0.0;              ///< [Hz]
+  double scaleFactor = 0.0;                ///< DIST1 scale factor as sent
+  double scaleOffset = 0.0;                ///< DIST1 scale offset as sent [mm]
+  std::uint16_t beamCount = 0;             ///< DIST1 value count as sent (may exceed kMaxScanBeams)
+  std::uint32_t noReturnBeams = 0;         ///< raw 0 values (no echo), stored as +inf
 };
 
 /// Decodes one CoLa A telegram (the text between STX and ETX, as `TelegramFramer` delivers it).
@@ -82,6 +82,7 @@ struct ColaAScanEncodeParams {
 /// telegram (STX ... ETX) of `scan` into `out` and returns its length, 0 if `out` is too small
 /// (at most 160 + 5 x beams bytes are needed). Invalid readings are sent as 0 (no echo); ranges
 /// are rounded to the device resolution (scale factor, in mm) and clamped to 0xFFFF counts.
-std::size_t encodeColaAScan(const LaserScan& scan, const ColaAScanEncodeParams& params, Span<std::uint8_t> out) noexcept;
+std::size_t encodeColaAScan(const LaserScan& scan, const ColaAScanEncodeParams& params,
+                            Span<std::uint8_t> out) noexcept;
 
 }  // namespace agv::drivers::sick

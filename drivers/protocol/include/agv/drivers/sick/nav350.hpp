@@ -70,7 +70,8 @@ struct Nav350Reflector {
 /// Decoded `sAN mNPOSGetData` reply.
 struct Nav350PoseReply {
   std::uint16_t version = 0;
-  std::uint8_t errorCode = 0;  ///< 0 ok, 1 wrong mode, 2 aborted, 3 invalid data, 4 no position, 5 timeout, 6 busy, 7 general
+  std::uint8_t errorCode =
+      0;  ///< 0 ok, 1 wrong mode, 2 aborted, 3 invalid data, 4 no position, 5 timeout, 6 busy, 7 general
   std::uint8_t wait = 0;
   std::uint8_t mask = 0;
 
@@ -89,9 +90,9 @@ struct Nav350PoseReply {
   std::uint16_t reflectorCount = 0;  ///< as sent (may exceed kMaxReflectors; see reflectors.refusedCount())
   FixedVector<Nav350Reflector, kMaxReflectors> reflectors;
 
-  bool scanValid = false;      ///< a DIST1 channel was present
+  bool scanValid = false;  ///< a DIST1 channel was present
   std::uint32_t scanTimestampMs = 0;
-  LaserScan scan;              ///< DIST1 channel (ANGL1 and RSSI1 are checked and skipped)
+  LaserScan scan;  ///< DIST1 channel (ANGL1 and RSSI1 are checked and skipped)
 };
 
 /// Sensor-frame conventions; defaults keep the device's own angles (0 = the NAV350's x axis).
@@ -114,6 +115,7 @@ Status parseNav350PoseReply(Span<const std::uint8_t> payload, const Nav350Config
 /// the parts it has; the scan as a DIST1 channel if scanValid) into `out`; frame it with
 /// `encodeColaB`. Returns the payload length, 0 if `out` is too small. Values are rounded to the
 /// device units (mm, mdeg); invalid readings are sent as 0.
-std::size_t encodeNav350PoseReply(const Nav350PoseReply& reply, const Nav350Config& config, Span<std::uint8_t> out) noexcept;
+std::size_t encodeNav350PoseReply(const Nav350PoseReply& reply, const Nav350Config& config,
+                                  Span<std::uint8_t> out) noexcept;
 
 }  // namespace agv::drivers::sick

@@ -79,11 +79,11 @@ class TelegramFramer {
 
   Framing framing_;
   std::array<std::uint8_t, kCapacity> buf_{};
-  std::size_t begin_ = 0;     ///< first undelivered byte
-  std::size_t end_ = 0;       ///< one past the last buffered byte
-  std::size_t scan_ = 0;      ///< CoLa A: bytes after begin_ already searched for STX/ETX
-  bool inTelegram_ = false;   ///< CoLa A: begin_ is an STX
-  bool skipping_ = false;     ///< CoLa A: dropping an oversized telegram up to its ETX
+  std::size_t begin_ = 0;    ///< first undelivered byte
+  std::size_t end_ = 0;      ///< one past the last buffered byte
+  std::size_t scan_ = 0;     ///< CoLa A: bytes after begin_ already searched for STX/ETX
+  bool inTelegram_ = false;  ///< CoLa A: begin_ is an STX
+  bool skipping_ = false;    ///< CoLa A: dropping an oversized telegram up to its ETX
   FramerCounters counters_{};
 };
 

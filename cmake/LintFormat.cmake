@@ -1,0 +1,16 @@
+# cmake -DSOURCE_DIR=<repo> -DCLANG_FORMAT=<exe> -P LintFormat.cmake
+# Fails when a C/C++ file of the project is not formatted as .clang-format says.
+set(globs)
+foreach(dir core hal drivers apps tests toolchains)
+  foreach(ext cpp hpp c h)
+    list(APPEND globs "${SOURCE_DIR}/${dir}/*.${ext}")
+  endforeach()
+endforeach()
+file(GLOB_RECURSE files ${globs})
+list(FILTER files EXCLUDE REGEX "/build[^/]*/")
+execute_process(COMMAND "${CLANG_FORMAT}" --dry-run --Werror ${files} RESULT_VARIABLE rc ERROR_VARIABLE err)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "${err}\nclang-format: files above need formatting (run clang-format -i on them)")
+endif()
+list(LENGTH files n)
+message(STATUS "clang-format: ${n} files clean")

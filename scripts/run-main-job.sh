@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# README command 1: install the dependencies, build, and run the main job (agvnav-hil) on its
+# embedded default scenario. Extra arguments go to agvnav-hil.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/install-deps.sh
+cmake --preset default
+cmake --build --preset default -j "$(nproc)"
+exec build/default/apps/hil/agvnav-hil "$@"

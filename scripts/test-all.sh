@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# README command 2: the whole test suite, ending in ONE ctest run whose summary counts everything:
+#   native tree (build/ci, warnings as errors): unit, allocation, consumer-package, app tests
+#   build/asan      : the unit tests again under AddressSanitizer + UndefinedBehaviorSanitizer
+#   build/aarch64   : core/ and its tests for aarch64 Linux, run under qemu-aarch64
+#   build/armhf     : core/ and its tests for armhf Linux, run under qemu-arm
+#   build/cortex-m7 : core/ bare-metal for Cortex-M7 (FPv5-SP), test image run on qemu-system-arm
+#                     mps2-an500, size report, heap-symbol check
+# The other trees are built first; the native tree's ctest includes their tests
+# (AGVNAV_AGGREGATE_TEST_DIRS), labelled asan / aarch64 / armhf / cortex-m7.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+jobs=$(nproc)
+
+scripts/install-deps.sh --all
+
+section() { printf '\n==== %s ====\n' "$*"; }
+build_tree() {  # preset
+  section "configure + build: $1"
+  cmake --preset "$1" >"build/$1.configure.log" 2>&1 || { cat "build/$1.configure.log"; return 1; }
+  cmake --build --preset "$1" -j "$jobs"
+}
+mkdir -p build
+trees=()
+for preset in asan aarch64 armhf cortex-m7; do
+  build_tree "$preset"
+  trees+=("$root/build/$preset")
+done
+rm -f build/*.configure.log
+
+section "size report (Cortex-M7 images, bytes)"
+cat build/cortex-m7/tests/*.size.txt
+
+section "configure + build: native (ci)"
+agg=$(IFS=';'; echo "${trees[*]}")
+cmake --preset ci "-DAGVNAV_AGGREGATE_TEST_DIRS=$agg" >/dev/null
+cmake --build --preset ci -j "$jobs"
+
+section "ctest: all trees"
+ctest --preset ci
