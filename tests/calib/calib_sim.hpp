@@ -16,18 +16,18 @@ namespace agv::test {
 struct CalibSimConfig {
   TricycleParams truth{1.5, 5e-4, deg2rad(1.0), deg2rad(-0.5)};
   Pose2d laser{1.6, 0.4, deg2rad(5.0)};
-  double beta = kPi<double>;            ///< target rotation of each arc [rad]
-  int perDirection = 10;                ///< segments per driving direction (half left, half right)
-  double steerMin = deg2rad(18.0);      ///< smallest |steering| [rad]
-  double steerMax = deg2rad(50.0);      ///< largest |steering| [rad]
+  double beta = kPi<double>;        ///< target rotation of each arc [rad]
+  int perDirection = 10;            ///< segments per driving direction (half left, half right)
+  double steerMin = deg2rad(18.0);  ///< smallest |steering| [rad]
+  double steerMax = deg2rad(50.0);  ///< largest |steering| [rad]
   bool forward = true;
   bool backward = true;
-  double sigmaXY = 0.0;                 ///< egomotion noise per axis [m]
-  double sigmaTheta = 0.0;              ///< egomotion rotation noise [rad]
-  bool quantiseTicks = false;           ///< true distance is continuous, ticks are its rounding
-  int steerBits = 0;                    ///< steering encoder resolution over 2 pi (0: exact)
-  double steerPlacement = 0.0;          ///< the achieved steering differs from the planned one by U(-x, x) [rad]
-  double steerJitter = 0.0;             ///< extra N(0, x) steering-encoder error per segment [rad]
+  double sigmaXY = 0.0;         ///< egomotion noise per axis [m]
+  double sigmaTheta = 0.0;      ///< egomotion rotation noise [rad]
+  bool quantiseTicks = false;   ///< true distance is continuous, ticks are its rounding
+  int steerBits = 0;            ///< steering encoder resolution over 2 pi (0: exact)
+  double steerPlacement = 0.0;  ///< the achieved steering differs from the planned one by U(-x, x) [rad]
+  double steerJitter = 0.0;     ///< extra N(0, x) steering-encoder error per segment [rad]
 };
 
 /// One simulated run. Noise-free when every noise field is zero (ticks are then exact integers
@@ -45,7 +45,8 @@ inline std::vector<CalibSegment> simulateCalibration(const CalibSimConfig& cfg, 
     for (int i = 0; i < cfg.perDirection; ++i) {
       const double side = (i % 2 == 0) ? 1.0 : -1.0;
       const int level = (i / 2) % levels;
-      const double mag = levels > 1 ? cfg.steerMin + (cfg.steerMax - cfg.steerMin) * level / (levels - 1) : cfg.steerMin;
+      const double mag =
+          levels > 1 ? cfg.steerMin + (cfg.steerMax - cfg.steerMin) * level / (levels - 1) : cfg.steerMin;
       const double alphaTrue = side * mag + (cfg.steerPlacement > 0.0 ? cfg.steerPlacement * uni(rng) : 0.0);
       double ds = dir * cfg.beta * cfg.truth.wheelbase / std::fabs(std::sin(alphaTrue));
       const double ticksReal = ds / cfg.truth.driveScale;

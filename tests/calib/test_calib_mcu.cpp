@@ -14,7 +14,8 @@ void makeRun(agv::CalibSegment (&segs)[kSegs], const agv::TricycleParams& truth,
     const double dir = k < 4 ? 1.0 : -1.0;
     const double offset = dir > 0 ? truth.steerOffsetForward : truth.steerOffsetBackward;
     const double alpha = steer[k % 4];
-    const double ticks = std::round(dir * agv::kPi<double> * truth.wheelbase / std::fabs(std::sin(alpha)) / truth.driveScale);
+    const double ticks =
+        std::round(dir * agv::kPi<double> * truth.wheelbase / std::fabs(std::sin(alpha)) / truth.driveScale);
     segs[k].ticks = static_cast<std::int64_t>(ticks);
     segs[k].steering = alpha - offset;
     const agv::Pose2d arc = agv::tricycleArc(ticks * truth.driveScale, alpha, truth.wheelbase);

@@ -13,16 +13,20 @@ using agv::CalibCondition;
 using agv::CalibrationOptions;
 using agv::CalibrationResult;
 using agv::CalibSegment;
+using agv::deg2rad;
 using agv::Pose2d;
 using agv::Status;
-using agv::deg2rad;
 using agv::test::CalibSimConfig;
 
 namespace {
 
-double relErr(double est, double truth) { return std::fabs(est - truth) / std::fabs(truth); }
+double relErr(double est, double truth) {
+  return std::fabs(est - truth) / std::fabs(truth);
+}
 
-agv::Span<const CalibSegment> span(const std::vector<CalibSegment>& v) { return {v.data(), v.size()}; }
+agv::Span<const CalibSegment> span(const std::vector<CalibSegment>& v) {
+  return {v.data(), v.size()};
+}
 
 const Pose2d kFrontLaser{1.6, 0.4, deg2rad(5.0)};
 const Pose2d kRearLaser{-0.8, 0.3, deg2rad(175.0)};
@@ -246,8 +250,8 @@ TEST_CASE("the l_x >= 0 rule would pick the maximising stationary point for a re
   std::vector<agv::Pose2d> arcs;
   for (const CalibSegment& s : segs) {
     const double off = s.ticks > 0 ? cfg.truth.steerOffsetForward : cfg.truth.steerOffsetBackward;
-    const Pose2d r = agv::tricycleArc(cfg.truth.driveScale * static_cast<double>(s.ticks), s.steering + off,
-                                      cfg.truth.wheelbase);
+    const Pose2d r =
+        agv::tricycleArc(cfg.truth.driveScale * static_cast<double>(s.ticks), s.steering + off, cfg.truth.wheelbase);
     arcs.push_back(r);
     const C w = 1.0 - std::polar(1.0, r.theta);
     const C st(s.egomotion.x, s.egomotion.y);

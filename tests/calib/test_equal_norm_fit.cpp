@@ -16,7 +16,9 @@ using Eigen::Vector2d;
 
 namespace {
 
-double blockCost(const Matrix2d& m, const Vector2d& g, const Vector2d& psi) { return psi.dot(m * psi) - 2.0 * g.dot(psi); }
+double blockCost(const Matrix2d& m, const Vector2d& g, const Vector2d& psi) {
+  return psi.dot(m * psi) - 2.0 * g.dot(psi);
+}
 
 /// min over the angle of blockCost at radius r (fine grid): the problem separates per radius.
 double circleMin(const Matrix2d& m, const Vector2d& g, double r) {
@@ -38,7 +40,8 @@ double bruteForce(const Matrix2d& mF, const Vector2d& gF, const Matrix2d& mB, co
   return best;
 }
 
-double totalCost(const Matrix2d& mF, const Vector2d& gF, const Matrix2d& mB, const Vector2d& gB, const EqualNormFit& f) {
+double totalCost(const Matrix2d& mF, const Vector2d& gF, const Matrix2d& mB, const Vector2d& gB,
+                 const EqualNormFit& f) {
   return blockCost(mF, gF, f.psiF) + blockCost(mB, gB, f.psiB);
 }
 
@@ -131,7 +134,8 @@ TEST_CASE("equal-norm fit: degenerate case where the secular function stays fini
 TEST_CASE("equal-norm fit refuses an empty bracket and non-finite input", "[calib][atc]") {
   EqualNormFit fit;
   const Matrix2d singular = Vector2d(0.0, 1.0).asDiagonal();
-  CHECK(agv::solveEqualNormFit(singular, Vector2d(0.0, 1.0), singular, Vector2d(0.0, 1.0), fit) == Status::Unobservable);
+  CHECK(agv::solveEqualNormFit(singular, Vector2d(0.0, 1.0), singular, Vector2d(0.0, 1.0), fit) ==
+        Status::Unobservable);
   Matrix2d bad = Matrix2d::Identity();
   bad(0, 1) = std::numeric_limits<double>::quiet_NaN();
   CHECK(agv::solveEqualNormFit(bad, Vector2d(1.0, 0.0), Matrix2d::Identity(), Vector2d(1.0, 0.0), fit) ==

@@ -11,8 +11,8 @@
 
 using agv::CalibrationResult;
 using agv::CalibSegment;
-using agv::Status;
 using agv::deg2rad;
+using agv::Status;
 using agv::test::CalibSimConfig;
 using agv::test::Stats;
 

@@ -12,17 +12,19 @@
 
 using agv::CalibrationResult;
 using agv::CalibSegment;
+using agv::deg2rad;
 using agv::Pose2d;
 using agv::RefinementOptions;
 using agv::RefinementResult;
 using agv::Status;
-using agv::deg2rad;
 using agv::test::CalibSimConfig;
 using agv::test::Stats;
 
 namespace {
 
-agv::Span<const CalibSegment> span(const std::vector<CalibSegment>& v) { return {v.data(), v.size()}; }
+agv::Span<const CalibSegment> span(const std::vector<CalibSegment>& v) {
+  return {v.data(), v.size()};
+}
 
 constexpr double kQuantStd = agv::kTwoPi<double> / 16384.0 / 3.4641016151377544;  // 14 bit / sqrt(12)
 
@@ -86,10 +88,12 @@ MonteCarlo run(int trials, double jitter, bool shared, std::uint64_t seed) {
     mc.costIncreased += rf.finalCost > rf.initialCost ? 1 : 0;
     mc.closed.add(cf.params, cf.laserPose, cfg);
     mc.refined.add(rf.params, rf.laserPose, cfg);
-    const double err[agv::kCalibParamCount] = {
-        rf.params.driveScale - cfg.truth.driveScale, rf.params.steerOffsetForward - cfg.truth.steerOffsetForward,
-        rf.params.steerOffsetBackward - cfg.truth.steerOffsetBackward, rf.laserPose.x - cfg.laser.x,
-        rf.laserPose.y - cfg.laser.y, agv::angleDiff(rf.laserPose.theta, cfg.laser.theta)};
+    const double err[agv::kCalibParamCount] = {rf.params.driveScale - cfg.truth.driveScale,
+                                               rf.params.steerOffsetForward - cfg.truth.steerOffsetForward,
+                                               rf.params.steerOffsetBackward - cfg.truth.steerOffsetBackward,
+                                               rf.laserPose.x - cfg.laser.x,
+                                               rf.laserPose.y - cfg.laser.y,
+                                               agv::angleDiff(rf.laserPose.theta, cfg.laser.theta)};
     for (int i = 0; i < agv::kCalibParamCount; ++i) {
       mc.normalised[i].add(err[i] / std::sqrt(rf.covariance(i, i)));
     }
@@ -162,7 +166,8 @@ TEST_CASE("Monte-Carlo: refinement is not worse than the closed form with 0.05 d
   checkNotWorse(mc);
 }
 
-TEST_CASE("Monte-Carlo: refinement with one shared offset improves the STC closed form", "[calib][refine][montecarlo]") {
+TEST_CASE("Monte-Carlo: refinement with one shared offset improves the STC closed form",
+          "[calib][refine][montecarlo]") {
   const MonteCarlo mc = run(500, 0.0, true, 0xF00D);
   std::printf("refinement (shared offset) vs STC closed form (N = 500), RMS errors:\n");
   printRow("STC closed form", mc.closed);

@@ -11,16 +11,18 @@
 #include "agv_test.hpp"
 #include "calib_sim.hpp"
 
+using agv::deg2rad;
 using agv::Pose2d;
 using agv::ReflectorAlignment;
 using agv::ReflectorAlignmentOptions;
 using agv::Status;
-using agv::deg2rad;
 using Points = std::vector<Eigen::Vector2d>;
 
 namespace {
 
-agv::Span<const Eigen::Vector2d> span(const Points& v) { return {v.data(), v.size()}; }
+agv::Span<const Eigen::Vector2d> span(const Points& v) {
+  return {v.data(), v.size()};
+}
 
 /// Reflectors spread over a hall, at least `spacing` apart.
 Points reflectorField(std::mt19937_64& rng, int count, double half, double spacing) {
@@ -83,7 +85,8 @@ int commonCount(const Observation& a, const Observation& b) {
 
 // A half-circle of the vehicle seen by a front-mounted laser: 180 deg and several metres.
 const Pose2d kStart{2.0, -1.0, deg2rad(20.0)};
-const Pose2d kMotion = Pose2d{1.6, 0.4, deg2rad(5.0)}.inverse()
+const Pose2d kMotion = Pose2d{1.6, 0.4, deg2rad(5.0)}
+                           .inverse()
                            .compose(agv::tricycleArc(8.0, deg2rad(36.0), 1.5))
                            .compose(Pose2d{1.6, 0.4, deg2rad(5.0)});
 const Pose2d kGuessError{0.15, -0.10, deg2rad(1.5)};
@@ -153,10 +156,11 @@ TEST_CASE("reflector alignment with noise, misses and spurious returns matches i
     // out.rms estimates sqrt(2) sigma (times sqrt((n-3)/n) for the fitted dof)
     CHECK(out.rms < 3.0 * std::sqrt(2.0) * kSigma);
   }
-  std::printf("reflector alignment (N = %d): rotation error / predicted std: mean %+.3f std %.3f; "
-              "t_x mean %+.3f mm std %.3f mm; t_y mean %+.3f mm std %.3f mm; exact inlier sets %d\n",
-              kTrials, rotNorm.mean, rotNorm.stddev(), tx.mean * 1e3, tx.stddev() * 1e3, ty.mean * 1e3,
-              ty.stddev() * 1e3, exactInliers);
+  std::printf(
+      "reflector alignment (N = %d): rotation error / predicted std: mean %+.3f std %.3f; "
+      "t_x mean %+.3f mm std %.3f mm; t_y mean %+.3f mm std %.3f mm; exact inlier sets %d\n",
+      kTrials, rotNorm.mean, rotNorm.stddev(), tx.mean * 1e3, tx.stddev() * 1e3, ty.mean * 1e3, ty.stddev() * 1e3,
+      exactInliers);
   CHECK(failures == 0);
   CHECK(exactInliers >= kTrials * 99 / 100);
   CHECK(rotNorm.unbiased());

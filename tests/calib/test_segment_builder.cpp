@@ -11,11 +11,11 @@
 
 using agv::BuiltSegment;
 using agv::CalibSegmentBuilder;
+using agv::deg2rad;
 using agv::Duration;
 using agv::SegmentEvent;
 using agv::Status;
 using agv::Timestamp;
-using agv::deg2rad;
 
 namespace {
 

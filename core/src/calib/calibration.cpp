@@ -29,9 +29,12 @@ bool inDir(const CalibSegment& s, Dir dir, std::int64_t minTicks) noexcept {
     return false;
   }
   switch (dir) {
-    case Dir::All: return true;
-    case Dir::Forward: return s.ticks > 0;
-    case Dir::Backward: return s.ticks < 0;
+    case Dir::All:
+      return true;
+    case Dir::Forward:
+      return s.ticks > 0;
+    case Dir::Backward:
+      return s.ticks < 0;
   }
   return false;
 }
@@ -45,8 +48,7 @@ bool steeringDiverse(Span<const CalibSegment> segs, Dir dir, const CalibrationOp
       continue;
     }
     for (std::size_t j = i + 1; j < segs.size(); ++j) {
-      if (inDir(segs[j], dir, opt.minTicks) &&
-          std::fabs(std::sin(segs[i].steering - segs[j].steering)) >= minSin) {
+      if (inDir(segs[j], dir, opt.minTicks) && std::fabs(std::sin(segs[i].steering - segs[j].steering)) >= minSin) {
         return true;
       }
     }
@@ -55,8 +57,8 @@ bool steeringDiverse(Span<const CalibSegment> segs, Dir dir, const CalibrationOp
 }
 
 /// Normal equations of the rotation fit theta^k = n^k (sin a^k, cos a^k) . J over `dir`.
-void rotationNormalEquations(Span<const CalibSegment> segs, Dir dir, const CalibrationOptions& opt,
-                             Eigen::Matrix2d& m, Eigen::Vector2d& g) noexcept {
+void rotationNormalEquations(Span<const CalibSegment> segs, Dir dir, const CalibrationOptions& opt, Eigen::Matrix2d& m,
+                             Eigen::Vector2d& g) noexcept {
   m.setZero();
   g.setZero();
   for (const CalibSegment& s : segs) {
@@ -107,8 +109,8 @@ double rotationRms(Span<const CalibSegment> segs, const TricycleParams& p, const
     if (!hasTravel(s, opt.minTicks)) {
       continue;
     }
-    const double pred = p.driveScale * static_cast<double>(s.ticks) * std::sin(s.steering + offsetFor(s, p)) /
-                        p.wheelbase;
+    const double pred =
+        p.driveScale * static_cast<double>(s.ticks) * std::sin(s.steering + offsetFor(s, p)) / p.wheelbase;
     const double e = unwrappedSegmentRotation(s, opt) - pred;
     sum += e * e;
     ++count;
@@ -117,29 +119,39 @@ double rotationRms(Span<const CalibSegment> segs, const TricycleParams& p, const
 }
 
 bool validOptions(const CalibrationOptions& opt) noexcept {
-  return std::isfinite(opt.nominal.wheelbase) && opt.nominal.wheelbase > 0.0 &&
-         std::isfinite(opt.nominal.driveScale) && opt.nominal.driveScale > 0.0 &&
-         std::isfinite(opt.nominal.steerOffsetForward) && std::isfinite(opt.nominal.steerOffsetBackward) &&
-         opt.minTicks >= 1 && opt.minSteeringSeparation > 0.0 && opt.minSteeringSeparation < kPi<double> / 2.0 &&
-         opt.minRotation > 0.0 && opt.minRotation < kPi<double> && opt.minTranslation > 0.0 &&
-         opt.maxConditionNumber > 1.0;
+  return std::isfinite(opt.nominal.wheelbase) && opt.nominal.wheelbase > 0.0 && std::isfinite(opt.nominal.driveScale) &&
+         opt.nominal.driveScale > 0.0 && std::isfinite(opt.nominal.steerOffsetForward) &&
+         std::isfinite(opt.nominal.steerOffsetBackward) && opt.minTicks >= 1 && opt.minSteeringSeparation > 0.0 &&
+         opt.minSteeringSeparation < kPi<double> / 2.0 && opt.minRotation > 0.0 && opt.minRotation < kPi<double> &&
+         opt.minTranslation > 0.0 && opt.maxConditionNumber > 1.0;
 }
 
 }  // namespace
 
 const char* toString(CalibCondition condition) noexcept {
   switch (condition) {
-    case CalibCondition::None: return "none";
-    case CalibCondition::SegmentCount: return "segment count";
-    case CalibCondition::FiniteInput: return "finite input";
-    case CalibCondition::SteeringDiversity: return "steering diversity";
-    case CalibCondition::ForwardSteeringDiversity: return "forward steering diversity";
-    case CalibCondition::BackwardSteeringDiversity: return "backward steering diversity";
-    case CalibCondition::LaserRotation: return "laser rotation";
-    case CalibCondition::LaserTranslation: return "laser translation";
-    case CalibCondition::OdometryConditioning: return "odometry conditioning";
-    case CalibCondition::LaserConditioning: return "laser conditioning";
-    case CalibCondition::PositiveScale: return "positive scale";
+    case CalibCondition::None:
+      return "none";
+    case CalibCondition::SegmentCount:
+      return "segment count";
+    case CalibCondition::FiniteInput:
+      return "finite input";
+    case CalibCondition::SteeringDiversity:
+      return "steering diversity";
+    case CalibCondition::ForwardSteeringDiversity:
+      return "forward steering diversity";
+    case CalibCondition::BackwardSteeringDiversity:
+      return "backward steering diversity";
+    case CalibCondition::LaserRotation:
+      return "laser rotation";
+    case CalibCondition::LaserTranslation:
+      return "laser translation";
+    case CalibCondition::OdometryConditioning:
+      return "odometry conditioning";
+    case CalibCondition::LaserConditioning:
+      return "laser conditioning";
+    case CalibCondition::PositiveScale:
+      return "positive scale";
   }
   return "unknown condition";
 }
@@ -157,22 +169,22 @@ Pose2d predictedEgomotion(const CalibSegment& segment, const TricycleParams& par
   return laserPose.inverse().compose(arc).compose(laserPose);
 }
 
-Status checkCalibrationObservability(Span<const CalibSegment> segs, CalibModel model,
-                                     const CalibrationOptions& opt, CalibrationReport& report) noexcept {
+Status checkCalibrationObservability(Span<const CalibSegment> segments, CalibModel model, const CalibrationOptions& opt,
+                                     CalibrationReport& report) noexcept {
   report = CalibrationReport{};
-  report.segmentCount = segs.size();
+  report.segmentCount = segments.size();
   if (!validOptions(opt)) {
     report.status = Status::InvalidArgument;
     return Status::InvalidArgument;
   }
-  if (segs.size() > kMaxCalibSegments) {
+  if (segments.size() > kMaxCalibSegments) {
     return refuse(report, Status::CapacityExceeded, CalibCondition::SegmentCount);
   }
-  if (segs.size() < 2) {
+  if (segments.size() < 2) {
     return refuse(report, Status::NotEnoughData, CalibCondition::SegmentCount);
   }
-  for (std::size_t i = 0; i < segs.size(); ++i) {
-    const CalibSegment& s = segs[i];
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    const CalibSegment& s = segments[i];
     if (!std::isfinite(s.steering) || !s.egomotion.isFinite()) {
       report.firstNonFinite = i;
       return refuse(report, Status::NonFiniteInput, CalibCondition::FiniteInput);
@@ -190,13 +202,13 @@ Status checkCalibrationObservability(Span<const CalibSegment> segs, CalibModel m
       report.laserTranslationObserved = true;
     }
   }
-  report.steeringDiverse = steeringDiverse(segs, Dir::All, opt);
-  report.forwardSteeringDiverse = steeringDiverse(segs, Dir::Forward, opt);
-  report.backwardSteeringDiverse = steeringDiverse(segs, Dir::Backward, opt);
-  report.conditionStc = odometryCondition(segs, Dir::All, opt);
+  report.steeringDiverse = steeringDiverse(segments, Dir::All, opt);
+  report.forwardSteeringDiverse = steeringDiverse(segments, Dir::Forward, opt);
+  report.backwardSteeringDiverse = steeringDiverse(segments, Dir::Backward, opt);
+  report.conditionStc = odometryCondition(segments, Dir::All, opt);
   if (model == CalibModel::Atc) {
-    report.conditionForward = odometryCondition(segs, Dir::Forward, opt);
-    report.conditionBackward = odometryCondition(segs, Dir::Backward, opt);
+    report.conditionForward = odometryCondition(segments, Dir::Forward, opt);
+    report.conditionBackward = odometryCondition(segments, Dir::Backward, opt);
   }
 
   if (model == CalibModel::Stc) {
@@ -217,9 +229,8 @@ Status checkCalibrationObservability(Span<const CalibSegment> segs, CalibModel m
   if (!report.laserTranslationObserved) {
     return refuse(report, Status::Unobservable, CalibCondition::LaserTranslation);
   }
-  const double worst = model == CalibModel::Stc
-                           ? report.conditionStc
-                           : std::fmax(report.conditionForward, report.conditionBackward);
+  const double worst =
+      model == CalibModel::Stc ? report.conditionStc : std::fmax(report.conditionForward, report.conditionBackward);
   if (!(worst <= opt.maxConditionNumber)) {
     return refuse(report, Status::IllConditioned, CalibCondition::OdometryConditioning);
   }
@@ -227,9 +238,9 @@ Status checkCalibrationObservability(Span<const CalibSegment> segs, CalibModel m
   return Status::Ok;
 }
 
-Status estimateLaserPose(Span<const CalibSegment> segs, const TricycleParams& params,
-                         const CalibrationOptions& opt, Pose2d& laserPose, CalibrationReport& report) noexcept {
-  if (segs.size() > kMaxCalibSegments) {
+Status estimateLaserPose(Span<const CalibSegment> segments, const TricycleParams& params, const CalibrationOptions& opt,
+                         Pose2d& laserPose, CalibrationReport& report) noexcept {
+  if (segments.size() > kMaxCalibSegments) {
     return refuse(report, Status::CapacityExceeded, CalibCondition::SegmentCount);
   }
   if (!std::isfinite(params.driveScale) || !std::isfinite(params.wheelbase) || !(params.wheelbase > 0.0) ||
@@ -238,20 +249,20 @@ Status estimateLaserPose(Span<const CalibSegment> segs, const TricycleParams& pa
   }
   // Complex form of the translation part of l ⊕ s^k = r^k ⊕ l (docs/calibration.md):
   //   w_k l + u s_k = r_k,  w_k = 1 - e^{i theta_k},  u = e^{i ltheta}.
-  double a = 0.0;     // sum |w|^2
-  double css = 0.0;   // sum |s|^2
-  Complex pSum{};     // sum conj(w) r
-  Complex qSum{};     // sum conj(w) s
-  Complex srSum{};    // sum conj(s) r
+  double a = 0.0;    // sum |w|^2
+  double css = 0.0;  // sum |s|^2
+  Complex pSum{};    // sum conj(w) r
+  Complex qSum{};    // sum conj(w) s
+  Complex srSum{};   // sum conj(s) r
   bool rotation = false;
   bool translation = false;
   const double minHalfSin = std::sin(0.5 * opt.minRotation);
-  for (const CalibSegment& s : segs) {
+  for (const CalibSegment& s : segments) {
     if (!std::isfinite(s.steering) || !s.egomotion.isFinite()) {
       return refuse(report, Status::NonFiniteInput, CalibCondition::FiniteInput);
     }
-    const Pose2d r = tricycleArc(params.driveScale * static_cast<double>(s.ticks),
-                                 s.steering + offsetFor(s, params), params.wheelbase);
+    const Pose2d r = tricycleArc(params.driveScale * static_cast<double>(s.ticks), s.steering + offsetFor(s, params),
+                                 params.wheelbase);
     const Complex w = 1.0 - std::polar(1.0, r.theta);
     const Complex rt(r.x, r.y);
     const Complex st(s.egomotion.x, s.egomotion.y);
@@ -296,11 +307,11 @@ Status estimateLaserPose(Span<const CalibSegment> segs, const TricycleParams& pa
     const Complex u = (static_cast<double>(sign) / hNorm) * h;
     const Complex l = (pSum - u * qSum) / a;
     double cost = 0.0;
-    for (const CalibSegment& s : segs) {
-      const Pose2d r = tricycleArc(params.driveScale * static_cast<double>(s.ticks),
-                                   s.steering + offsetFor(s, params), params.wheelbase);
-      const Complex e = (1.0 - std::polar(1.0, r.theta)) * l + u * Complex(s.egomotion.x, s.egomotion.y) -
-                        Complex(r.x, r.y);
+    for (const CalibSegment& s : segments) {
+      const Pose2d r = tricycleArc(params.driveScale * static_cast<double>(s.ticks), s.steering + offsetFor(s, params),
+                                   params.wheelbase);
+      const Complex e =
+          (1.0 - std::polar(1.0, r.theta)) * l + u * Complex(s.egomotion.x, s.egomotion.y) - Complex(r.x, r.y);
       cost += std::norm(e);
     }
     if (cost < bestCost) {
@@ -310,41 +321,43 @@ Status estimateLaserPose(Span<const CalibSegment> segs, const TricycleParams& pa
     }
   }
   laserPose = Pose2d{bestL.real(), bestL.imag(), std::arg(best)};
-  report.translationRms = segs.empty() ? 0.0 : std::sqrt(bestCost / static_cast<double>(segs.size()));
+  report.translationRms = segments.empty() ? 0.0 : std::sqrt(bestCost / static_cast<double>(segments.size()));
   return Status::Ok;
 }
 
-Status calibrateStc(Span<const CalibSegment> segs, const CalibrationOptions& opt, CalibrationResult& result) noexcept {
+Status calibrateStc(Span<const CalibSegment> segments, const CalibrationOptions& options,
+                    CalibrationResult& result) noexcept {
   result = CalibrationResult{};
   CalibrationReport& report = result.report;
-  const Status obs = checkCalibrationObservability(segs, CalibModel::Stc, opt, report);
+  const Status obs = checkCalibrationObservability(segments, CalibModel::Stc, options, report);
   if (obs != Status::Ok) {
     return obs;
   }
   Eigen::Matrix2d m;
   Eigen::Vector2d g;
-  rotationNormalEquations(segs, Dir::All, opt, m, g);
+  rotationNormalEquations(segments, Dir::All, options, m, g);
   const double det = m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0);
   // J = (s_w / L) (cos alpha, sin alpha) = M^-1 g (2x2 inverse by cofactors).
   const Eigen::Vector2d j((m(1, 1) * g(0) - m(0, 1) * g(1)) / det, (m(0, 0) * g(1) - m(1, 0) * g(0)) / det);
   TricycleParams& p = result.params;
-  p.wheelbase = opt.nominal.wheelbase;
+  p.wheelbase = options.nominal.wheelbase;
   p.driveScale = p.wheelbase * j.norm();
   p.steerOffsetForward = std::atan2(j(1), j(0));
   p.steerOffsetBackward = p.steerOffsetForward;
   if (!std::isfinite(p.driveScale) || !(p.driveScale > 0.0) || !std::isfinite(p.steerOffsetForward)) {
     return refuse(report, Status::Unobservable, CalibCondition::PositiveScale);
   }
-  report.rotationRms = rotationRms(segs, p, opt);
-  const Status laser = estimateLaserPose(segs, p, opt, result.laserPose, report);
+  report.rotationRms = rotationRms(segments, p, options);
+  const Status laser = estimateLaserPose(segments, p, options, result.laserPose, report);
   report.status = laser;
   return laser;
 }
 
-Status calibrateAtc(Span<const CalibSegment> segs, const CalibrationOptions& opt, CalibrationResult& result) noexcept {
+Status calibrateAtc(Span<const CalibSegment> segments, const CalibrationOptions& options,
+                    CalibrationResult& result) noexcept {
   result = CalibrationResult{};
   CalibrationReport& report = result.report;
-  const Status obs = checkCalibrationObservability(segs, CalibModel::Atc, opt, report);
+  const Status obs = checkCalibrationObservability(segments, CalibModel::Atc, options, report);
   if (obs != Status::Ok) {
     return obs;
   }
@@ -352,8 +365,8 @@ Status calibrateAtc(Span<const CalibSegment> segs, const CalibrationOptions& opt
   Eigen::Vector2d gf;
   Eigen::Matrix2d mb;
   Eigen::Vector2d gb;
-  rotationNormalEquations(segs, Dir::Forward, opt, mf, gf);
-  rotationNormalEquations(segs, Dir::Backward, opt, mb, gb);
+  rotationNormalEquations(segments, Dir::Forward, options, mf, gf);
+  rotationNormalEquations(segments, Dir::Backward, options, mb, gb);
   // min ||A_F psi_F - theta_F||^2 + ||A_B psi_B - theta_B||^2  s.t.  |psi_F|^2 - |psi_B|^2 = 0.
   // Stationarity: (M_F + lambda) psi_F = g_F, (M_B - lambda) psi_B = g_B; the minimiser has both
   // matrices positive semi-definite, i.e. lambda in [A, B], A = -min eig M_F, B = min eig M_B.
@@ -366,7 +379,7 @@ Status calibrateAtc(Span<const CalibSegment> segs, const CalibrationOptions& opt
   const Eigen::Vector2d& psiB = fit.psiB;
   report.lambda = lambda;
   TricycleParams& p = result.params;
-  p.wheelbase = opt.nominal.wheelbase;
+  p.wheelbase = options.nominal.wheelbase;
   p.driveScale = 0.5 * p.wheelbase * (psiF.norm() + psiB.norm());
   p.steerOffsetForward = std::atan2(psiF(1), psiF(0));
   p.steerOffsetBackward = std::atan2(psiB(1), psiB(0));
@@ -374,8 +387,8 @@ Status calibrateAtc(Span<const CalibSegment> segs, const CalibrationOptions& opt
       !std::isfinite(p.steerOffsetBackward)) {
     return refuse(report, Status::Unobservable, CalibCondition::PositiveScale);
   }
-  report.rotationRms = rotationRms(segs, p, opt);
-  const Status laser = estimateLaserPose(segs, p, opt, result.laserPose, report);
+  report.rotationRms = rotationRms(segments, p, options);
+  const Status laser = estimateLaserPose(segments, p, options, result.laserPose, report);
   report.status = laser;
   return laser;
 }

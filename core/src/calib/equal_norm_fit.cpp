@@ -87,8 +87,8 @@ Status solveEqualNormFit(const Eigen::Matrix2d& mF, const Eigen::Vector2d& gF, c
   const Block bb = diagonalise(mB, gB);
   const double scale = std::fmax(std::fabs(bf.d(1)), std::fabs(bb.d(1)));
   const double tiny = 1e-13 * scale;
-  const double lowEnd = -bf.d(0);   // A
-  const double highEnd = bb.d(0);   // B
+  const double lowEnd = -bf.d(0);  // A
+  const double highEnd = bb.d(0);  // B
   if (!(highEnd - lowEnd > tiny) || !(scale > 0.0)) {
     return Status::Unobservable;
   }

@@ -21,7 +21,9 @@ TricycleParams paramsOf(const Vector6& p, double wheelbase) noexcept {
   return TricycleParams{wheelbase, p(kParamDriveScale), p(kParamOffsetForward), p(kParamOffsetBackward)};
 }
 
-Pose2d laserOf(const Vector6& p) noexcept { return Pose2d{p(kParamLaserX), p(kParamLaserY), p(kParamLaserTheta)}; }
+Pose2d laserOf(const Vector6& p) noexcept {
+  return Pose2d{p(kParamLaserX), p(kParamLaserY), p(kParamLaserTheta)};
+}
 
 Pose2d predict(const CalibSegment& s, const Vector6& p, double wheelbase, double steeringDelta) noexcept {
   CalibSegment moved = s;
@@ -34,12 +36,14 @@ Eigen::Vector3d residual(const CalibSegment& s, const Pose2d& pred) noexcept {
 }
 
 Eigen::Vector3d difference(const Pose2d& plus, const Pose2d& minus, double twoH) noexcept {
-  return Eigen::Vector3d((plus.x - minus.x) / twoH, (plus.y - minus.y) / twoH, angleDiff(plus.theta, minus.theta) / twoH);
+  return Eigen::Vector3d((plus.x - minus.x) / twoH, (plus.y - minus.y) / twoH,
+                         angleDiff(plus.theta, minus.theta) / twoH);
 }
 
 /// Inverse covariance of one segment's residual: egomotion noise plus the steering noise mapped
 /// through d(prediction)/d(steering).
-Eigen::Matrix3d weightOf(const CalibSegment& s, const Vector6& p, double wheelbase, const RefinementOptions& opt) noexcept {
+Eigen::Matrix3d weightOf(const CalibSegment& s, const Vector6& p, double wheelbase,
+                         const RefinementOptions& opt) noexcept {
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
   cov(0, 0) = cov(1, 1) = opt.sigmaTranslation * opt.sigmaTranslation;
   cov(2, 2) = opt.sigmaRotation * opt.sigmaRotation;
@@ -95,7 +99,8 @@ double linearise(Span<const CalibSegment> segs, const Vector6& p, double wheelba
       Vector6 lo = p;
       hi(kParamLaserTheta) += kAngleStep;
       lo(kParamLaserTheta) -= kAngleStep;
-      j.col(kParamLaserTheta) = difference(predict(s, hi, wheelbase, 0.0), predict(s, lo, wheelbase, 0.0), 2.0 * kAngleStep);
+      j.col(kParamLaserTheta) =
+          difference(predict(s, hi, wheelbase, 0.0), predict(s, lo, wheelbase, 0.0), 2.0 * kAngleStep);
     }
     const Matrix36 wj = w * j;
     h.noalias() += j.transpose() * wj;
@@ -127,7 +132,7 @@ double scaledMinEigenvalue(const Matrix6& h) noexcept {
 
 }  // namespace
 
-Status refineCalibration(Span<const CalibSegment> segs, const TricycleParams& initial, const Pose2d& initialLaser,
+Status refineCalibration(Span<const CalibSegment> segments, const TricycleParams& initial, const Pose2d& initialLaser,
                          const RefinementOptions& opt, RefinementResult& result) noexcept {
   result = RefinementResult{};
   result.params = initial;
@@ -137,10 +142,10 @@ Status refineCalibration(Span<const CalibSegment> segs, const TricycleParams& in
       opt.maxIterations < 1 || !(opt.relativeTolerance >= 0.0) || !(initial.wheelbase > 0.0)) {
     return Status::InvalidArgument;
   }
-  if (segs.size() > kMaxCalibSegments) {
+  if (segments.size() > kMaxCalibSegments) {
     return Status::CapacityExceeded;
   }
-  if (segs.size() < 2) {
+  if (segments.size() < 2) {
     return Status::NotEnoughData;
   }
   if (!std::isfinite(initial.wheelbase) || !std::isfinite(initial.driveScale) || !(initial.driveScale > 0.0) ||
@@ -148,7 +153,7 @@ Status refineCalibration(Span<const CalibSegment> segs, const TricycleParams& in
       !initialLaser.isFinite()) {
     return Status::NonFiniteInput;
   }
-  for (const CalibSegment& s : segs) {
+  for (const CalibSegment& s : segments) {
     if (!std::isfinite(s.steering) || !s.egomotion.isFinite()) {
       return Status::NonFiniteInput;
     }
@@ -160,7 +165,7 @@ Status refineCalibration(Span<const CalibSegment> segs, const TricycleParams& in
       initialLaser.theta;
   Matrix6 h;
   Vector6 g;
-  double current = linearise(segs, p, wheelbase, opt, h, g);
+  double current = linearise(segments, p, wheelbase, opt, h, g);
   result.initialCost = current;
   if (!std::isfinite(current)) {
     return Status::NonFiniteInput;
@@ -182,12 +187,12 @@ Status refineCalibration(Span<const CalibSegment> segs, const TricycleParams& in
       next(kParamOffsetBackward) = next(kParamOffsetForward);
     }
     next(kParamLaserTheta) = normalizeAngle(next(kParamLaserTheta));
-    const double trial = (delta.allFinite() && next(kParamDriveScale) > 0.0) ? cost(segs, next, wheelbase, opt)
-                                                                              : std::numeric_limits<double>::infinity();
+    const double trial = (delta.allFinite() && next(kParamDriveScale) > 0.0) ? cost(segments, next, wheelbase, opt)
+                                                                             : std::numeric_limits<double>::infinity();
     if (trial < current) {
       const double decrease = (current - trial) / current;
       p = next;
-      current = linearise(segs, p, wheelbase, opt, h, g);
+      current = linearise(segments, p, wheelbase, opt, h, g);
       mu = std::fmax(mu * 0.1, 1e-12);
       if (decrease < opt.relativeTolerance) {
         ++it;

@@ -138,7 +138,8 @@ Status alignReflectors(Span<const Eigen::Vector2d> first, Span<const Eigen::Vect
         return Status::NotEnoughData;
       }
       const Pose2d next = solvePairs(first, second, pairOf, count);
-      const double step = std::hypot(next.x - motion.x, next.y - motion.y) + std::fabs(angleDiff(next.theta, motion.theta));
+      const double step =
+          std::hypot(next.x - motion.x, next.y - motion.y) + std::fabs(angleDiff(next.theta, motion.theta));
       motion = next;
       if (step <= opt.convergence) {
         converged = true;

@@ -19,9 +19,7 @@ void CalibSegmentBuilder::close(SegmentEvent* event) noexcept {
   s.steering = s.samples > 0 ? steeringSum_ / static_cast<double>(s.samples) : 0.0;
   if (nonFinite_) {
     s.status = Status::NonFiniteInput;
-  } else if (s.directionReversed) {
-    s.status = Status::Rejected;
-  } else if (s.samples == 0 || s.steeringMax - s.steering > options_.steeringTolerance ||
+  } else if (s.directionReversed || s.samples == 0 || s.steeringMax - s.steering > options_.steeringTolerance ||
              s.steering - s.steeringMin > options_.steeringTolerance) {
     s.status = Status::Rejected;
   } else if (s.ticks < options_.minTicks && s.ticks > -options_.minTicks) {

@@ -78,17 +78,17 @@ const char* toString(CalibCondition condition) noexcept;
 /// What a solve found about its data: which conditions hold, how well conditioned the problem
 /// is, and how well the model fits. Filled even when the solve is refused.
 struct CalibrationReport {
-  Status status = Status::NotInitialized;      ///< the solve's result
+  Status status = Status::NotInitialized;        ///< the solve's result
   CalibCondition failed = CalibCondition::None;  ///< first condition that failed (None on success)
   std::size_t segmentCount = 0;
-  std::size_t forwardCount = 0;   ///< segments with n^k >= minTicks
-  std::size_t backwardCount = 0;  ///< segments with n^k <= -minTicks
+  std::size_t forwardCount = 0;           ///< segments with n^k >= minTicks
+  std::size_t backwardCount = 0;          ///< segments with n^k <= -minTicks
   std::size_t firstNonFinite = SIZE_MAX;  ///< index of the first segment with a non-finite value
-  bool steeringDiverse = false;          ///< STC condition over all segments
-  bool forwardSteeringDiverse = false;   ///< ATC condition, forward segments
-  bool backwardSteeringDiverse = false;  ///< ATC condition, backward segments
-  bool laserRotationObserved = false;    ///< some laser rotation is not a multiple of 2 pi
-  bool laserTranslationObserved = false; ///< some laser translation is non-zero
+  bool steeringDiverse = false;           ///< STC condition over all segments
+  bool forwardSteeringDiverse = false;    ///< ATC condition, forward segments
+  bool backwardSteeringDiverse = false;   ///< ATC condition, backward segments
+  bool laserRotationObserved = false;     ///< some laser rotation is not a multiple of 2 pi
+  bool laserTranslationObserved = false;  ///< some laser translation is non-zero
   /// Condition numbers (max/min eigenvalue) of the 2x2 odometry normal matrices, rows
   /// n^k (sin a^k, cos a^k); for symmetric steering sets they equal
   /// max(n, sum cot^2 a)/min(n, sum cot^2 a). Infinity when singular, 0 when not computed.
@@ -120,8 +120,7 @@ enum class CalibModel : std::uint8_t {
 /// CapacityExceeded, NonFiniteInput, Unobservable or IllConditioned (the first failure, in the
 /// order of CalibCondition). Does not solve.
 Status checkCalibrationObservability(Span<const CalibSegment> segments, CalibModel model,
-                                     const CalibrationOptions& options,
-                                     CalibrationReport& report) noexcept;
+                                     const CalibrationOptions& options, CalibrationReport& report) noexcept;
 
 /// STC closed form: s_w and alpha_F = alpha_B from the segment rotations (linear least squares),
 /// then the laser pose (see estimateLaserPose). Fills `result` (report even on refusal).
@@ -139,15 +138,13 @@ Status calibrateAtc(Span<const CalibSegment> segments, const CalibrationOptions&
 /// with the lower cost is returned. Updates report.conditionLaser / translationRms /
 /// laser flags; refuses (Unobservable) without a rotating and a translating segment.
 Status estimateLaserPose(Span<const CalibSegment> segments, const TricycleParams& params,
-                         const CalibrationOptions& options, Pose2d& laserPose,
-                         CalibrationReport& report) noexcept;
+                         const CalibrationOptions& options, Pose2d& laserPose, CalibrationReport& report) noexcept;
 
 /// Full rotation of segment k, unwrapped from the laser's (-pi, pi] rotation with the nominal
 /// parameters of `options` [rad].
 double unwrappedSegmentRotation(const CalibSegment& segment, const CalibrationOptions& options) noexcept;
 
 /// The laser egomotion the model predicts for `segment`: l^-1 ⊕ r ⊕ l.
-Pose2d predictedEgomotion(const CalibSegment& segment, const TricycleParams& params,
-                          const Pose2d& laserPose) noexcept;
+Pose2d predictedEgomotion(const CalibSegment& segment, const TricycleParams& params, const Pose2d& laserPose) noexcept;
 
 }  // namespace agv

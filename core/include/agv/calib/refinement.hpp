@@ -18,21 +18,28 @@
 namespace agv {
 
 /// Index of each parameter in RefinementResult::covariance.
-enum CalibParam : int { kParamDriveScale = 0, kParamOffsetForward, kParamOffsetBackward, kParamLaserX, kParamLaserY,
-                        kParamLaserTheta, kCalibParamCount };
+enum CalibParam : int {
+  kParamDriveScale = 0,
+  kParamOffsetForward,
+  kParamOffsetBackward,
+  kParamLaserX,
+  kParamLaserY,
+  kParamLaserTheta,
+  kCalibParamCount
+};
 
 /// Noise model and iteration bounds. Defaults: a navigation laser's scan-matching egomotion
 /// (5 mm, 0.1 deg) and a 14-bit absolute steering encoder (quantisation step 2 pi / 2^14).
 struct RefinementOptions {
-  double sigmaTranslation = 5e-3;            ///< egomotion noise per axis [m]
-  double sigmaRotation = deg2rad(0.1);       ///< egomotion rotation noise [rad]
+  double sigmaTranslation = 5e-3;       ///< egomotion noise per axis [m]
+  double sigmaRotation = deg2rad(0.1);  ///< egomotion rotation noise [rad]
   /// Steering-encoder noise per segment [rad]: quantisation step / sqrt(12) by default; add the
   /// steering controller's jitter in quadrature when the angle varies within a segment.
   double sigmaSteering = kTwoPi<double> / 16384.0 / 3.4641016151377544;
   /// true: one steering offset for both directions (alpha_B is tied to alpha_F, STC model).
   bool sharedOffset = false;
-  int maxIterations = 30;                    ///< bound on Levenberg-Marquardt iterations
-  double relativeTolerance = 1e-12;          ///< stop when the cost decreases by less than this fraction
+  int maxIterations = 30;            ///< bound on Levenberg-Marquardt iterations
+  double relativeTolerance = 1e-12;  ///< stop when the cost decreases by less than this fraction
 };
 
 /// Refined parameters, their covariance and the costs before/after.

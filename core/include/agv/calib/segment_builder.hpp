@@ -32,20 +32,20 @@ struct SegmentBuilderOptions {
 
 /// What one sample did.
 enum class SegmentEvent : std::uint8_t {
-  None = 0,       ///< nothing closed
-  Closed,         ///< a valid segment closed: see lastSegment()
-  Rejected,       ///< a segment closed but was rejected: lastSegment().status says why
+  None = 0,  ///< nothing closed
+  Closed,    ///< a valid segment closed: see lastSegment()
+  Rejected,  ///< a segment closed but was rejected: lastSegment().status says why
 };
 
 /// A segment as cut from the encoder stream.
 struct BuiltSegment {
-  std::int64_t ticks = 0;        ///< signed drive ticks from standstill to standstill
-  double steering = 0.0;         ///< mean measured steering while moving [rad]
-  double steeringMin = 0.0;      ///< smallest steering sample while moving [rad]
-  double steeringMax = 0.0;      ///< largest steering sample while moving [rad]
-  std::uint32_t samples = 0;     ///< samples while moving
-  Timestamp start{};             ///< last standstill sample before the motion
-  Timestamp end{};               ///< last sample with motion (the vehicle stands still from here)
+  std::int64_t ticks = 0;     ///< signed drive ticks from standstill to standstill
+  double steering = 0.0;      ///< mean measured steering while moving [rad]
+  double steeringMin = 0.0;   ///< smallest steering sample while moving [rad]
+  double steeringMax = 0.0;   ///< largest steering sample while moving [rad]
+  std::uint32_t samples = 0;  ///< samples while moving
+  Timestamp start{};          ///< last standstill sample before the motion
+  Timestamp end{};            ///< last sample with motion (the vehicle stands still from here)
   /// Ok; Rejected when the steering varied beyond the tolerance or the direction reversed
   /// (`directionReversed` tells which); NotEnoughData when shorter than minTicks;
   /// NonFiniteInput when a steering sample was NaN/inf.
