@@ -68,7 +68,8 @@ Status ColaAScanClient::sendCommand(const char* command, Duration timeout) noexc
     return Status::InvalidArgument;
   }
   buf[0] = 0x02;
-  std::memcpy(buf + 1, command, n);
+  // A telegram, not a C string: framed by STX/ETX, no terminating NUL.
+  std::memcpy(buf + 1, command, n);  // NOLINT(bugprone-not-null-terminated-result)
   buf[n + 1] = 0x03;
   return tcp_.writeAll(Span<const std::uint8_t>(buf, n + 2), timeout);
 }
