@@ -33,9 +33,6 @@
 #ifndef AGV_MAX_LASER_TELEGRAM_BYTES
 #define AGV_MAX_LASER_TELEGRAM_BYTES 32768
 #endif
-#ifndef AGV_MAX_CANOPEN_NODES
-#define AGV_MAX_CANOPEN_NODES 8
-#endif
 
 namespace agv {
 
@@ -57,12 +54,10 @@ inline constexpr std::size_t kMaxCanFilters = AGV_MAX_CAN_FILTERS;
 /// Bytes of one laser telegram (framing included) a driver buffers: a CoLa A LMDscandata of
 /// 1141 beams with RSSI is ~12 KB, a NAV350 reply with 1440 beams and 64 reflectors ~8 KB.
 inline constexpr std::size_t kMaxLaserTelegramBytes = AGV_MAX_LASER_TELEGRAM_BYTES;
-/// CANopen nodes one encoder decoder supervises (heartbeat, EMCY).
-inline constexpr std::size_t kMaxCanopenNodes = AGV_MAX_CANOPEN_NODES;
 
 static_assert(kMaxScanBeams >= 16, "a scan needs at least 16 beams of capacity");
 static_assert(kMaxKeypoints >= 1 && kMaxReflectors >= 1 && kMaxObservations >= 1, "capacities must be positive");
 static_assert(kMaxLandmarks >= 1 && kMaxCalibSegments >= 2, "capacities must be positive");
-static_assert(kMaxLaserTelegramBytes >= 64 && kMaxCanopenNodes >= 2, "driver capacities too small");
+static_assert(kMaxLaserTelegramBytes >= 64, "a laser telegram buffer needs at least 64 bytes");
 
 }  // namespace agv
