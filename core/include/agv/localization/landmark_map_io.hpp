@@ -1,0 +1,49 @@
+#pragma once
+/// @file landmark_map_io.hpp
+/// Text format of surveyed landmark maps, parsed from and written to caller-owned buffers (file
+/// access stays outside the core).
+///
+/// Format (`agvnav-landmarks` version 1), one record per line, fields separated by spaces or tabs,
+/// LF or CRLF line ends, `#` starts a comment that runs to the end of the line, blank lines ignored:
+///
+///     agvnav-landmarks 1
+///     # kind      id   x [m]        y [m]        sigma [m]
+///     reflector   1    12.345000    -3.210000    0.002000
+///     corner      2    4.000000     7.500000     0.010000
+///
+/// - The first record is the header `agvnav-landmarks 1`.
+/// - kind: `reflector` or `corner`; id: integer 1..4294967295, unique in the file and in the map;
+///   x, y: world coordinates, |v| <= 1e6; sigma: isotropic position standard deviation >= 0.
+/// - Numbers are decimal: optional sign, digits, optional fraction, optional exponent (`1.5e-3`).
+/// Every landmark read is added as surveyed (it never moves or dies).
+
+#include <cstddef>
+#include <cstdint>
+
+#include "agv/core/result.hpp"
+#include "agv/core/span.hpp"
+#include "agv/core/status.hpp"
+#include "agv/localization/landmark_map.hpp"
+
+namespace agv {
+
+/// Outcome details of `parseLandmarkMap`.
+struct LandmarkMapParseReport {
+  std::size_t landmarks = 0;  ///< landmarks added (0 on failure)
+  std::size_t errorLine = 0;  ///< 1-based line of the first error (0 when none)
+};
+
+/// Parses `text` and adds its landmarks to `map` as surveyed landmarks. All or nothing: on any
+/// error the map is left as it was. Errors: `Malformed` (bad header, kind, number or field count;
+/// see `report->errorLine`), `OutOfRange` (coordinate beyond 1e6 m, negative sigma, id 0),
+/// `InvalidArgument` (duplicate id), `CapacityExceeded` (the map cannot take them all; counted
+/// in the map's refusedFull), `EmptyInput` (no header).
+Status parseLandmarkMap(Span<const char> text, LandmarkMap& map, LandmarkMapParseReport* report = nullptr) noexcept;
+
+/// Writes the map's landmarks (all, or only the surveyed ones) in the format above into `out`.
+/// Coordinates and sigma are written with 6 decimals (1 um). Returns the number of characters
+/// written (no terminating NUL), or `Truncated` when `out` is too small (its content is then
+/// unspecified). Landmarks are written in slot order.
+Result<std::size_t> formatLandmarkMap(const LandmarkMap& map, Span<char> out, bool surveyedOnly = false) noexcept;
+
+}  // namespace agv

@@ -1,0 +1,227 @@
+#pragma once
+/// @file localizer.hpp
+/// The vehicle localizer: a `PoseEkf` driven by odometry increments and corrected once per laser
+/// cycle by point observations associated (nearest neighbour, Mahalanobis-gated) with a
+/// `LandmarkMap`, whose lifecycle it then runs. It keeps an odometry history so that a scan whose
+/// timestamp lags the odometry is fused at its own time and the newer odometry re-applied
+/// (docs/localization.md, "Latency"). Every cycle yields a `LocalizerHealth` for the PLC.
+///
+/// Heap-free; the object holds its history and per-cycle scratch inline (~32 KB): give it static
+/// storage or allocate it once. Worst-case work per cycle is bounded by kMaxObservations,
+/// kMaxOdometryHistory and the grid query bounds of `LandmarkMap`.
+
+#include <Eigen/Core>
+#include <cstdint>
+
+#include "agv/core/capacities.hpp"
+#include "agv/core/fixed_vector.hpp"
+#include "agv/core/pose2.hpp"
+#include "agv/core/status.hpp"
+#include "agv/core/timestamp.hpp"
+#include "agv/localization/chi_square.hpp"
+#include "agv/localization/landmark_map.hpp"
+#include "agv/localization/odometry.hpp"
+#include "agv/localization/pose_ekf.hpp"
+
+namespace agv {
+
+/// One point detection in the laser frame.
+struct PointObservation {
+  double x = 0.0;  ///< [m], laser frame (x forward)
+  double y = 0.0;  ///< [m], laser frame (y left)
+  LandmarkKind kind = LandmarkKind::Reflector;
+};
+
+/// The detections of one scan.
+struct ScanObservations {
+  Timestamp stamp;  ///< acquisition time of the scan on the odometry's clock
+  /// Kinds the detectors looked for in this scan (landmark kind bits); only landmarks of these
+  /// kinds lose a hit when in view and not matched.
+  std::uint8_t kindsDetected = kAllLandmarkKinds;
+  FixedVector<PointObservation, kMaxObservations> points;
+};
+
+/// The laser as the localizer sees it.
+struct LaserModel {
+  Pose2d mounting{};              ///< calibrated laser pose l in the logical-point frame
+  double rangeMin = 0.3;          ///< [m] closest valid detection
+  double rangeMax = 30.0;         ///< [m] farthest valid detection
+  double angleMin = -2.35619449;  ///< [rad] field of view start (-135 deg)
+  double angleMax = 2.35619449;   ///< [rad] field of view end (+135 deg)
+  double rangeSigma = 0.005;      ///< [m] range noise of a point detection
+  double bearingSigma = 0.0005;   ///< [rad] bearing noise of a point detection (0.03 deg)
+  /// Extra isotropic position noise per kind [m]: a reflector centre is well defined (0), a corner
+  /// apex from FALKO's sub-beam refinement less so.
+  double kindSigma[kLandmarkKindCount] = {0.0, 0.01};
+};
+
+/// Parameters of the localizer.
+struct LocalizerParams {
+  PoseEkfParams ekf{};
+  LaserModel laser{};
+  /// Squared-Mahalanobis gate for association and update (2 dof, 99 %).
+  double gate = kChiSquare2Dof99;
+  /// Largest association search radius [m] (bounds the work when the pose is uncertain).
+  double maxSearchRadius = 1.0;
+  /// Landmark variance assumed when sizing the search radius [m^2].
+  double searchLandmarkVariance = 0.05 * 0.05;
+  /// A landmark counts as "in view" (may lose a hit) only this far inside the range limits [m]...
+  double viewRangeMargin = 0.5;
+  /// ...and this far inside the angular limits [rad].
+  double viewAngleMargin = 0.035;
+  /// An observation whose second-best candidate is also inside the gate and within this much
+  /// squared Mahalanobis distance of the best (a likelihood ratio below exp(margin/2) = 7.4) is
+  /// ambiguous and not used. 0 disables the test.
+  double ambiguityMargin = 4.0;
+  /// No new landmark is inserted this close to an existing one of the same kind [m].
+  double insertSeparation = 0.3;
+  /// Fewer landmarks used than this: the cycle has no fix (flag NoFix).
+  std::uint16_t minMatchesForFix = 2;
+  /// The matched/expected check runs when at least this many landmarks are expected in view.
+  std::uint16_t minExpectedForCheck = 3;
+  /// A checked cycle is bad when fewer than this fraction of the expected landmarks matched.
+  double minMatchedFraction = 0.3;
+  /// Consecutive bad cycles that make the localizer lost (latched until `reset`).
+  std::uint8_t lostAfterBadCycles = 3;
+  /// Position (largest axis) and heading standard deviations beyond which a cycle is bad.
+  double maxPositionSigma = 0.10;  ///< [m]
+  double maxHeadingSigma = 0.035;  ///< [rad] (2 deg)
+  /// A scan stamped later than the newest odometry by more than this is refused.
+  Duration maxScanLead = Duration::fromMilliseconds(100);
+};
+
+/// Bits of `LocalizerHealth::flags`.
+enum class LocalizerFlag : std::uint32_t {
+  NotInitialized = 1U << 0,        ///< no `reset` yet
+  OdometryRejected = 1U << 1,      ///< an increment since the last cycle was refused (non-finite, out of order)
+  ScanRejected = 1U << 2,          ///< the whole scan was refused (see ScanTooOld / ScanTooNew)
+  ScanTooOld = 1U << 3,            ///< older than the odometry history or than the previous scan
+  ScanTooNew = 1U << 4,            ///< later than the newest odometry by more than maxScanLead
+  ObservationNonFinite = 1U << 5,  ///< some observation had NaN/inf coordinates
+  ObservationOutOfView = 1U << 6,  ///< some observation lay outside the laser's range/field of view
+  GateRejected = 1U << 7,          ///< some observation had map candidates, none within the gate
+  DuplicateRejected = 1U << 8,     ///< two observations claimed one landmark; the worse was dropped
+  UpdateRejected = 1U << 9,        ///< an associated observation failed the re-gate in the update
+  NoFix = 1U << 10,                ///< fewer than minMatchesForFix landmarks used
+  BadCycle = 1U << 11,             ///< too few of the expected landmarks matched, or covariance limit
+  CovarianceLimit = 1U << 12,      ///< position or heading sigma beyond its limit
+  MapInsertRefused = 1U << 13,     ///< the map was full; new landmarks were refused (counted)
+  Lost = 1U << 14,                 ///< the pose is not trusted (latched until reset): stop the vehicle
+  AmbiguityRejected = 1U << 15,    ///< an observation had two landmarks inside the gate, too close to tell
+};
+
+/// True when `flag` is set in `flags`.
+constexpr bool hasFlag(std::uint32_t flags, LocalizerFlag flag) noexcept {
+  return (flags & static_cast<std::uint32_t>(flag)) != 0U;
+}
+
+/// What one correction cycle did and how much it can be trusted.
+struct LocalizerHealth {
+  /// Ok; NotInitialized; Rejected (scan refused); Lost (latched).
+  Status status = Status::Ok;
+  std::uint32_t flags = 0;         ///< LocalizerFlag bits
+  std::uint32_t cycle = 0;         ///< correction cycle number (1 = first)
+  Timestamp stamp;                 ///< the scan's stamp
+  std::uint16_t observations = 0;  ///< points in the scan
+  std::uint16_t used = 0;          ///< landmarks used in the update
+  std::uint16_t rejectedNonFinite = 0;
+  std::uint16_t rejectedOutOfView = 0;
+  std::uint16_t rejectedGate = 0;
+  std::uint16_t rejectedDuplicate = 0;
+  std::uint16_t rejectedUpdate = 0;
+  std::uint16_t rejectedAmbiguous = 0;
+  std::uint16_t unmatched = 0;       ///< no map candidate at all (new landmark candidates)
+  std::uint16_t expectedInView = 0;  ///< map landmarks of the detected kinds inside the view
+  std::uint16_t inserted = 0;        ///< landmarks added to the map this cycle
+  std::uint16_t insertRefused = 0;   ///< inserts the full map refused this cycle
+  std::uint16_t deleted = 0;         ///< landmarks that died this cycle
+  double maxTestRatio = 0.0;         ///< max d^2/gate over used observations (< 1)
+  double meanTestRatio = 0.0;        ///< mean d^2/gate over used observations (~2/gate if consistent)
+  double positionSigma = 0.0;        ///< [m] largest axis of the position covariance
+  double headingSigma = 0.0;         ///< [rad]
+  std::uint8_t consecutiveBadCycles = 0;
+  bool lost = false;
+};
+
+class Localizer {
+ public:
+  explicit Localizer(const LocalizerParams& params = LocalizerParams{}) noexcept;
+  Localizer(const Localizer&) = delete;
+  Localizer& operator=(const Localizer&) = delete;
+
+  /// (Re-)initialises the pose at `stamp`, clears the history and the lost state.
+  /// `InvalidArgument` for a non-finite pose or an invalid covariance (state unchanged).
+  Status reset(Timestamp stamp, const Pose2d& pose, const Eigen::Matrix3d& covariance) noexcept;
+
+  /// Predicts with one odometry increment ending at `inc.stamp` and records it in the history.
+  /// Refused, state unchanged and flagged in the next health: `NotInitialized`, `NonFiniteInput`
+  /// (invalid increment), `InvalidArgument` (stamp not after the newest one).
+  Status predict(const OdometryIncrement& inc) noexcept;
+
+  /// One laser cycle: rewinds to the scan's stamp through the history, associates the
+  /// observations with `map`, corrects, maintains the map (Dynamic mode, good cycles only),
+  /// re-applies the newer odometry and reports. Scans must come in stamp order.
+  const LocalizerHealth& correct(const ScanObservations& scan, LandmarkMap& map) noexcept;
+
+  /// Newest pose estimate (at `stamp()`), its covariance and time.
+  const Pose2d& pose() const noexcept { return ekf_.pose(); }
+  const Eigen::Matrix3d& covariance() const noexcept { return ekf_.covariance(); }
+  Timestamp stamp() const noexcept;
+  bool initialized() const noexcept { return initialized_; }
+  bool lost() const noexcept { return lost_; }
+  const LocalizerHealth& health() const noexcept { return health_; }
+  const LocalizerParams& params() const noexcept { return params_; }
+
+ private:
+  struct HistoryEntry {
+    Timestamp stamp;
+    Pose2d delta{};  // increment ending at stamp
+    Eigen::Matrix3d deltaCov = Eigen::Matrix3d::Zero();
+    Pose2d pose{};  // posterior after it
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Identity();
+  };
+  enum class Assoc : std::uint8_t {
+    None,
+    Matched,
+    NonFinite,
+    OutOfView,
+    Gate,
+    Duplicate,
+    Ambiguous,
+    Used,
+    UpdateRejected
+  };
+  struct Scratch {
+    Eigen::Matrix2d R = Eigen::Matrix2d::Zero();  // sensor noise, laser frame
+    double d2 = 0.0;
+    LandmarkIndex landmark = kNoLandmark;
+    Assoc state = Assoc::None;
+  };
+
+  HistoryEntry& entry(std::size_t k) noexcept { return history_[(historyStart_ + k) % kMaxOdometryHistory]; }
+  void associate(const ScanObservations& scan, const LandmarkMap& map) noexcept;
+  void orderMatches(const ScanObservations& scan) noexcept;  // sorts the matches into order_
+  void maintainMap(const ScanObservations& scan, LandmarkMap& map) noexcept;
+  std::uint16_t countExpectedInView(std::uint8_t kinds, const LandmarkMap& map, bool weakenUnmatched,
+                                    LandmarkMap* mutableMap) noexcept;
+  bool inView(const Pose2d& laserWorld, double x, double y) const noexcept;
+  void finishHealth() noexcept;
+
+  LocalizerParams params_{};
+  PoseEkf ekf_{};
+  bool initialized_ = false;
+  bool lost_ = false;
+  std::uint8_t badCycles_ = 0;
+  std::uint32_t cycle_ = 0;
+  std::uint32_t pendingFlags_ = 0;
+  Timestamp lastScanStamp_{};
+  bool haveScan_ = false;
+  HistoryEntry history_[kMaxOdometryHistory];
+  std::size_t historyStart_ = 0;
+  std::size_t historyCount_ = 0;
+  Scratch scratch_[kMaxObservations];
+  std::uint16_t order_[kMaxObservations] = {};
+  LocalizerHealth health_{};
+};
+
+}  // namespace agv

@@ -1,0 +1,505 @@
+#include "agv/localization/localizer.hpp"
+
+#include <cmath>
+
+namespace agv {
+
+namespace {
+double largestEigen2(double a, double b, double c) noexcept {
+  // symmetric [[a, b], [b, c]]
+  const double h = 0.5 * (a - c);
+  return 0.5 * (a + c) + std::sqrt(h * h + b * b);
+}
+std::uint32_t bit(LocalizerFlag f) noexcept {
+  return static_cast<std::uint32_t>(f);
+}
+std::uint16_t sat16(std::size_t v) noexcept {
+  return v > 0xFFFFU ? static_cast<std::uint16_t>(0xFFFFU) : static_cast<std::uint16_t>(v);
+}
+}  // namespace
+
+Localizer::Localizer(const LocalizerParams& params) noexcept : params_(params), ekf_(params.ekf) {}
+
+Timestamp Localizer::stamp() const noexcept {
+  if (historyCount_ == 0) {
+    return Timestamp{};
+  }
+  return history_[(historyStart_ + historyCount_ - 1U) % kMaxOdometryHistory].stamp;
+}
+
+Status Localizer::reset(Timestamp stamp, const Pose2d& pose, const Eigen::Matrix3d& covariance) noexcept {
+  PoseEkf fresh(params_.ekf);
+  const Status s = fresh.reset(pose, covariance);
+  if (s != Status::Ok) {
+    return s;
+  }
+  ekf_ = fresh;
+  historyStart_ = 0;
+  historyCount_ = 1;
+  HistoryEntry& e = history_[0];
+  e.stamp = stamp;
+  e.delta = Pose2d{};
+  e.deltaCov.setZero();
+  e.pose = ekf_.pose();
+  e.cov = ekf_.covariance();
+  initialized_ = true;
+  lost_ = false;
+  badCycles_ = 0;
+  pendingFlags_ = 0;
+  haveScan_ = false;
+  return Status::Ok;
+}
+
+Status Localizer::predict(const OdometryIncrement& inc) noexcept {
+  if (!initialized_) {
+    return Status::NotInitialized;
+  }
+  if (!inc.isValid()) {
+    pendingFlags_ |= bit(LocalizerFlag::OdometryRejected);
+    return Status::NonFiniteInput;
+  }
+  if (inc.stamp <= stamp()) {
+    pendingFlags_ |= bit(LocalizerFlag::OdometryRejected);
+    return Status::InvalidArgument;
+  }
+  const Status s = ekf_.predict(inc);
+  if (s != Status::Ok) {
+    pendingFlags_ |= bit(LocalizerFlag::OdometryRejected);
+    return s;
+  }
+  if (historyCount_ == kMaxOdometryHistory) {
+    historyStart_ = (historyStart_ + 1U) % kMaxOdometryHistory;
+    --historyCount_;
+  }
+  HistoryEntry& e = entry(historyCount_);
+  ++historyCount_;
+  e.stamp = inc.stamp;
+  e.delta = inc.delta;
+  e.deltaCov = inc.covariance;
+  e.pose = ekf_.pose();
+  e.cov = ekf_.covariance();
+  return Status::Ok;
+}
+
+bool Localizer::inView(const Pose2d& laserWorld, double x, double y) const noexcept {
+  const Eigen::Vector2d p = laserWorld.inverseTransformPoint(Eigen::Vector2d(x, y));
+  const LaserModel& L = params_.laser;
+  const double r = p.norm();
+  if (r < L.rangeMin + params_.viewRangeMargin || r > L.rangeMax - params_.viewRangeMargin) {
+    return false;
+  }
+  const double b = std::atan2(p.y(), p.x());
+  return b >= L.angleMin + params_.viewAngleMargin && b <= L.angleMax - params_.viewAngleMargin;
+}
+
+std::uint16_t Localizer::countExpectedInView(std::uint8_t kinds, const LandmarkMap& map, bool weakenUnmatched,
+                                             LandmarkMap* mutableMap) noexcept {
+  const Pose2d laserWorld = ekf_.pose().compose(params_.laser.mounting);
+  std::size_t count = 0;
+  map.forEachNear(laserWorld.x, laserWorld.y, params_.laser.rangeMax, [&](LandmarkIndex idx, const Landmark& lm) {
+    if ((landmarkKindBit(lm.kind) & kinds) == 0U || !inView(laserWorld, lm.x, lm.y)) {
+      return;
+    }
+    ++count;
+    if (weakenUnmatched && mutableMap != nullptr && !lm.surveyed && lm.lastMatchedCycle != cycle_) {
+      (void)mutableMap->weaken(idx);
+    }
+  });
+  return sat16(count);
+}
+
+void Localizer::associate(const ScanObservations& scan, const LandmarkMap& map) noexcept {
+  const LaserModel& L = params_.laser;
+  const Pose2d laserWorld = ekf_.pose().compose(L.mounting);
+  const double cl = std::cos(laserWorld.theta);
+  const double sl = std::sin(laserWorld.theta);
+  const std::size_t n = scan.points.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    Scratch& s = scratch_[i];
+    s = Scratch{};
+    const PointObservation& o = scan.points[i];
+    if (!std::isfinite(o.x) || !std::isfinite(o.y)) {
+      s.state = Assoc::NonFinite;
+      continue;
+    }
+    const double r = std::hypot(o.x, o.y);
+    const double b = std::atan2(o.y, o.x);
+    if (r < L.rangeMin || r > L.rangeMax || b < L.angleMin || b > L.angleMax) {
+      s.state = Assoc::OutOfView;
+      continue;
+    }
+    const double ks = L.kindSigma[static_cast<std::size_t>(o.kind) % kLandmarkKindCount];
+    s.R = polarToCartesianCovariance(o.x, o.y, L.rangeSigma, L.bearingSigma);
+    s.R(0, 0) += ks * ks;
+    s.R(1, 1) += ks * ks;
+    const Eigen::Vector2d z(o.x, o.y);
+    const Eigen::Vector2d w = laserWorld.transformPoint(z);
+    const PointInnovation base = ekf_.innovation(z, w, s.R, L.mounting);
+    if (!base.valid) {
+      s.state = Assoc::Gate;
+      continue;
+    }
+    const double lambda = largestEigen2(base.S(0, 0), base.S(0, 1), base.S(1, 1)) + params_.searchLandmarkVariance;
+    double radius = std::sqrt(params_.gate * lambda);
+    if (radius > params_.maxSearchRadius) {
+      radius = params_.maxSearchRadius;
+    }
+    const double r2 = radius * radius;
+    double best = INFINITY;
+    double second = INFINITY;
+    LandmarkIndex bestIdx = kNoLandmark;
+    bool anyCandidate = false;
+    map.forEachNear(w.x(), w.y(), radius, [&](LandmarkIndex idx, const Landmark& lm) {
+      if (lm.kind != o.kind) {
+        return;
+      }
+      const double ex = w.x() - lm.x;
+      const double ey = w.y() - lm.y;
+      if (ex * ex + ey * ey > r2) {
+        return;
+      }
+      anyCandidate = true;
+      // innovation z - h(m) in the laser frame = R(laser)^T (w - m)
+      const double nx = cl * ex + sl * ey;
+      const double ny = -sl * ex + cl * ey;
+      const double a = base.S(0, 0) + lm.variance;
+      const double c = base.S(1, 1) + lm.variance;
+      const double bb = base.S(0, 1);
+      const double det = a * c - bb * bb;
+      if (!(det > 0.0)) {
+        return;
+      }
+      const double d2 = (c * nx * nx - 2.0 * bb * nx * ny + a * ny * ny) / det;
+      if (d2 < best) {
+        second = best;
+        best = d2;
+        bestIdx = idx;
+      } else if (d2 < second) {
+        second = d2;
+      }
+    });
+    s.d2 = best;
+    if (bestIdx != kNoLandmark && best <= params_.gate && second <= params_.gate &&
+        second - best < params_.ambiguityMargin) {
+      s.state = Assoc::Ambiguous;
+    } else if (bestIdx != kNoLandmark && best <= params_.gate) {
+      s.state = Assoc::Matched;
+      s.landmark = bestIdx;
+    } else if (anyCandidate) {
+      s.state = Assoc::Gate;
+    } else {
+      s.state = Assoc::None;
+    }
+  }
+  // One landmark, one observation: keep the closer (Mahalanobis) claim.
+  for (std::size_t i = 0; i < n; ++i) {
+    if (scratch_[i].state != Assoc::Matched) {
+      continue;
+    }
+    for (std::size_t j = i + 1; j < n; ++j) {
+      if (scratch_[j].state == Assoc::Matched && scratch_[j].landmark == scratch_[i].landmark) {
+        if (scratch_[j].d2 < scratch_[i].d2) {
+          scratch_[i].state = Assoc::Duplicate;
+          break;
+        }
+        scratch_[j].state = Assoc::Duplicate;
+      }
+    }
+  }
+}
+
+void Localizer::orderMatches(const ScanObservations& scan) noexcept {
+  // Orders the matched observations by Mahalanobis distance (insertion sort, n <= kMaxObservations)
+  // so that the sequential updates apply the most certain association first.
+  std::size_t m = 0;
+  const std::size_t n = scan.points.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (scratch_[i].state == Assoc::Matched) {
+      std::size_t k = m++;
+      while (k > 0 && scratch_[order_[k - 1]].d2 > scratch_[i].d2) {
+        order_[k] = order_[k - 1];
+        --k;
+      }
+      order_[k] = static_cast<std::uint16_t>(i);
+    }
+  }
+}
+
+void Localizer::maintainMap(const ScanObservations& scan, LandmarkMap& map) noexcept {
+  const Pose2d& x = ekf_.pose();
+  const Eigen::Matrix3d& P = ekf_.covariance();
+  const Pose2d laserWorld = x.compose(params_.laser.mounting);
+  const std::size_t n = scan.points.size();
+  const std::uint32_t deletedBefore = map.counters().deleted;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Scratch& s = scratch_[i];
+    if (s.state != Assoc::Used && s.state != Assoc::None) {
+      continue;
+    }
+    const PointObservation& o = scan.points[i];
+    const Eigen::Vector2d w = laserWorld.transformPoint(Eigen::Vector2d(o.x, o.y));
+    // Variance of the observation's world position: sensor (rotation invariant) + pose.
+    Eigen::Matrix<double, 2, 3> J;
+    J << 1.0, 0.0, -(w.y() - x.y), 0.0, 1.0, w.x() - x.x;
+    const double var = 0.5 * (s.R.trace() + (J * P * J.transpose()).trace());
+    if (s.state == Assoc::Used) {
+      (void)map.reinforce(s.landmark, w.x(), w.y(), var, cycle_);
+    }
+  }
+  // In view and not matched: -1 (deleted at 0).
+  (void)countExpectedInView(scan.kindsDetected, map, true, &map);
+  health_.deleted = sat16(map.counters().deleted - deletedBefore);
+  // Unmatched observations become landmarks, unless one of the same kind is already close.
+  for (std::size_t i = 0; i < n; ++i) {
+    const Scratch& s = scratch_[i];
+    if (s.state != Assoc::None) {
+      continue;
+    }
+    const PointObservation& o = scan.points[i];
+    const Eigen::Vector2d w = laserWorld.transformPoint(Eigen::Vector2d(o.x, o.y));
+    bool crowded = false;
+    const double sep2 = params_.insertSeparation * params_.insertSeparation;
+    map.forEachNear(w.x(), w.y(), params_.insertSeparation, [&](LandmarkIndex, const Landmark& lm) {
+      const double ex = lm.x - w.x();
+      const double ey = lm.y - w.y();
+      if (lm.kind == o.kind && ex * ex + ey * ey < sep2) {
+        crowded = true;
+      }
+    });
+    if (crowded) {
+      continue;
+    }
+    Eigen::Matrix<double, 2, 3> J;
+    J << 1.0, 0.0, -(w.y() - x.y), 0.0, 1.0, w.x() - x.x;
+    const double var = 0.5 * (s.R.trace() + (J * P * J.transpose()).trace());
+    const Result<LandmarkIndex> r = map.insert(o.kind, w.x(), w.y(), var);
+    if (r.ok()) {
+      ++health_.inserted;
+    } else if (r.status() == Status::CapacityExceeded) {
+      ++health_.insertRefused;
+      health_.flags |= bit(LocalizerFlag::MapInsertRefused);
+    }
+  }
+}
+
+void Localizer::finishHealth() noexcept {
+  const Eigen::Matrix3d& P = ekf_.covariance();
+  health_.positionSigma = std::sqrt(largestEigen2(P(0, 0), P(0, 1), P(1, 1)));
+  health_.headingSigma = std::sqrt(P(2, 2));
+  health_.consecutiveBadCycles = badCycles_;
+  health_.lost = lost_;
+  if (lost_) {
+    health_.flags |= bit(LocalizerFlag::Lost);
+    health_.status = Status::Lost;
+  }
+}
+
+const LocalizerHealth& Localizer::correct(const ScanObservations& scan, LandmarkMap& map) noexcept {
+  ++cycle_;
+  health_ = LocalizerHealth{};
+  health_.cycle = cycle_;
+  health_.stamp = scan.stamp;
+  health_.flags = pendingFlags_;
+  pendingFlags_ = 0;
+  health_.observations = sat16(scan.points.size());
+  if (!initialized_) {
+    health_.flags |= bit(LocalizerFlag::NotInitialized);
+    health_.status = Status::NotInitialized;
+    return health_;
+  }
+  if (lost_) {
+    finishHealth();
+    return health_;
+  }
+
+  // --- Latency: find the odometry interval holding the scan time.
+  const std::size_t n = historyCount_;
+  const Timestamp newest = entry(n - 1U).stamp;
+  const bool tooOld = scan.stamp < entry(0).stamp || (haveScan_ && scan.stamp < lastScanStamp_);
+  const bool tooNew = scan.stamp > newest && (scan.stamp - newest) > params_.maxScanLead;
+  if (tooOld || tooNew) {
+    health_.flags |=
+        bit(LocalizerFlag::ScanRejected) | bit(tooOld ? LocalizerFlag::ScanTooOld : LocalizerFlag::ScanTooNew);
+    health_.status = Status::Rejected;
+    finishHealth();
+    return health_;
+  }
+  std::size_t k = n - 1U;
+  while (k > 0 && entry(k).stamp > scan.stamp) {
+    --k;
+  }
+  const PoseEkf atNewest = ekf_;
+  if (ekf_.reset(entry(k).pose, entry(k).cov) != Status::Ok) {
+    // A stored state that does not validate cannot be rewound to; keep the newest state.
+    ekf_ = atNewest;
+    health_.flags |= bit(LocalizerFlag::ScanRejected);
+    health_.status = Status::Rejected;
+    finishHealth();
+    return health_;
+  }
+  bool split = false;
+  double f = 0.0;
+  Pose2d part{};
+  if (k + 1U < n && scan.stamp > entry(k).stamp) {
+    const HistoryEntry& next = entry(k + 1U);
+    split = true;
+    f = static_cast<double>((scan.stamp - entry(k).stamp).ns) / static_cast<double>((next.stamp - entry(k).stamp).ns);
+    OdometryIncrement p;
+    p.stamp = scan.stamp;
+    p.delta = partialIncrement(next.delta, f);
+    p.covariance = f * next.deltaCov;
+    part = p.delta;
+    (void)ekf_.predict(p);
+  }
+
+  // --- Association against the prior at the scan time.
+  associate(scan, map);
+  health_.expectedInView = countExpectedInView(scan.kindsDetected, map, false, nullptr);
+
+  // --- Sequential gated updates, most certain first.
+  orderMatches(scan);
+  std::size_t matched = 0;
+  const std::size_t nObs = scan.points.size();
+  for (std::size_t i = 0; i < nObs; ++i) {
+    if (scratch_[i].state == Assoc::Matched) {
+      ++matched;
+    }
+  }
+  double ratioSum = 0.0;
+  const LaserModel& L = params_.laser;
+  for (std::size_t q = 0; q < matched; ++q) {
+    Scratch& s = scratch_[order_[q]];
+    const Landmark* lm = map.at(s.landmark);
+    if (lm == nullptr) {
+      s.state = Assoc::UpdateRejected;
+      continue;
+    }
+    const PointObservation& o = scan.points[order_[q]];
+    Eigen::Matrix2d R = s.R;
+    R(0, 0) += lm->variance;
+    R(1, 1) += lm->variance;
+    const PointInnovation in = ekf_.innovation(Eigen::Vector2d(o.x, o.y), Eigen::Vector2d(lm->x, lm->y), R, L.mounting);
+    if (ekf_.update(in, params_.gate) == Status::Ok) {
+      s.state = Assoc::Used;
+      const double ratio = in.mahalanobis2 / params_.gate;
+      ratioSum += ratio;
+      if (ratio > health_.maxTestRatio) {
+        health_.maxTestRatio = ratio;
+      }
+    } else {
+      s.state = Assoc::UpdateRejected;
+    }
+  }
+  for (std::size_t i = 0; i < nObs; ++i) {
+    switch (scratch_[i].state) {
+      case Assoc::Used:
+        ++health_.used;
+        break;
+      case Assoc::NonFinite:
+        ++health_.rejectedNonFinite;
+        break;
+      case Assoc::OutOfView:
+        ++health_.rejectedOutOfView;
+        break;
+      case Assoc::Gate:
+        ++health_.rejectedGate;
+        break;
+      case Assoc::Duplicate:
+        ++health_.rejectedDuplicate;
+        break;
+      case Assoc::UpdateRejected:
+        ++health_.rejectedUpdate;
+        break;
+      case Assoc::Ambiguous:
+        ++health_.rejectedAmbiguous;
+        break;
+      case Assoc::None:
+        ++health_.unmatched;
+        break;
+      case Assoc::Matched:
+        break;
+    }
+  }
+  if (health_.used > 0) {
+    health_.meanTestRatio = ratioSum / static_cast<double>(health_.used);
+  }
+  const auto flagIf = [this](bool condition, LocalizerFlag flag) {
+    if (condition) {
+      health_.flags |= bit(flag);
+    }
+  };
+  flagIf(health_.rejectedNonFinite > 0, LocalizerFlag::ObservationNonFinite);
+  flagIf(health_.rejectedOutOfView > 0, LocalizerFlag::ObservationOutOfView);
+  flagIf(health_.rejectedGate > 0, LocalizerFlag::GateRejected);
+  flagIf(health_.rejectedDuplicate > 0, LocalizerFlag::DuplicateRejected);
+  flagIf(health_.rejectedUpdate > 0, LocalizerFlag::UpdateRejected);
+  flagIf(health_.rejectedAmbiguous > 0, LocalizerFlag::AmbiguityRejected);
+  flagIf(health_.used < params_.minMatchesForFix, LocalizerFlag::NoFix);
+
+  // --- Health: matched vs expected, covariance limits, lost.
+  bool bad = false;
+  if (health_.expectedInView >= params_.minExpectedForCheck) {
+    double need = std::ceil(params_.minMatchedFraction * static_cast<double>(health_.expectedInView));
+    if (need < static_cast<double>(params_.minMatchesForFix)) {
+      need = static_cast<double>(params_.minMatchesForFix);
+    }
+    if (static_cast<double>(health_.used) < need) {
+      bad = true;
+    }
+  }
+  {
+    const Eigen::Matrix3d& P = ekf_.covariance();
+    const double ps = std::sqrt(largestEigen2(P(0, 0), P(0, 1), P(1, 1)));
+    if (!(ps <= params_.maxPositionSigma) || !(std::sqrt(P(2, 2)) <= params_.maxHeadingSigma)) {
+      health_.flags |= bit(LocalizerFlag::CovarianceLimit);
+      bad = true;
+    }
+  }
+  if (bad) {
+    health_.flags |= bit(LocalizerFlag::BadCycle);
+    if (badCycles_ < 255U) {
+      ++badCycles_;
+    }
+    if (badCycles_ >= params_.lostAfterBadCycles) {
+      lost_ = true;
+    }
+  } else {
+    badCycles_ = 0;
+  }
+
+  // --- Map lifecycle, on good cycles only (a suspect pose must not write the map).
+  if (!bad && map.mode() == MapMode::Dynamic) {
+    maintainMap(scan, map);
+  }
+
+  // --- Store the corrected state and re-apply the newer odometry.
+  std::size_t j = k + 1U;
+  if (split) {
+    HistoryEntry& at = entry(k);
+    at.stamp = scan.stamp;  // scans come in order: nothing before this is replayed again
+    at.pose = ekf_.pose();
+    at.cov = ekf_.covariance();
+    HistoryEntry& next = entry(k + 1U);
+    next.delta = between(part, next.delta);
+    next.deltaCov = (1.0 - f) * next.deltaCov;
+  } else {
+    entry(k).pose = ekf_.pose();
+    entry(k).cov = ekf_.covariance();
+  }
+  for (; j < n; ++j) {
+    HistoryEntry& e = entry(j);
+    OdometryIncrement inc;
+    inc.stamp = e.stamp;
+    inc.delta = e.delta;
+    inc.covariance = e.deltaCov;
+    (void)ekf_.predict(inc);
+    e.pose = ekf_.pose();
+    e.cov = ekf_.covariance();
+  }
+  lastScanStamp_ = scan.stamp;
+  haveScan_ = true;
+  finishHealth();
+  return health_;
+}
+
+}  // namespace agv

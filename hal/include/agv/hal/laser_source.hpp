@@ -1,0 +1,27 @@
+#pragma once
+/// @file laser_source.hpp
+/// Device interface: a 2D (navigation) laser.
+
+#include "agv/core/status.hpp"
+#include "agv/hal/laser_measurement.hpp"
+
+namespace agv::hal {
+
+/// Delivers laser sweeps in time order. Polled by the application loop; never blocks.
+class LaserSource {
+ public:
+  /// Takes the oldest complete sweep not yet read.
+  /// - `Ok`: `out` holds a new sweep (ranges and, if supported, reflectors).
+  /// - `NotFound`: no new sweep yet; `out` untouched.
+  /// - `Timeout`, `DeviceFault`, `Malformed`, `Truncated`: device or link problem; `out` may
+  ///   have been partly written and must not be used.
+  virtual Status read(LaserMeasurement& out) noexcept = 0;
+
+ protected:
+  LaserSource() = default;
+  LaserSource(const LaserSource&) = default;
+  LaserSource& operator=(const LaserSource&) = default;
+  ~LaserSource() = default;
+};
+
+}  // namespace agv::hal

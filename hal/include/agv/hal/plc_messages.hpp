@@ -1,0 +1,54 @@
+#pragma once
+/// @file plc_messages.hpp
+/// Messages exchanged with the vehicle PLC: what the navigation publishes and what it is told.
+
+#include <Eigen/Core>
+#include <cstdint>
+
+#include "agv/core/pose2.hpp"
+#include "agv/core/status.hpp"
+#include "agv/core/timestamp.hpp"
+
+namespace agv::hal {
+
+/// Operating mode of the navigation, as published to the PLC.
+enum class NavMode : std::uint8_t {
+  Idle = 0,         ///< not localizing (after start-up or a stop command)
+  Localizing = 1,   ///< pose is tracked and published
+  Calibrating = 2,  ///< the calibration routine drives the vehicle
+  Lost = 3,         ///< the localizer does not trust its pose; the PLC must stop the vehicle
+};
+
+/// Health of the localization: enough for a PLC to decide whether to trust the pose.
+struct NavHealth {
+  NavMode mode = NavMode::Idle;
+  Status lastStatus = Status::Ok;       ///< last non-Ok status of the pipeline (Ok when none)
+  std::uint16_t matchedLandmarks = 0;   ///< landmarks used by the last correction
+  std::uint16_t visibleReflectors = 0;  ///< reflectors reported by the laser in the last scan
+  float scanAge = 0.0F;                 ///< [s] age of the last laser correction at publication time
+};
+
+/// Pose of the vehicle's logical point in the map frame, with its uncertainty.
+struct PoseReport {
+  Timestamp stamp;                                       ///< time the pose refers to (vehicle monotonic clock)
+  Pose2d pose;                                           ///< [m, m, rad] map frame
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();  ///< of (x, y, theta) [m^2, m^2 rad, rad^2]
+  NavHealth health;
+};
+
+/// What the PLC asks the navigation to do.
+enum class PlcCommandKind : std::uint8_t {
+  None = 0,       ///< no new command
+  Localize = 1,   ///< start localizing from `initialPose`
+  Calibrate = 2,  ///< run the on-vehicle calibration routine
+  Stop = 3,       ///< stop localizing / abort the routine
+};
+
+/// One command from the PLC.
+struct PlcCommand {
+  Timestamp stamp;  ///< when it was received
+  PlcCommandKind kind = PlcCommandKind::None;
+  Pose2d initialPose;  ///< for Localize: start pose of the logical point, map frame
+};
+
+}  // namespace agv::hal

@@ -1,0 +1,341 @@
+// Localizer behaviour on hand-built scenes: bad inputs, health flags, map lifecycle through the
+// localizer, zero allocations in steady state (host only).
+#include <Eigen/Core>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "agv/localization/localizer.hpp"
+#include "agv_test.hpp"
+
+using namespace agv;
+
+namespace {
+struct Scene {
+  LocalizerParams params;
+  std::unique_ptr<Localizer> loc;
+  std::unique_ptr<LandmarkMap> map;
+  std::unique_ptr<ScanObservations> scan;
+  Pose2d truth{2.0, 1.0, 0.3};
+  Timestamp t = Timestamp::fromSeconds(10.0);
+  std::vector<Eigen::Vector2d> world;
+  std::mt19937_64 rng{3};
+
+  explicit Scene(MapMode mode = MapMode::Static, bool surveyed = true) {
+    params.laser.mounting = Pose2d{1.0, 0.0, 0.0};
+    loc = std::make_unique<Localizer>(params);
+    LandmarkMapParams mp;
+    mp.mode = mode;
+    map = std::make_unique<LandmarkMap>(mp);
+    scan = std::make_unique<ScanObservations>();
+    for (int i = 0; i < 8; ++i) {
+      const double a = 0.5 * i - 1.75;  // all inside the 270 deg field of view
+      world.emplace_back(truth.x + 6.0 * std::cos(a + truth.theta) + 0.3 * i,
+                         truth.y + 6.0 * std::sin(a + truth.theta));
+    }
+    if (surveyed) {
+      std::uint32_t id = 1;
+      for (const auto& w : world)
+        REQUIRE(map->addSurveyed(LandmarkKind::Reflector, w.x(), w.y(), 0.0, id++).ok());
+    }
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0(0, 0) = P0(1, 1) = 1e-4;
+    P0(2, 2) = 1e-5;
+    REQUIRE(loc->reset(t, truth, P0) == Status::Ok);
+  }
+  /// Standing still: one zero increment per 10 ms.
+  void stand(int steps) {
+    for (int i = 0; i < steps; ++i) {
+      t = t + Duration::fromMilliseconds(10);
+      OdometryIncrement inc;
+      inc.stamp = t;
+      inc.covariance = Eigen::Matrix3d::Identity() * 1e-9;
+      REQUIRE(loc->predict(inc) == Status::Ok);
+    }
+  }
+  /// Noisy observations of `points` (world) from the true pose, stamped now.
+  void observe(const std::vector<Eigen::Vector2d>& points, LandmarkKind kind = LandmarkKind::Reflector) {
+    scan->stamp = t;
+    scan->kindsDetected = kAllLandmarkKinds;
+    scan->points.clear();
+    std::normal_distribution<double> n(0.0, 0.002);
+    const Pose2d lw = truth.compose(params.laser.mounting);
+    for (const auto& w : points) {
+      const Eigen::Vector2d z = lw.inverseTransformPoint(w);
+      REQUIRE(scan->points.push_back(PointObservation{z.x() + n(rng), z.y() + n(rng), kind}) == Status::Ok);
+    }
+  }
+  const LocalizerHealth& cycle() { return loc->correct(*scan, *map); }
+};
+}  // namespace
+
+TEST_CASE("localizer: refuses to work before initialisation and refuses a bad initial state",
+          "[localization][localizer]") {
+  auto loc = std::make_unique<Localizer>();
+  auto map = std::make_unique<LandmarkMap>();
+  auto scan = std::make_unique<ScanObservations>();
+  const LocalizerHealth& h = loc->correct(*scan, *map);
+  CHECK(h.status == Status::NotInitialized);
+  CHECK(hasFlag(h.flags, LocalizerFlag::NotInitialized));
+  OdometryIncrement inc;
+  inc.stamp = Timestamp::fromSeconds(1.0);
+  CHECK(loc->predict(inc) == Status::NotInitialized);
+  CHECK(loc->reset(Timestamp{}, Pose2d{std::nan(""), 0.0, 0.0}, Eigen::Matrix3d::Identity()) ==
+        Status::InvalidArgument);
+  CHECK_FALSE(loc->initialized());
+}
+
+TEST_CASE("localizer: a good cycle uses every landmark and reports consistent test ratios",
+          "[localization][localizer]") {
+  Scene s;
+  s.stand(10);
+  s.observe(s.world);
+  const LocalizerHealth& h = s.cycle();
+  CHECK(h.status == Status::Ok);
+  CHECK(h.used == s.world.size());
+  CHECK(h.expectedInView == s.world.size());
+  CHECK(h.flags == 0U);
+  CHECK(h.maxTestRatio < 1.0);
+  CHECK(h.meanTestRatio > 0.0);
+  CHECK(h.positionSigma < 0.01);
+  CHECK_FALSE(h.lost);
+  AGV_CHECK_NEAR(s.loc->pose().x, s.truth.x, 0.005);
+  AGV_CHECK_NEAR(s.loc->pose().y, s.truth.y, 0.005);
+}
+
+TEST_CASE("localizer: bad observations and odometry are refused, counted and flagged without corrupting the state",
+          "[localization][localizer]") {
+  Scene s;
+  s.stand(5);
+  const Pose2d before = s.loc->pose();
+  const Eigen::Matrix3d Pbefore = s.loc->covariance();
+  // Non-finite odometry and an out-of-order increment: refused, state unchanged, flagged next cycle.
+  OdometryIncrement bad;
+  bad.stamp = s.t + Duration::fromMilliseconds(10);
+  bad.delta = Pose2d{std::nan(""), 0.0, 0.0};
+  CHECK(s.loc->predict(bad) == Status::NonFiniteInput);
+  bad.delta = Pose2d{0.1, 0.0, 0.0};
+  bad.covariance(2, 2) = std::numeric_limits<double>::infinity();
+  CHECK(s.loc->predict(bad) == Status::NonFiniteInput);
+  OdometryIncrement old;
+  old.stamp = s.t;  // not after the newest
+  CHECK(s.loc->predict(old) == Status::InvalidArgument);
+  CHECK(s.loc->pose().x == before.x);
+  CHECK(s.loc->covariance() == Pbefore);
+  // A scan of only non-finite and out-of-view points: nothing used, pose unchanged.
+  s.scan->stamp = s.t;
+  s.scan->points.clear();
+  (void)s.scan->points.push_back(PointObservation{std::nan(""), 1.0, LandmarkKind::Reflector});
+  (void)s.scan->points.push_back(
+      PointObservation{1.0, std::numeric_limits<double>::infinity(), LandmarkKind::Reflector});
+  (void)s.scan->points.push_back(PointObservation{100.0, 0.0, LandmarkKind::Reflector});  // beyond range
+  (void)s.scan->points.push_back(PointObservation{-5.0, 0.0, LandmarkKind::Reflector});   // behind: outside 270 deg
+  const LocalizerHealth h = s.cycle();
+  CHECK(h.rejectedNonFinite == 2U);
+  CHECK(h.rejectedOutOfView == 2U);
+  CHECK(h.used == 0U);
+  CHECK(hasFlag(h.flags, LocalizerFlag::ObservationNonFinite));
+  CHECK(hasFlag(h.flags, LocalizerFlag::ObservationOutOfView));
+  CHECK(hasFlag(h.flags, LocalizerFlag::OdometryRejected));
+  CHECK(hasFlag(h.flags, LocalizerFlag::NoFix));
+  CHECK(s.loc->pose().x == before.x);
+  CHECK(s.loc->pose().theta == before.theta);
+  CHECK(s.loc->covariance() == Pbefore);
+  // A NaN among good observations does not stop the good ones.
+  s.stand(1);
+  s.observe(s.world);
+  (void)s.scan->points.push_back(PointObservation{std::nan(""), std::nan(""), LandmarkKind::Reflector});
+  const LocalizerHealth h2 = s.cycle();
+  CHECK(h2.used == s.world.size());
+  CHECK(h2.rejectedNonFinite == 1U);
+  CHECK_FALSE(hasFlag(h2.flags, LocalizerFlag::OdometryRejected));  // reported once
+  CHECK(s.loc->pose().isFinite());
+}
+
+TEST_CASE("localizer: scans outside the odometry history or out of order are refused", "[localization][localizer]") {
+  Scene s;
+  s.stand(20);
+  s.observe(s.world);
+  const Pose2d before = s.loc->pose();
+  s.scan->stamp = s.t + Duration::fromMilliseconds(150);  // newer than the odometry by > 100 ms
+  LocalizerHealth h = s.cycle();
+  CHECK(h.status == Status::Rejected);
+  CHECK(hasFlag(h.flags, LocalizerFlag::ScanRejected));
+  CHECK(hasFlag(h.flags, LocalizerFlag::ScanTooNew));
+  s.scan->stamp = Timestamp::fromSeconds(9.0);  // before the history
+  h = s.cycle();
+  CHECK(hasFlag(h.flags, LocalizerFlag::ScanTooOld));
+  CHECK(s.loc->pose().x == before.x);
+  // a scan 50 ms old is fused; one older than it afterwards is refused
+  s.scan->stamp = s.t - Duration::fromMilliseconds(45);
+  h = s.cycle();
+  CHECK(h.status == Status::Ok);
+  CHECK(h.used == s.world.size());
+  s.scan->stamp = s.t - Duration::fromMilliseconds(55);
+  h = s.cycle();
+  CHECK(hasFlag(h.flags, LocalizerFlag::ScanTooOld));
+  // a scan slightly ahead of the odometry (within maxScanLead) is fused at the newest state
+  s.scan->stamp = s.t + Duration::fromMilliseconds(20);
+  h = s.cycle();
+  CHECK(h.status == Status::Ok);
+  CHECK(h.used == s.world.size());
+}
+
+TEST_CASE("localizer: gate, duplicate and lost health", "[localization][localizer]") {
+  Scene s;
+  s.stand(2);
+  s.observe(s.world);
+  // a ghost 0.1 m off one landmark (~9 sigma): it has a candidate within the search radius but fails the gate
+  const Eigen::Vector2d ghost =
+      s.truth.compose(s.params.laser.mounting).inverseTransformPoint(s.world[0] + Eigen::Vector2d(0.1, 0.0));
+  (void)s.scan->points.push_back(PointObservation{ghost.x(), ghost.y(), LandmarkKind::Reflector});
+  // a second detection 3 mm from another landmark: both within the gate, one is a duplicate
+  const PointObservation twin{s.scan->points[1].x + 0.003, s.scan->points[1].y, LandmarkKind::Reflector};
+  (void)s.scan->points.push_back(twin);
+  LocalizerHealth h = s.cycle();
+  CHECK(h.rejectedGate == 1U);
+  CHECK(h.rejectedDuplicate == 1U);
+  CHECK(h.used == s.world.size());
+  CHECK(hasFlag(h.flags, LocalizerFlag::GateRejected));
+  CHECK(hasFlag(h.flags, LocalizerFlag::DuplicateRejected));
+  // Landmarks expected but none seen: bad cycles, lost after lostAfterBadCycles (latched).
+  for (int c = 1; c <= 5; ++c) {
+    s.stand(10);
+    s.scan->stamp = s.t;
+    s.scan->points.clear();
+    h = s.cycle();
+    // flagged bad up to the cycle that turns lost; a lost localizer only reports Lost
+    CHECK(hasFlag(h.flags, LocalizerFlag::BadCycle) == (c <= s.params.lostAfterBadCycles));
+    CHECK(h.lost == (c >= s.params.lostAfterBadCycles));
+  }
+  CHECK(h.status == Status::Lost);
+  CHECK(hasFlag(h.flags, LocalizerFlag::Lost));
+  s.stand(1);
+  s.observe(s.world);
+  CHECK(s.cycle().lost);  // latched
+  Eigen::Matrix3d P0 = Eigen::Matrix3d::Identity() * 1e-4;
+  REQUIRE(s.loc->reset(s.t, s.truth, P0) == Status::Ok);
+  CHECK_FALSE(s.loc->lost());
+}
+
+TEST_CASE("localizer: dynamic map without a prior map: insert, confirm, forget", "[localization][localizer][map]") {
+  Scene s(MapMode::Dynamic, false);
+  const std::int16_t maxHits = s.map->params().maxHits;
+  std::vector<Eigen::Vector2d> seen = s.world;
+  // first scan inserts every observation
+  s.stand(10);
+  s.observe(seen, LandmarkKind::Corner);
+  LocalizerHealth h = s.cycle();
+  CHECK(h.unmatched == seen.size());
+  CHECK(h.inserted == seen.size());
+  CHECK(s.map->size() == seen.size());
+  // later scans match them: hits grow to the cap
+  for (int c = 0; c < maxHits + 3; ++c) {
+    s.stand(10);
+    s.observe(seen, LandmarkKind::Corner);
+    h = s.cycle();
+    CHECK(h.used == seen.size());
+    CHECK(h.inserted == 0U);
+  }
+  s.map->forEach([&](LandmarkIndex, const Landmark& l) { CHECK(l.hits == maxHits); });
+  // a transient point (a person) seen once: inserted, then deleted the next cycle it is missed
+  std::vector<Eigen::Vector2d> withPerson = seen;
+  withPerson.emplace_back(s.truth.x + 3.0 * std::cos(s.truth.theta), s.truth.y + 3.0 * std::sin(s.truth.theta) + 0.5);
+  s.stand(10);
+  s.observe(withPerson, LandmarkKind::Corner);
+  h = s.cycle();
+  CHECK(h.inserted == 1U);
+  CHECK(s.map->size() == seen.size() + 1U);
+  s.stand(10);
+  s.observe(seen, LandmarkKind::Corner);
+  h = s.cycle();
+  CHECK(h.deleted == 1U);
+  CHECK(s.map->size() == seen.size());
+  // a landmark that disappears for good (a pallet moved) dies after maxHits cycles in view
+  const Eigen::Vector2d gone = seen.back();
+  seen.pop_back();
+  int cycles = 0;
+  for (; cycles < 100 && s.map->size() > seen.size(); ++cycles) {
+    s.stand(10);
+    s.observe(seen, LandmarkKind::Corner);
+    (void)s.cycle();
+  }
+  CHECK(cycles == maxHits);
+  (void)gone;
+  // Reflector detections do not decrement corners when the corner detector did not run.
+  s.stand(10);
+  s.observe({}, LandmarkKind::Corner);
+  s.scan->kindsDetected = landmarkKindBit(LandmarkKind::Reflector);
+  const std::size_t sizeBefore = s.map->size();
+  for (int c = 0; c < 2 * maxHits; ++c) {
+    s.stand(10);
+    s.scan->stamp = s.t;
+    (void)s.cycle();
+  }
+  CHECK(s.map->size() == sizeBefore);
+}
+
+TEST_CASE("localizer: a full map refuses new landmarks and the health says so", "[localization][localizer][map]") {
+  Scene s(MapMode::Dynamic, true);
+  // fill the rest of the map far away, out of view
+  for (std::size_t i = s.map->size(); i < kMaxLandmarks; ++i) {
+    REQUIRE(s.map
+                ->insert(LandmarkKind::Corner, 500.0 + static_cast<double>(i % 64U),
+                         500.0 + static_cast<double>(i / 64U), 1e-4)
+                .ok());
+  }
+  s.stand(10);
+  std::vector<Eigen::Vector2d> pts = s.world;
+  pts.emplace_back(s.truth.x + 4.0 * std::cos(s.truth.theta), s.truth.y + 4.0 * std::sin(s.truth.theta));
+  s.observe(pts);
+  const std::uint32_t refusedBefore = s.map->counters().refusedFull;
+  const LocalizerHealth h = s.cycle();
+  CHECK(h.used == s.world.size());
+  CHECK(h.insertRefused == 1U);
+  CHECK(hasFlag(h.flags, LocalizerFlag::MapInsertRefused));
+  CHECK(s.map->counters().refusedFull == refusedBefore + 1U);
+}
+
+TEST_CASE("localizer: the steady-state cycle allocates nothing", "[localization][localizer][alloc]") {
+  Scene s(MapMode::Dynamic, true);
+  s.stand(10);
+  s.observe(s.world);
+  (void)s.cycle();
+  OdometryIncrement inc;
+  inc.covariance = Eigen::Matrix3d::Identity() * 1e-9;
+  for (int c = 0; c < 5; ++c) {
+    s.observe(s.world);
+    s.scan->stamp = s.t + Duration::fromMilliseconds(70);  // 30 ms before the newest odometry below
+    AGV_CHECK_NO_ALLOCATIONS(for (int i = 0; i < 10; ++i) {
+      s.t = s.t + Duration::fromMilliseconds(10);
+      inc.stamp = s.t;
+      (void)s.loc->predict(inc);
+    }(void)s.loc->correct(*s.scan, *s.map));
+    CHECK(s.loc->health().used == s.world.size());
+  }
+}
+
+TEST_CASE("localizer: an observation between two landmarks inside the gate is ambiguous, not used",
+          "[localization][localizer]") {
+  Scene s;
+  // two more reflectors 4 cm apart; the pose is known to ~1 cm, so both fall inside the gate
+  const Eigen::Vector2d a = s.truth.compose(Pose2d{5.0, 0.5, 0.0}).translation();
+  const Eigen::Vector2d b = a + Eigen::Vector2d(0.0, 0.04);
+  REQUIRE(s.map->addSurveyed(LandmarkKind::Reflector, a.x(), a.y(), 0.0, 100U).ok());
+  REQUIRE(s.map->addSurveyed(LandmarkKind::Reflector, b.x(), b.y(), 0.0, 101U).ok());
+  s.stand(1);
+  std::vector<Eigen::Vector2d> pts = s.world;
+  pts.push_back(0.5 * (a + b));  // midway: neither can be told from the other
+  s.observe(pts);
+  LocalizerHealth h = s.cycle();
+  CHECK(h.rejectedAmbiguous == 1U);
+  CHECK(hasFlag(h.flags, LocalizerFlag::AmbiguityRejected));
+  CHECK(h.used == s.world.size());
+  // with the pose now known to ~1 mm, an observation of `a` itself is no longer ambiguous
+  s.stand(1);
+  pts.back() = a;
+  s.observe(pts);
+  h = s.cycle();
+  CHECK(h.rejectedAmbiguous == 0U);
+  CHECK(h.used == s.world.size() + 1U);
+}
