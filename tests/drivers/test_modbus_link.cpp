@@ -33,7 +33,7 @@ void sleepMs(int ms) {
 PlcStatus sampleStatus(std::uint16_t heartbeat) {
   PlcStatus s;
   s.heartbeat = heartbeat;
-  s.state = LocalizationState::Localized;
+  s.mode = agv::hal::NavMode::Localizing;
   s.health = static_cast<std::uint16_t>(PlcHealthBit::LaserOk) | static_cast<std::uint16_t>(PlcHealthBit::EncodersOk);
   s.pose = agv::Pose2d(10.25, -4.5, 0.75);
   s.covariance = {1e-4, 0, 0, 2e-4, 0, 3e-5};
@@ -193,7 +193,7 @@ TEST_CASE("Vehicle as Modbus server: a libmodbus PLC reads the map, writes comma
   AGV_CHECK_NEAR(seen.x, 10.25, 1e-6);
   AGV_CHECK_NEAR(seen.y, -4.5, 1e-6);
   AGV_CHECK_NEAR(seen.theta, 0.75, 1e-6);
-  CHECK(seen.regs[1] == static_cast<std::uint16_t>(LocalizationState::Localized));
+  CHECK(seen.regs[1] == static_cast<std::uint16_t>(agv::hal::NavMode::Localizing));
   CHECK(seen.setPose == 9);
   CHECK(seen.errStatusWrite == EMBXILADD);
   CHECK(seen.errBadCode == EMBXILVAL);
@@ -205,7 +205,7 @@ TEST_CASE("Vehicle as Modbus server: a libmodbus PLC reads the map, writes comma
   CHECK(seen.hb2 != seen.hb1);  // the vehicle's heartbeat moves between polls
   PlcCommand c;
   REQUIRE(link.takeCommand(c));
-  CHECK(c.code == PlcCommandCode::SetPose);
+  CHECK(c.code == PlcCommandCode::Localize);
   AGV_CHECK_NEAR(c.pose.x, 3.5, 1e-9);
   AGV_CHECK_NEAR(c.pose.y, -1.25, 1e-9);
   AGV_CHECK_NEAR(c.pose.theta, -0.5, 1e-9);
@@ -251,7 +251,7 @@ TEST_CASE("Vehicle as Modbus client: writes status, reads commands, survives the
   plc->setReg(108, 1);
   REQUIRE(cycle() == Status::Ok);
   REQUIRE(link.takeCommand(c));
-  CHECK(c.code == PlcCommandCode::ResumeLocalization);
+  CHECK(c.code == PlcCommandCode::Stop);
   CHECK(c.sequence == 6);
 
   // An out-of-bounds block in the PLC is refused and flagged.
@@ -381,4 +381,64 @@ TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connecti
   plcs.join();
   CHECK(reads.load() == 10);
   CHECK(link.counters().connectFailures >= 1U);  // the surplus connection was refused
+}
+
+TEST_CASE("The link as hal::PlcLink: PoseReport published, PLC command read as hal::PlcCommand", "[drivers][modbus]") {
+  ModbusPlcLinkConfig cfg;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = 0;
+  cfg.publishBudget = Duration::fromMilliseconds(5);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  agv::hal::PlcLink& hal = link;
+
+  agv::hal::PoseReport report;
+  report.pose = agv::Pose2d(5.5, -2.25, 1.0);
+  report.covariance << 4e-4, 1e-5, 2e-6, 1e-5, 9e-4, 3e-6, 2e-6, 3e-6, 1e-5;
+  report.health.mode = agv::hal::NavMode::Lost;
+  report.health.matchedLandmarks = 6;
+  report.health.visibleReflectors = 8;
+  struct Seen {
+    int connect = -1;
+    std::uint16_t regs[26] = {};
+    int wrote = -1;
+  } seen;
+  std::atomic<bool> done{false};
+  std::thread plcThread([&] {
+    modbus_t* plc = modbus_new_tcp("127.0.0.1", link.boundPort());
+    modbus_set_response_timeout(plc, 2, 0);
+    seen.connect = modbus_connect(plc);
+    if (seen.connect == 0) {
+      sleepMs(30);
+      modbus_read_registers(plc, 0, 26, seen.regs);
+      std::uint16_t cmd[9] = {2, 1, 0, 0, 0, 0, 0, 0, 1};  // Calibrate, sequence 1
+      seen.wrote = modbus_write_registers(plc, 100, 9, cmd);
+      modbus_close(plc);
+    }
+    modbus_free(plc);
+    done = true;
+  });
+  agv::hal::PlcCommand cmd;
+  Status got = Status::NotFound;
+  for (int i = 0; i < 1000 && got != Status::Ok; ++i) {
+    REQUIRE(hal.publish(report) == Status::Ok);
+    got = hal.readCommand(cmd);
+    if (done && got != Status::Ok) {
+      got = hal.readCommand(cmd);
+      break;
+    }
+  }
+  plcThread.join();
+  REQUIRE(seen.connect == 0);
+  CHECK(seen.wrote == 9);
+  CHECK(seen.regs[1] == static_cast<std::uint16_t>(agv::hal::NavMode::Lost));
+  AGV_CHECK_NEAR(modbus_get_float_abcd(&seen.regs[4]), 5.5, 1e-6);
+  AGV_CHECK_NEAR(modbus_get_float_abcd(&seen.regs[10]), 4e-4, 1e-10);  // xx
+  AGV_CHECK_NEAR(modbus_get_float_abcd(&seen.regs[16]), 9e-4, 1e-10);  // yy
+  AGV_CHECK_NEAR(modbus_get_float_abcd(&seen.regs[20]), 1e-5, 1e-11);  // theta-theta
+  CHECK(seen.regs[24] == 6);
+  CHECK(seen.regs[25] == 8);
+  REQUIRE(got == Status::Ok);
+  CHECK(cmd.kind == agv::hal::PlcCommandKind::Calibrate);
+  CHECK(hal.readCommand(cmd) == Status::NotFound);
 }

@@ -96,14 +96,14 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     PlcRegisterMap map(cfg);
     PlcStatus s;
     s.heartbeat = 4242;
-    s.state = LocalizationState::Degraded;
+    s.mode = agv::hal::NavMode::Calibrating;
     s.health = static_cast<std::uint16_t>(PlcHealthBit::LaserOk) | static_cast<std::uint16_t>(PlcHealthBit::MapLoaded);
     s.lastStatus = Status::Rejected;
     s.pose = agv::Pose2d(123.456, -78.9, -2.5);
     s.covariance = {1e-4, -2e-5, 3e-6, 4e-4, 5e-6, 6e-5};
     s.stamp = agv::Timestamp::fromNanoseconds((std::int64_t{1} << 32) * 1000000 + 123456789);  // wraps
     s.matchedLandmarks = 7;
-    s.observations = 9;
+    s.visibleReflectors = 9;
     s.calibration.driveScale = 2.5e-4;
     s.calibration.steerOffsetForward = 0.0123;
     s.calibration.steerOffsetBackward = -0.0045;
@@ -112,7 +112,7 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     std::vector<std::uint16_t> table(PlcRegisterMap::kRegisterCount, 0xAAAA);
     REQUIRE(map.encodeStatus(s, Span<std::uint16_t>(table.data(), table.size())) == Status::Ok);
     CHECK(table[0] == 4242);
-    CHECK(table[1] == 3);
+    CHECK(table[1] == 2);
     CHECK(table[2] == 5);
     CHECK(table[3] == static_cast<std::uint16_t>(Status::Rejected));
     auto f = [&](int a) { return static_cast<double>(libmodbusGet(&table[static_cast<std::size_t>(a)], o)); };
@@ -156,7 +156,7 @@ TEST_CASE("Command writes: whitelist, whole 32-bit fields, bounds", "[drivers][m
   packFloat(1.5F, WordOrder::CDAB, th);
 
   CHECK(write(100, {1, 7, x[0], x[1], y[0], y[1], th[0], th[1], 99}) == Status::Ok);
-  CHECK(write(100, {5}) == Status::Ok);
+  CHECK(write(100, {3}) == Status::Ok);
   CHECK(write(108, {65535}) == Status::Ok);
   // Read-only and non-existent registers.
   for (std::uint16_t a : {0, 1, 4, 39, 40, 99, 109, 200}) {
@@ -168,7 +168,7 @@ TEST_CASE("Command writes: whitelist, whole 32-bit fields, bounds", "[drivers][m
   CHECK(write(102, {x[0]}) == Status::Malformed);
   CHECK(write(103, {x[1], y[0], y[1]}) == Status::Malformed);
   // Values out of bounds.
-  CHECK(write(100, {6}) == Status::InvalidArgument);
+  CHECK(write(100, {4}) == Status::InvalidArgument);
   std::uint16_t bad[2];
   packFloat(501.0F, WordOrder::CDAB, bad);
   CHECK(write(102, {bad[0], bad[1]}) == Status::InvalidArgument);
@@ -181,7 +181,7 @@ TEST_CASE("Command writes: whitelist, whole 32-bit fields, bounds", "[drivers][m
   const std::uint16_t block[9] = {1, 7, x[0], x[1], y[0], y[1], th[0], th[1], 99};
   const auto c = map.decodeCommandBlock(block);
   REQUIRE(c.ok());
-  CHECK(c.value().code == PlcCommandCode::SetPose);
+  CHECK(c.value().code == PlcCommandCode::Localize);
   CHECK(c.value().sequence == 7);
   AGV_CHECK_NEAR(c.value().pose.x, 12.5, 1e-9);
   AGV_CHECK_NEAR(c.value().pose.y, -3.25, 1e-9);

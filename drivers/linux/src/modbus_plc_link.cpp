@@ -1,5 +1,7 @@
 #include "agv/drivers/linux/modbus_plc_link.hpp"
 
+#include "agv/drivers/linux/tcp_stream.hpp"
+
 #include <modbus.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -125,10 +127,40 @@ void ModbusPlcLink::acceptCommand(const plc::PlcCommand& c, Timestamp now) noexc
   if (c.sequence != lastSequence_) {
     lastSequence_ = c.sequence;
     command_ = c;
+    commandStamp_ = now;
     newCommand_ = true;
     haveCommand_ = true;
     ++counters_.commands;
   }
+}
+
+Status ModbusPlcLink::publish(const hal::PoseReport& report) noexcept {
+  plc::PlcStatus s;
+  s.heartbeat = publishCount_++;
+  s.mode = report.health.mode;
+  s.health = healthBits_;
+  s.lastStatus = report.health.lastStatus;
+  s.pose = report.pose;
+  const Eigen::Matrix3d& c = report.covariance;
+  s.covariance = {c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)};
+  s.stamp = report.stamp;
+  s.matchedLandmarks = report.health.matchedLandmarks;
+  s.visibleReflectors = report.health.visibleReflectors;
+  s.calibration = calibration_;
+  const Status st = cycle(s, monotonicNow(), config_.publishBudget);
+  return st == Status::Lost ? Status::Timeout : st;
+}
+
+Status ModbusPlcLink::readCommand(hal::PlcCommand& out) noexcept {
+  plc::PlcCommand c;
+  // A sequence change with code None carries no request.
+  if (!takeCommand(c) || c.code == plc::PlcCommandCode::None) {
+    return Status::NotFound;
+  }
+  out.stamp = commandStamp_;
+  out.kind = static_cast<hal::PlcCommandKind>(static_cast<std::uint8_t>(c.code));  // same values
+  out.initialPose = c.pose;
+  return Status::Ok;
 }
 
 bool ModbusPlcLink::takeCommand(plc::PlcCommand& command) noexcept {

@@ -15,7 +15,7 @@ constexpr std::uint16_t kCmdX = 2;
 constexpr std::uint16_t kCmdY = 4;
 constexpr std::uint16_t kCmdTheta = 6;
 constexpr std::uint16_t kCmdPlcHeartbeat = 8;
-constexpr std::uint16_t kMaxCommandCode = static_cast<std::uint16_t>(PlcCommandCode::AbortCalibration);
+constexpr std::uint16_t kMaxCommandCode = static_cast<std::uint16_t>(PlcCommandCode::Stop);
 
 /// Publishes a double as float; out-of-float-range values become +-inf, NaN stays NaN.
 float toFloat(double v) noexcept {
@@ -30,7 +30,7 @@ Status PlcRegisterMap::encodeStatus(const PlcStatus& s, Span<std::uint16_t> tabl
   std::uint16_t* r = table.data() + kStatusBase;
   const WordOrder o = config_.wordOrder;
   r[0] = s.heartbeat;
-  r[1] = static_cast<std::uint16_t>(s.state);
+  r[1] = static_cast<std::uint16_t>(s.mode);
   r[2] = s.health;
   r[3] = static_cast<std::uint16_t>(s.lastStatus);
   packFloat(toFloat(s.pose.x), o, r + 4);
@@ -43,7 +43,7 @@ Status PlcRegisterMap::encodeStatus(const PlcStatus& s, Span<std::uint16_t> tabl
   const auto ms = static_cast<std::uint64_t>(s.stamp.ns / 1000000);
   packU32(static_cast<std::uint32_t>(ms & 0xFFFFFFFFULL), o, r + 22);
   r[24] = s.matchedLandmarks;
-  r[25] = s.observations;
+  r[25] = s.visibleReflectors;
   packFloat(toFloat(s.calibration.driveScale), o, r + 26);
   packFloat(toFloat(s.calibration.steerOffsetForward), o, r + 28);
   packFloat(toFloat(s.calibration.steerOffsetBackward), o, r + 30);

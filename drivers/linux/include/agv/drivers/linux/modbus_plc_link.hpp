@@ -16,6 +16,7 @@
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
 #include "agv/drivers/plc/plc_register_map.hpp"
+#include "agv/hal/plc_link.hpp"
 
 struct _modbus;  // libmodbus context (modbus_t)
 
@@ -40,6 +41,9 @@ struct ModbusPlcLinkConfig {
   Duration plcHeartbeatTimeout =
       Duration::fromMilliseconds(1000);  ///< PLC heartbeat register unchanged this long = lost
   int maxConnections = 4;                ///< server: simultaneous PLC connections (more are refused)
+  /// hal::PlcLink::publish(): how long one publication may serve requests (server role). 0 =
+  /// answer what is pending and return at once (the HAL's "never blocks").
+  Duration publishBudget = Duration{};
 };
 
 struct PlcLinkCounters {
@@ -52,7 +56,8 @@ struct PlcLinkCounters {
   std::uint32_t requestErrors = 0;    ///< failed exchanges (timeouts, broken connections)
 };
 
-class ModbusPlcLink {
+/// Also the HAL's `hal::PlcLink` (publish a `hal::PoseReport`, read `hal::PlcCommand`s).
+class ModbusPlcLink final : public hal::PlcLink {
  public:
   explicit ModbusPlcLink(const ModbusPlcLinkConfig& config) noexcept;
   ~ModbusPlcLink();
@@ -70,6 +75,18 @@ class ModbusPlcLink {
   /// (server) or writes the status and reads the commands (client). Ok; Lost (client: PLC not
   /// reachable, retried later); NotInitialized (open() not called or failed).
   Status cycle(const plc::PlcStatus& status, Timestamp now, Duration budget) noexcept;
+
+  /// hal::PlcLink: publishes `report` (heartbeat counted here, health bits and calibration from
+  /// setHealthBits()/setCalibration()) with one cycle of `publishBudget` on the monotonic clock.
+  /// Ok; Timeout when the PLC cannot be reached (client role; retried later); NotInitialized.
+  Status publish(const hal::PoseReport& report) noexcept override;
+  /// hal::PlcLink: the newest new command (Localize with its initial pose, Calibrate, Stop);
+  /// NotFound when there is none.
+  Status readCommand(hal::PlcCommand& out) noexcept override;
+  /// Health bits (PlcHealthBit) published with the next reports.
+  void setHealthBits(std::uint16_t bits) noexcept { healthBits_ = bits; }
+  /// Calibration values published with the next reports.
+  void setCalibration(const plc::PlcCalibration& calibration) noexcept { calibration_ = calibration; }
 
   /// A new command (its sequence register changed) since the last call: copies it and returns true.
   bool takeCommand(plc::PlcCommand& command) noexcept;
@@ -107,6 +124,10 @@ class ModbusPlcLink {
   bool heartbeatSeen_ = false;
   bool plcAlive_ = false;
   bool lastRejected_ = false;
+  Timestamp commandStamp_{};
+  std::uint16_t publishCount_ = 0;
+  std::uint16_t healthBits_ = 0;
+  plc::PlcCalibration calibration_{};
   PlcLinkCounters counters_{};
 };
 

@@ -9,8 +9,8 @@
 /// registers in the configured `WordOrder`; "f32" = IEEE-754 float, SI units.
 ///
 ///   Status block (read-only)                 Command block (PLC-writable)
-///   0      heartbeat counter u16 (+1/cycle)   100   command code u16 (PlcCommandCode, <= 5)
-///   1      localization state u16             101   command sequence u16 (any; a change = new command)
+///   0      heartbeat counter u16 (+1/cycle)   100   command code u16 (PlcCommandCode, <= 3)
+///   1      navigation mode u16 (hal::NavMode) 101   command sequence u16 (any; a change = new command)
 ///   2      health bits u16 (PlcHealthBit)      102-3 set-pose x f32 [m], |x| <= maxAbsPosition
 ///   3      last status code u16 (agv::Status)  104-5 set-pose y f32 [m], |y| <= maxAbsPosition
 ///   4-5    pose x f32 [m]                      106-7 set-pose theta f32 [rad], [-pi, pi]
@@ -19,7 +19,7 @@
 ///   10-21  covariance f32: xx, xy, xtheta, yy, ytheta, thetatheta [m^2, m^2, m rad, m^2, m rad, rad^2]
 ///   22-23  pose time u32 [ms, vehicle clock modulo 2^32]
 ///   24     matched landmarks u16
-///   25     observations in the last correction u16
+///   25     reflectors visible in the last scan u16
 ///   26-27  drive scale s_w f32 [m/tick]
 ///   28-29  steering offset forward f32 [rad]
 ///   30-31  steering offset backward f32 [rad]
@@ -40,17 +40,9 @@
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
 #include "agv/drivers/plc/word_order.hpp"
+#include "agv/hal/plc_messages.hpp"
 
 namespace agv::drivers::plc {
-
-/// Localization state published in register 1.
-enum class LocalizationState : std::uint16_t {
-  Uninitialized = 0,  ///< no pose yet (waiting for a set-pose or a relocalization)
-  Initializing = 1,   ///< converging after a set-pose / relocalization
-  Localized = 2,      ///< tracking with enough landmarks
-  Degraded = 3,       ///< tracking on odometry, few or no landmark matches
-  Lost = 4,           ///< pose not trusted: the vehicle must stop
-};
 
 /// Bits of the health word (register 2); a set bit means the condition holds.
 enum class PlcHealthBit : std::uint16_t {
@@ -77,7 +69,7 @@ struct PlcCalibration {
 /// Everything the vehicle publishes each cycle.
 struct PlcStatus {
   std::uint16_t heartbeat = 0;
-  LocalizationState state = LocalizationState::Uninitialized;
+  hal::NavMode mode = hal::NavMode::Idle;
   std::uint16_t health = 0;  ///< OR of PlcHealthBit
   Status lastStatus = Status::Ok;
   Pose2d pose;
@@ -85,25 +77,23 @@ struct PlcStatus {
   std::array<double, 6> covariance{};
   Timestamp stamp;
   std::uint16_t matchedLandmarks = 0;
-  std::uint16_t observations = 0;
+  std::uint16_t visibleReflectors = 0;
   PlcCalibration calibration;
 };
 
-/// PLC command codes (register 100).
+/// PLC command codes (register 100), the same values as hal::PlcCommandKind.
 enum class PlcCommandCode : std::uint16_t {
   None = 0,
-  SetPose = 1,  ///< (re)initialize the localization at registers 102..107
-  PauseLocalization = 2,
-  ResumeLocalization = 3,
-  StartCalibration = 4,
-  AbortCalibration = 5,
+  Localize = 1,   ///< (re)start localizing from the set-pose in registers 102..107
+  Calibrate = 2,  ///< run the on-vehicle calibration routine
+  Stop = 3,       ///< stop localizing / abort the routine
 };
 
 /// The decoded command block.
 struct PlcCommand {
   PlcCommandCode code = PlcCommandCode::None;
   std::uint16_t sequence = 0;
-  Pose2d pose;  ///< for SetPose [m, m, rad]
+  Pose2d pose;  ///< for Localize [m, m, rad]
   std::uint16_t plcHeartbeat = 0;
 };
 
