@@ -1,0 +1,388 @@
+#include "eval.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <sstream>
+
+namespace agv {
+namespace features {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct ScanData {
+  std::unique_ptr<LaserScan> scan;
+  Pose2d pose;  // ground-truth laser pose
+  std::vector<FalkoKeypoint> keypoints;
+  std::vector<BscDescriptor> bsc;
+  std::vector<CghDescriptor> cgh;
+};
+
+struct Engine {
+  explicit Engine(const EvalOptions& o) : detector(o.falko), describer(o.descriptors) {}
+  FalkoDetector detector;
+  FalkoDescriber describer;
+  FalkoKeypoints kps;
+  BscDescriptors bsc;
+  CghDescriptors cgh;
+
+  void detect(const LaserScan& scan, std::vector<FalkoKeypoint>& out) {
+    (void)detector.detect(scan, kps);
+    out.assign(kps.begin(), kps.end());
+  }
+  void detectDescribe(ScanData& d) {
+    (void)detector.detect(*d.scan, kps);
+    (void)describer.describe(detector.points(), kps, bsc, cgh);
+    d.keypoints.assign(kps.begin(), kps.end());
+    d.bsc.assign(bsc.begin(), bsc.end());
+    d.cgh.assign(cgh.begin(), cgh.end());
+  }
+};
+
+/// True when scan `s` sees the point q (its own frame): q lies in its field of view and the reading
+/// of the beam towards q is valid and within `tol` of |q| (not occluded, not beyond the range).
+bool sees(const LaserScan& s, double qx, double qy, double tol) {
+  const double n = static_cast<double>(s.size());
+  if (s.size() == 0) {
+    return false;
+  }
+  double rel = std::atan2(qy, qx) - static_cast<double>(s.angleMin);
+  const double inc = static_cast<double>(s.angleIncrement);
+  const double fov = n * inc;
+  rel = std::fmod(rel, 2.0 * kPi);
+  if (rel < 0.0) {
+    rel += 2.0 * kPi;
+  }
+  const double idx = std::floor(rel / inc + 0.5);
+  std::size_t i = 0;
+  if (idx < n) {
+    i = static_cast<std::size_t>(idx);
+  } else if (fov >= 2.0 * kPi - inc && idx < n + 1.0) {
+    i = 0;  // wraps onto the first beam
+  } else {
+    return false;
+  }
+  if (!s.isValid(i)) {
+    return false;
+  }
+  return std::fabs(static_cast<double>(s.ranges[i]) - std::hypot(qx, qy)) <= tol;
+}
+
+struct Counts {
+  std::size_t visible = 0;
+  std::size_t matched = 0;
+};
+
+/// Keypoints of A seen by scan B (poses in a common frame) and how many have a keypoint of B within
+/// `match` metres.
+void repeat(const std::vector<FalkoKeypoint>& a, const Pose2d& pa, const std::vector<FalkoKeypoint>& b,
+            const Pose2d& pb, const LaserScan& scanB, const EvalOptions& o, Counts& c) {
+  const Pose2d ab = between(pb, pa);  // A's frame in B
+  for (const FalkoKeypoint& k : a) {
+    const Pose2d::Vector2 q = ab.transformPoint(Pose2d::Vector2(k.x, k.y));
+    if (!sees(scanB, q.x(), q.y(), o.visibilityTolerance)) {
+      continue;
+    }
+    ++c.visible;
+    for (const FalkoKeypoint& m : b) {
+      if (std::hypot(static_cast<double>(m.x) - q.x(), static_cast<double>(m.y) - q.y()) <= o.matchDistance) {
+        ++c.matched;
+        break;
+      }
+    }
+  }
+}
+
+std::string label(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", v);
+  return buf;
+}
+
+struct MatchRecord {
+  double distance = 0.0;
+  bool correct = false;
+};
+
+std::vector<PrPoint> precisionRecall(std::vector<MatchRecord> rec, std::size_t withTruth,
+                                     const std::vector<double>& thresholds) {
+  std::vector<PrPoint> out;
+  for (const double t : thresholds) {
+    std::size_t accepted = 0;
+    std::size_t correct = 0;
+    for (const MatchRecord& r : rec) {
+      if (r.distance <= t) {
+        ++accepted;
+        correct += r.correct ? 1U : 0U;
+      }
+    }
+    PrPoint p;
+    p.threshold = t;
+    p.precision = accepted > 0 ? static_cast<double>(correct) / static_cast<double>(accepted) : 1.0;
+    p.recall = withTruth > 0 ? static_cast<double>(correct) / static_cast<double>(withTruth) : 0.0;
+    out.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace
+
+void addRangeNoise(LaserScan& scan, double sigma, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g(0.0, sigma);
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (scan.isValid(i)) {
+      scan.ranges[i] = static_cast<float>(static_cast<double>(scan.ranges[i]) + g(rng));
+    }
+  }
+}
+
+void resampleScan(const LaserScan& in, int factor, LaserScan& out) {
+  out.stamp = in.stamp;
+  out.sweepDuration = in.sweepDuration;
+  out.angleMin = in.angleMin;
+  out.rangeMin = in.rangeMin;
+  out.rangeMax = in.rangeMax;
+  out.ranges.clear();
+  if (factor < 0) {
+    const auto k = static_cast<std::size_t>(-factor);
+    out.angleIncrement = in.angleIncrement * static_cast<float>(k);
+    for (std::size_t i = 0; i < in.size(); i += k) {
+      (void)out.ranges.push_back(in.ranges[i]);
+    }
+    return;
+  }
+  const auto k = static_cast<std::size_t>(factor < 1 ? 1 : factor);
+  out.angleIncrement = in.angleIncrement / static_cast<float>(k);
+  const float invalid = std::numeric_limits<float>::infinity();
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    (void)out.ranges.push_back(in.ranges[i]);
+    if (i + 1 == in.size()) {
+      break;
+    }
+    for (std::size_t s = 1; s < k; ++s) {
+      const float f = static_cast<float>(s) / static_cast<float>(k);
+      const bool ok = in.isValid(i) && in.isValid(i + 1) && std::fabs(in.ranges[i] - in.ranges[i + 1]) <= 0.1F;
+      (void)out.ranges.push_back(ok ? in.ranges[i] + f * (in.ranges[i + 1] - in.ranges[i]) : invalid);
+    }
+  }
+}
+
+bool evaluateLog(const std::string& name, const std::string& path, const EvalOptions& o, DatasetResult& result,
+                 std::string& error) {
+  datasets::CarmenLog log;
+  if (!datasets::readCarmenLog(path, log, error)) {
+    return false;
+  }
+  auto engine = std::make_unique<Engine>(o);
+  std::vector<ScanData> data;
+  for (const auto& s : log.scans) {
+    if (!s.hasGroundTruth) {
+      continue;
+    }
+    if (o.maxScans > 0 && data.size() >= o.maxScans) {
+      break;
+    }
+    ScanData d;
+    d.scan = std::make_unique<LaserScan>();
+    (void)s.toLaserScan(*d.scan);
+    d.pose = s.groundTruth;
+    data.push_back(std::move(d));
+  }
+  if (data.empty()) {
+    error = path + ": no scan with ground truth";
+    return false;
+  }
+  result = DatasetResult{};
+  result.name = name;
+  result.scans = data.size();
+  std::size_t total = 0;
+  for (ScanData& d : data) {
+    engine->detectDescribe(d);
+    total += d.keypoints.size();
+  }
+  result.keypointsPerScan = static_cast<double>(total) / static_cast<double>(data.size());
+
+  // 1. Viewpoint: pairs within pairMaxDistance, at most one partner per distance bin and scan.
+  std::vector<Counts> vp(o.viewpointLevels.size());
+  std::vector<MatchRecord> bscRec;
+  std::vector<MatchRecord> cghRec;
+  std::size_t withTruth = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    std::vector<bool> binUsed(o.viewpointLevels.size(), false);
+    std::size_t found = 0;
+    for (std::size_t j = i + 1; j < data.size() && j < i + 2000 && found < o.pairsPerScan; ++j) {
+      const double d = std::hypot(data[i].pose.x - data[j].pose.x, data[i].pose.y - data[j].pose.y);
+      if (d > o.pairMaxDistance) {
+        continue;
+      }
+      std::size_t bin = 0;
+      while (bin < o.viewpointLevels.size() && d > o.viewpointLevels[bin]) {
+        ++bin;
+      }
+      if (bin >= o.viewpointLevels.size() || binUsed[bin]) {
+        continue;
+      }
+      binUsed[bin] = true;
+      ++found;
+      ++result.pairs;
+      repeat(data[i].keypoints, data[i].pose, data[j].keypoints, data[j].pose, *data[j].scan, o, vp[bin]);
+      repeat(data[j].keypoints, data[j].pose, data[i].keypoints, data[i].pose, *data[i].scan, o, vp[bin]);
+      // Descriptors: nearest neighbour in j of each keypoint of i seen by j.
+      const Pose2d ij = between(data[j].pose, data[i].pose);
+      for (std::size_t a = 0; a < data[i].keypoints.size(); ++a) {
+        const FalkoKeypoint& k = data[i].keypoints[a];
+        const Pose2d::Vector2 q = ij.transformPoint(Pose2d::Vector2(k.x, k.y));
+        if (!sees(*data[j].scan, q.x(), q.y(), o.visibilityTolerance) || data[j].keypoints.empty()) {
+          continue;
+        }
+        std::size_t truth = data[j].keypoints.size();
+        double best = o.matchDistance;
+        for (std::size_t b = 0; b < data[j].keypoints.size(); ++b) {
+          const double e = std::hypot(static_cast<double>(data[j].keypoints[b].x) - q.x(),
+                                      static_cast<double>(data[j].keypoints[b].y) - q.y());
+          if (e <= best) {
+            best = e;
+            truth = b;
+          }
+        }
+        withTruth += truth < data[j].keypoints.size() ? 1U : 0U;
+        std::size_t nnB = 0;
+        std::size_t nnC = 0;
+        double dB = 1e300;
+        double dC = 1e300;
+        for (std::size_t b = 0; b < data[j].keypoints.size(); ++b) {
+          const double db = bscDistance(data[i].bsc[a], data[j].bsc[b]);
+          const double dc = static_cast<double>(cghDistance(data[i].cgh[a], data[j].cgh[b]));
+          if (db < dB) {
+            dB = db;
+            nnB = b;
+          }
+          if (dc < dC) {
+            dC = dc;
+            nnC = b;
+          }
+        }
+        bscRec.push_back(MatchRecord{dB, nnB == truth});
+        cghRec.push_back(MatchRecord{dC, nnC == truth});
+      }
+    }
+  }
+  for (std::size_t b = 0; b < vp.size(); ++b) {
+    const std::string l = label(o.viewpointLevels[b]);
+    result.samples["viewpoint"][l] = vp[b].visible;
+    result.repeatability["viewpoint"][l] =
+        vp[b].visible > 0 ? static_cast<double>(vp[b].matched) / static_cast<double>(vp[b].visible) : 0.0;
+  }
+  result.bsc = precisionRecall(bscRec, withTruth, {2, 4, 6, 8, 10, 12, 16, 20, 24, 32, 48, 64, 128});
+  result.cgh = precisionRecall(cghRec, withTruth, {0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0});
+
+  // 2. Range noise and 3. angular resampling: the same scan and pose, modified vs clean.
+  auto modified = std::make_unique<LaserScan>();
+  std::vector<FalkoKeypoint> kp;
+  const Pose2d identity;
+  for (std::size_t l = 0; l < o.noiseLevels.size(); ++l) {
+    Counts c;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      *modified = *data[i].scan;
+      addRangeNoise(*modified, o.noiseLevels[l], o.seed + static_cast<std::uint32_t>(i * 7919U + l));
+      engine->detect(*modified, kp);
+      repeat(data[i].keypoints, identity, kp, identity, *modified, o, c);
+      repeat(kp, identity, data[i].keypoints, identity, *data[i].scan, o, c);
+    }
+    const std::string lb = label(o.noiseLevels[l]);
+    result.samples["noise"][lb] = c.visible;
+    result.repeatability["noise"][lb] =
+        c.visible > 0 ? static_cast<double>(c.matched) / static_cast<double>(c.visible) : 0.0;
+  }
+  for (const int f : o.resampleLevels) {
+    Counts c;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      resampleScan(*data[i].scan, f, *modified);
+      engine->detect(*modified, kp);
+      repeat(data[i].keypoints, identity, kp, identity, *modified, o, c);
+      repeat(kp, identity, data[i].keypoints, identity, *data[i].scan, o, c);
+    }
+    const std::string lb = f < 0 ? "x1/" + std::to_string(-f) : "x" + std::to_string(f);
+    result.samples["sampling"][lb] = c.visible;
+    result.repeatability["sampling"][lb] =
+        c.visible > 0 ? static_cast<double>(c.matched) / static_cast<double>(c.visible) : 0.0;
+  }
+  return true;
+}
+
+std::string resultsToJson(const std::vector<DatasetResult>& results) {
+  std::ostringstream js;
+  js.precision(6);
+  js << "{\n  \"repeatability\": {";
+  for (std::size_t d = 0; d < results.size(); ++d) {
+    const DatasetResult& r = results[d];
+    js << (d ? "," : "") << "\n    \"" << r.name << "\": {";
+    std::size_t t = 0;
+    for (const auto& test : r.repeatability) {
+      js << (t++ ? "," : "") << "\n      \"" << test.first << "\": {";
+      std::size_t l = 0;
+      for (const auto& level : test.second) {
+        js << (l++ ? ", " : "") << "\"" << level.first << "\": " << level.second;
+      }
+      js << "}";
+    }
+    js << "\n    }";
+  }
+  js << "\n  },\n  \"keypoints_per_scan\": {";
+  for (std::size_t d = 0; d < results.size(); ++d) {
+    js << (d ? ", " : "") << "\"" << results[d].name << "\": " << results[d].keypointsPerScan;
+  }
+  js << "},\n  \"scans\": {";
+  for (std::size_t d = 0; d < results.size(); ++d) {
+    js << (d ? ", " : "") << "\"" << results[d].name << "\": " << results[d].scans;
+  }
+  js << "},\n  \"descriptors\": {";
+  for (std::size_t d = 0; d < results.size(); ++d) {
+    js << (d ? "," : "") << "\n    \"" << results[d].name << "\": {";
+    for (int k = 0; k < 2; ++k) {
+      const auto& pr = k == 0 ? results[d].bsc : results[d].cgh;
+      js << (k ? ", " : "") << "\"" << (k == 0 ? "bsc" : "cgh") << "\": [";
+      for (std::size_t i = 0; i < pr.size(); ++i) {
+        js << (i ? ", " : "") << "{\"threshold\": " << pr[i].threshold << ", \"precision\": " << pr[i].precision
+           << ", \"recall\": " << pr[i].recall << "}";
+      }
+      js << "]";
+    }
+    js << "}";
+  }
+  js << "\n  }\n}\n";
+  return js.str();
+}
+
+std::string resultsToTables(const std::vector<DatasetResult>& results) {
+  std::ostringstream out;
+  char buf[256];
+  for (const DatasetResult& r : results) {
+    std::snprintf(buf, sizeof(buf), "== %s: %zu scans, %.2f keypoints/scan, %zu viewpoint pairs\n", r.name.c_str(),
+                  r.scans, r.keypointsPerScan, r.pairs);
+    out << buf;
+    for (const auto& test : r.repeatability) {
+      out << "  repeatability / " << test.first << "\n";
+      for (const auto& level : test.second) {
+        const std::size_t n = r.samples.at(test.first).at(level.first);
+        std::snprintf(buf, sizeof(buf), "    %-8s %6.3f  (%zu keypoints)\n", level.first.c_str(), level.second, n);
+        out << buf;
+      }
+    }
+    for (int k = 0; k < 2; ++k) {
+      out << "  " << (k == 0 ? "BSC" : "CGH") << " nearest-neighbour matching: threshold precision recall\n";
+      for (const PrPoint& p : k == 0 ? r.bsc : r.cgh) {
+        std::snprintf(buf, sizeof(buf), "    %8.3f %6.3f %6.3f\n", p.threshold, p.precision, p.recall);
+        out << buf;
+      }
+    }
+  }
+  return out.str();
+}
+
+}  // namespace features
+}  // namespace agv

@@ -1,0 +1,137 @@
+// agvnav-features: FALKO keypoints on recorded 2D laser scans.
+//   detect: keypoints of one scan of a log, written as SVG (points, keypoints, orientations).
+//   eval:   repeatability (viewpoint, range noise, angular resampling) and BSC / CGH precision /
+//           recall on the shared logs; tables on stdout, SVG curves, JSON with --json.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "agv/datasets/carmen_log.hpp"
+#include "agv/falko/falko_detector.hpp"
+#include "eval.hpp"
+#include "svg.hpp"
+
+namespace {
+
+bool writeFile(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  f << text;
+  return static_cast<bool>(f);
+}
+
+struct Dataset {
+  const char* name;
+  const char* file;
+};
+const Dataset kDatasets[] = {
+    {"intel", "intel/intel-lab.log.gz"}, {"fr079", "fr079/fr079.log.gz"}, {"mit-csail", "mit-csail/mit-cscail.log.gz"}};
+
+int runDetect(const std::string& logPath, std::size_t index, const std::string& svgPath) {
+  agv::datasets::CarmenLog log;
+  std::string err;
+  if (!agv::datasets::readCarmenLog(logPath, log, err)) {
+    std::fprintf(stderr, "agvnav-features: %s\n", err.c_str());
+    return 1;
+  }
+  for (const auto& issue : log.issues) {
+    std::fprintf(stderr, "%s:%zu: %s (skipped)\n", logPath.c_str(), issue.line, issue.message.c_str());
+  }
+  if (index >= log.scans.size()) {
+    std::fprintf(stderr, "agvnav-features: scan %zu out of range (%zu scans)\n", index, log.scans.size());
+    return 1;
+  }
+  auto scan = std::make_unique<agv::LaserScan>();
+  if (!log.scans[index].toLaserScan(*scan)) {
+    std::fprintf(stderr, "agvnav-features: scan %zu has more beams than the capacity\n", index);
+  }
+  auto detector = std::make_unique<agv::FalkoDetector>();
+  auto kps = std::make_unique<agv::FalkoKeypoints>();
+  const agv::Status st = detector->detect(*scan, *kps);
+  std::printf("scan %zu (line %zu): %zu beams, %zu valid, %zu keypoints (%s)\n", index, log.scans[index].line,
+              scan->size(), detector->points().validCount(), kps->size(), agv::toString(st));
+  for (const auto& k : *kps) {
+    std::printf("  beam %4u  x %8.3f  y %8.3f  orientation %7.3f  radius %.3f  score %.3f%s\n", k.beamIndex,
+                static_cast<double>(k.x), static_cast<double>(k.y), static_cast<double>(k.orientation),
+                static_cast<double>(k.radius), static_cast<double>(k.score), k.refined ? "" : "  (not refined)");
+  }
+  const std::vector<agv::FalkoKeypoint> v(kps->begin(), kps->end());
+  if (!writeFile(svgPath, agv::features::scanSvg(*scan, v))) {
+    std::fprintf(stderr, "agvnav-features: cannot write %s\n", svgPath.c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"FALKO keypoints on recorded 2D laser scans"};
+  app.require_subcommand(1);
+
+  std::string logPath;
+  std::size_t index = 0;
+  std::string svgPath = "scan.svg";
+  CLI::App* detect = app.add_subcommand("detect", "keypoints of one scan of a log, as SVG");
+  detect->add_option("log", logPath, "CARMEN / FLIRTLib log (.log or .log.gz)")->required();
+  detect->add_option("-s,--scan", index, "index of the scan in the log (0-based)");
+  detect->add_option("-o,--svg", svgPath, "SVG output file");
+
+  std::string dataDir = AGVNAV_DEFAULT_DATA_DIR;
+  std::vector<std::string> names;
+  agv::features::EvalOptions options;
+  std::string jsonPath;
+  std::string svgDir;
+  CLI::App* eval = app.add_subcommand("eval", "repeatability and descriptor matching on the shared logs");
+  eval->add_option("--data", dataDir, "folder holding laser2d/");
+  eval->add_option("--datasets", names, "subset of intel, fr079, mit-csail (default: all)");
+  eval->add_option("--max-scans", options.maxScans, "scans per dataset (0: all)");
+  eval->add_option("--json", jsonPath, "write the results as JSON");
+  eval->add_option("--svg-dir", svgDir, "write repeatability curves (SVG) into this folder");
+  eval->add_option("--match-distance", options.matchDistance, "[m] repeated keypoint tolerance");
+
+  CLI11_PARSE(app, argc, argv);
+
+  if (*detect) {
+    return runDetect(logPath, index, svgPath);
+  }
+  std::vector<agv::features::DatasetResult> results;
+  for (const Dataset& d : kDatasets) {
+    bool wanted = names.empty();
+    for (const std::string& n : names) {
+      wanted = wanted || n == d.name;
+    }
+    if (!wanted) {
+      continue;
+    }
+    agv::features::DatasetResult r;
+    std::string err;
+    if (!agv::features::evaluateLog(d.name, dataDir + "/laser2d/" + d.file, options, r, err)) {
+      std::fprintf(stderr, "agvnav-features: %s\n", err.c_str());
+      return 1;
+    }
+    results.push_back(std::move(r));
+  }
+  if (results.empty()) {
+    std::fprintf(stderr, "agvnav-features: no dataset selected\n");
+    return 1;
+  }
+  std::fputs(agv::features::resultsToTables(results).c_str(), stdout);
+  if (!jsonPath.empty() && !writeFile(jsonPath, agv::features::resultsToJson(results))) {
+    std::fprintf(stderr, "agvnav-features: cannot write %s\n", jsonPath.c_str());
+    return 1;
+  }
+  if (!svgDir.empty()) {
+    for (const char* test : {"viewpoint", "noise", "sampling"}) {
+      const std::string p = svgDir + "/repeatability_" + test + ".svg";
+      if (!writeFile(p, agv::features::curveSvg(results, test))) {
+        std::fprintf(stderr, "agvnav-features: cannot write %s\n", p.c_str());
+        return 1;
+      }
+    }
+  }
+  return 0;
+}

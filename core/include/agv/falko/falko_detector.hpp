@@ -1,0 +1,98 @@
+#pragma once
+/// @file falko_detector.hpp
+/// FALKO (Fast Adaptive Laser Keypoint Orientation-invariant) corner detector.
+
+#include <array>
+#include <cstddef>
+
+#include "agv/core/capacities.hpp"
+#include "agv/core/fixed_vector.hpp"
+#include "agv/core/status.hpp"
+#include "agv/falko/falko_keypoint.hpp"
+#include "agv/falko/falko_params.hpp"
+#include "agv/falko/scan_points.hpp"
+#include "agv/scan/laser_scan.hpp"
+
+namespace agv {
+
+/// Keypoints of one scan.
+using FalkoKeypoints = FixedVector<FalkoKeypoint, kMaxKeypoints>;
+
+/// Detects corners in 2D laser scans.
+///
+/// For every valid beam (the candidate) the detector takes the valid points within the radius
+/// r = a * exp(b * range) in an angular window, splits them into the side before (C_L) and after
+/// (C_R) the candidate in beam order, rejects the candidate unless each side has `minSidePoints`
+/// and the triangle first-neighbour / candidate / last-neighbour has base and height >= r / beta,
+/// then scores it: the side points are binned into s_n polar sectors around the candidate, aligned
+/// to the corner orientation, and the score is the mean circular sector distance between points of
+/// the same side (0 for two straight sides). Candidates with score <= maxScore are refined:
+/// go through a greedy non-maxima suppression, best score first: a candidate within nmsRadius of
+/// an accepted corner is suppressed, otherwise it is refined: the points within refineRadiusFactor * r are split in two
+/// in beam order where two fitted lines leave the least residual, the lines are intersected (accepted within
+/// subbeamMaxShift of the beam point; a corner farther away drops the candidate, one line fitting
+/// almost as well drops it too), and the fit is repeated twice on the points near each line.
+/// A candidate whose refinement is rejected suppresses nothing; one that refines to within
+/// nmsRadius of an accepted corner is dropped. The orientation is
+/// the mean of the directions from the corner to the centroids of its two sides.
+///
+/// Work per scan is bounded by beams x (window size), with the window bounded by the scan length;
+/// the object holds all its buffers (about 150 kB with 2048 beams), so keep it static on an MCU.
+/// No heap, no exceptions.
+class FalkoDetector {
+ public:
+  /// `params` are copied; values outside their domain make `detect` return `InvalidArgument`.
+  explicit FalkoDetector(const FalkoParams& params = FalkoParams{}) noexcept;
+
+  const FalkoParams& params() const noexcept { return params_; }
+
+  /// Finds the keypoints of `scan` and appends them to `out` after clearing it, in beam order.
+  /// Returns Ok; `CapacityExceeded` when `out` could not take every keypoint (the first ones in
+  /// beam order are kept, the rest counted in `out.refusedCount()`); `InvalidArgument` for bad
+  /// parameters or scan geometry. An empty or all-invalid scan gives Ok and no keypoints.
+  /// The scan's points stay available through `points()` for the descriptors.
+  Status detect(const LaserScan& scan, IVector<FalkoKeypoint>& out) noexcept;
+
+  /// Same on an already converted scan `pts`.
+  Status detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out) noexcept;
+
+  /// Points of the last scan given to `detect(const LaserScan&, ...)`.
+  const ScanPoints& points() const noexcept { return points_; }
+
+  /// Number of candidates that passed the side, triangle and score tests in the last call
+  /// (before non-maxima suppression); for diagnostics.
+  std::size_t lastCandidateCount() const noexcept { return candidateCount_; }
+
+ private:
+  struct Side {
+    std::size_t count = 0;
+    float sumX = 0.0F;
+    float sumY = 0.0F;
+  };
+  bool paramsValid() const noexcept;
+  /// Gathers the neighbours of beam i into left/right buffers (coordinates relative to the
+  /// candidate); returns false when a side has too few points.
+  bool gather(const ScanPoints& pts, std::size_t i, float radius, Side& left, Side& right) noexcept;
+  float scoreOf(const Side& left, const Side& right, float c, float s) noexcept;
+  /// Sub-beam refinement and orientation; false when the points around the candidate are
+  /// explained by one line (the candidate is then dropped).
+  /// (sideX, sideY): sum of the side centroids relative to the candidate (orientation fallback).
+  bool refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept;
+
+  FalkoParams params_;
+  ScanPoints points_;
+  std::array<float, kMaxScanBeams> leftX_{};
+  std::array<float, kMaxScanBeams> leftY_{};
+  std::array<float, kMaxScanBeams> rightX_{};
+  std::array<float, kMaxScanBeams> rightY_{};
+  std::array<float, kMaxScanBeams> score_{};   ///< per beam; +inf when not a candidate
+  std::array<float, kMaxScanBeams> radius_{};  ///< per beam neighbourhood radius
+  std::array<float, kMaxScanBeams> sideX_{};   ///< per beam sum of the side centroids (relative)
+  std::array<float, kMaxScanBeams> sideY_{};
+  std::array<std::uint32_t, kMaxScanBeams> order_{};  ///< candidates by score
+  std::array<FalkoKeypoint, kMaxScanBeams> cands_{};  ///< accepted keypoints
+  std::array<std::uint32_t, 64> hist_{};              ///< score histogram, all zero between uses
+  std::size_t candidateCount_ = 0;
+};
+
+}  // namespace agv

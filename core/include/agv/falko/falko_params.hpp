@@ -1,0 +1,68 @@
+#pragma once
+/// @file falko_params.hpp
+/// Parameters of the FALKO keypoint detector and of its BSC / CGH descriptors, with the defaults
+/// of the FALKO thesis (Kallasi, Lodi Rizzini).
+
+#include <cstddef>
+
+namespace agv {
+
+/// FALKO detector parameters. Distances in metres, angles in radians.
+struct FalkoParams {
+  /// Neighbourhood radius r = a * exp(b * range) [m]: `a` is the radius of a candidate at the
+  /// sensor. Thesis default 0.2 m.
+  float neighA = 0.2F;
+  /// Growth of the neighbourhood radius with range [1/m]; thesis default 0.07 (r = 0.40 m at 10 m).
+  float neighB = 0.07F;
+  /// When a*exp(b*range) reaches the range itself (very close points), the radius is clamped to
+  /// this fraction of the range so that the neighbourhood never includes the sensor origin.
+  float maxRadiusRangeRatio = 0.8F;
+  /// Triangle test: the base (first to last neighbour) and the height of the candidate above that
+  /// base must both be at least r / beta; rejects straight walls and tiny bumps. Thesis default 4.
+  float beta = 4.0F;
+  /// Minimum number of valid neighbours on each side (C_L before, C_R after the candidate in beam
+  /// order). Thesis: 2.
+  std::size_t minSidePoints = 2;
+  /// Number of polar sectors s_n of the cornerness score (points of one straight side fall in one
+  /// sector). Thesis default 16; must be in [4, 64].
+  std::size_t gridSectors = 16;
+  /// Largest accepted cornerness score: mean circular sector distance between the points of the
+  /// same side (0 for two perfectly straight sides, about s_n / 4 for scattered points).
+  float maxScore = 1.5F;
+  /// Non-maxima suppression radius [m]: a candidate survives only if no better-scoring candidate
+  /// lies within this distance. Thesis default 0.20 m.
+  float nmsRadius = 0.20F;
+  /// Sub-beam refinement: the corner is moved to the intersection of the two side lines when it is
+  /// within this distance of the candidate beam point [m]; otherwise the beam point is kept.
+  /// Thesis default 0.2 m.
+  float subbeamMaxShift = 0.20F;
+  /// Refinement passes 2 and 3 refit each side on the points within this factor times the
+  /// neighbourhood radius of the estimated corner (more points at long range, where the
+  /// neighbourhood holds only a few).
+  float refineRadiusFactor = 2.5F;
+  /// ... keeping only points within this distance of the previous pass's line of their side [m]
+  /// (rejects other objects and the next wall); a few times the range noise of the sensor.
+  float refineInlierDistance = 0.05F;
+  /// Straight-wall rejection (addition to the thesis): the candidate is dropped when one line fits
+  /// the refinement window with a squared residual at most this factor times that of the best
+  /// two-line split. Range noise alone gives ratios near 1; a corner gives tens or more. 0 disables.
+  float minCornerResidualRatio = 3.0F;
+  /// Candidates closer than this to the sensor are not considered [m] (0: all valid readings).
+  float minExtractionRange = 0.0F;
+  /// Candidates farther than this are not considered [m] (their neighbourhood is sparse and the
+  /// radius large). They are still neighbours of closer candidates.
+  float maxExtractionRange = 30.0F;
+};
+
+/// Descriptor parameters (BSC and CGH). The grid sizes are compile-time (kBscRings, kBscSectors,
+/// kCghBins in falko_descriptors.hpp): 8 radial x 16 angular for BSC, 16 bins for CGH.
+struct FalkoDescriptorParams {
+  /// Radius of the disc around the keypoint whose scan points form both descriptors [m].
+  /// Thesis default 0.5 m.
+  float radius = 0.5F;
+  /// Standard deviation of the Gaussian that spreads each point of the CGH over neighbouring
+  /// angular bins [bins]. Thesis default 0.6.
+  float cghSigmaBins = 0.6F;
+};
+
+}  // namespace agv

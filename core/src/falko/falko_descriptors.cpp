@@ -1,0 +1,177 @@
+#include "agv/falko/falko_descriptors.hpp"
+
+#include <cmath>
+
+#include "agv/core/angle.hpp"
+#include "falko_math.hpp"
+
+namespace agv {
+
+namespace {
+unsigned popcount16(std::uint16_t v) noexcept {
+  unsigned x = v;
+  x = x - ((x >> 1U) & 0x5555U);
+  x = (x & 0x3333U) + ((x >> 2U) & 0x3333U);
+  x = (x + (x >> 4U)) & 0x0F0FU;
+  return (x + (x >> 8U)) & 0x1FU;
+}
+static_assert(kBscSectors == 16, "BSC rings are 16-bit masks and use the 16-sector fast path");
+}  // namespace
+
+std::uint32_t bscDistance(const BscDescriptor& a, const BscDescriptor& b) noexcept {
+  std::uint32_t d = 0;
+  for (std::size_t r = 0; r < kBscRings; ++r) {
+    d += popcount16(static_cast<std::uint16_t>(a.rings[r] ^ b.rings[r]));
+  }
+  return d;
+}
+
+float cghDistance(const CghDescriptor& a, const CghDescriptor& b) noexcept {
+  float sum = 0.0F;
+  for (std::size_t k = 0; k < kCghBins; ++k) {
+    const float s = a.bins[k] + b.bins[k];
+    if (s > 0.0F) {
+      const float d = a.bins[k] - b.bins[k];
+      sum += d * d / s;
+    }
+  }
+  return 0.5F * sum;
+}
+
+FalkoDescriber::FalkoDescriber(const FalkoDescriptorParams& params) noexcept : params_(params) {
+  valid_ = std::isfinite(params.radius) && params.radius > 0.0F && std::isfinite(params.cghSigmaBins) &&
+           params.cghSigmaBins > 0.0F;
+  if (!valid_) {
+    return;
+  }
+  // Discrete Gaussian over +-3 bins (weight at 3 bins with sigma 0.6: 4e-6 of the centre),
+  // normalised to sum 1 so that each point contributes 1 before the histogram normalisation.
+  float sum = 0.0F;
+  const float inv2s2 = 0.5F / (params.cghSigmaBins * params.cghSigmaBins);
+  for (std::size_t k = 0; k < kernel_.size(); ++k) {
+    const float d = static_cast<float>(k) - static_cast<float>(kKernelHalfWidth);
+    kernel_[k] = std::exp(-d * d * inv2s2);
+    sum += kernel_[k];
+  }
+  for (float& w : kernel_) {
+    w /= sum;
+  }
+}
+
+Status FalkoDescriber::describe(const ScanPoints& points, const FalkoKeypoint& keypoint, BscDescriptor& bsc,
+                                CghDescriptor& cgh) const noexcept {
+  bsc = BscDescriptor{};
+  cgh = CghDescriptor{};
+  if (!valid_) {
+    return Status::InvalidArgument;
+  }
+  const std::size_t n = points.size();
+  const std::size_t i = keypoint.beamIndex;
+  if (i >= n) {
+    return Status::OutOfRange;
+  }
+  if (!std::isfinite(keypoint.x) || !std::isfinite(keypoint.y) || !std::isfinite(keypoint.orientation)) {
+    return Status::NonFiniteInput;
+  }
+  const float R = params_.radius;
+  const float r2 = R * R;
+  const float px = keypoint.x;
+  const float py = keypoint.y;
+  const float c = std::cos(keypoint.orientation);
+  const float s = std::sin(keypoint.orientation);
+  std::array<float, kBscRings - 1> ringBound2{};  // squared outer radius of rings 0..6
+  for (std::size_t b = 0; b + 1 < kBscRings; ++b) {
+    const float rb = R * static_cast<float>(b + 1) / static_cast<float>(kBscRings);
+    ringBound2[b] = rb * rb;
+  }
+  const float binsPerRadian = static_cast<float>(kCghBins) / kTwoPi<float>;
+  std::array<std::uint16_t, kCghBins> counts{};
+
+  auto add = [&](std::size_t j) {
+    if (!points.valid(j)) {
+      return;
+    }
+    const float dx = points.x(j) - px;
+    const float dy = points.y(j) - py;
+    const float d2 = dx * dx + dy * dy;
+    if (d2 > r2 || d2 < 1.0e-12F) {
+      return;
+    }
+    // Rotate into the keypoint frame (x along the orientation).
+    const float u = dx * c + dy * s;
+    const float v = dy * c - dx * s;
+    const unsigned sector = falko_detail::sector16(u, v);
+    // Ring from squared distance: count the ring boundaries below (no square root).
+    std::size_t ring = 0;
+    for (std::size_t b = 0; b + 1 < kBscRings; ++b) {
+      ring += d2 >= ringBound2[b] ? 1U : 0U;
+    }
+    bsc.rings[ring] = static_cast<std::uint16_t>(bsc.rings[ring] | (1U << sector));
+    const unsigned bin =
+        kCghBins == kBscSectors ? sector : falko_detail::sectorOf(v, u, binsPerRadian, static_cast<unsigned>(kCghBins));
+    ++counts[bin];
+  };
+
+  // Points within R of the keypoint lie within R + shift of its beam point.
+  const float sx = px - points.x(i);
+  const float sy = py - points.y(i);
+  const float reach = R + std::sqrt(sx * sx + sy * sy);
+  const std::size_t kmax = points.maxOffset(points.range(i), reach);
+  add(i);
+  for (int dir = -1; dir <= 1; dir += 2) {
+    for (std::size_t k = 1; k <= kmax; ++k) {
+      const std::size_t j = points.offsetIndex(i, dir * static_cast<std::ptrdiff_t>(k));
+      if (j >= n) {
+        break;
+      }
+      add(j);
+    }
+  }
+
+  float total = 0.0F;
+  for (std::size_t b = 0; b < kCghBins; ++b) {
+    if (counts[b] == 0U) {
+      continue;
+    }
+    const auto cnt = static_cast<float>(counts[b]);
+    for (std::size_t k = 0; k < kernel_.size(); ++k) {
+      const std::size_t t = (b + kCghBins + k - kKernelHalfWidth) % kCghBins;
+      cgh.bins[t] += cnt * kernel_[k];
+    }
+    total += cnt;
+  }
+  if (total > 0.0F) {
+    const float inv = 1.0F / total;
+    for (float& h : cgh.bins) {
+      h *= inv;
+    }
+  }
+  return Status::Ok;
+}
+
+Status FalkoDescriber::describe(const ScanPoints& points, const IVector<FalkoKeypoint>& keypoints,
+                                IVector<BscDescriptor>& bsc, IVector<CghDescriptor>& cgh) const noexcept {
+  bsc.clear();
+  cgh.clear();
+  if (!valid_) {
+    return Status::InvalidArgument;
+  }
+  Status result = Status::Ok;
+  for (const FalkoKeypoint& kp : keypoints) {
+    BscDescriptor b;
+    CghDescriptor g;
+    const Status st = describe(points, kp, b, g);
+    if (!isOk(st) && isOk(result)) {
+      result = st;
+    }
+    if (!isOk(bsc.push_back(b))) {
+      result = Status::CapacityExceeded;
+    }
+    if (!isOk(cgh.push_back(g))) {
+      result = Status::CapacityExceeded;
+    }
+  }
+  return result;
+}
+
+}  // namespace agv

@@ -1,0 +1,570 @@
+#include "agv/falko/falko_detector.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "agv/core/angle.hpp"
+#include "falko_math.hpp"
+
+namespace agv {
+
+namespace {
+
+constexpr std::size_t kMaxGridSectors = 64;
+constexpr float kNotCandidate = std::numeric_limits<float>::infinity();
+
+/// A line through (mx, my) with unit direction (dx, dy).
+struct Line {
+  float mx = 0.0F;
+  float my = 0.0F;
+  float dx = 1.0F;
+  float dy = 0.0F;
+};
+
+/// Least-squares line through points (total least squares): centroid and unit direction.
+struct LineAcc {
+  float n = 0.0F;
+  float sx = 0.0F;
+  float sy = 0.0F;
+  float sxx = 0.0F;
+  float sxy = 0.0F;
+  float syy = 0.0F;
+  void add(float x, float y) noexcept {
+    n += 1.0F;
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+    syy += y * y;
+  }
+  void remove(float x, float y) noexcept {
+    n -= 1.0F;
+    sx -= x;
+    sy -= y;
+    sxx -= x * x;
+    sxy -= x * y;
+    syy -= y * y;
+  }
+  void subtract(const LineAcc& o) noexcept {
+    n -= o.n;
+    sx -= o.sx;
+    sy -= o.sy;
+    sxx -= o.sxx;
+    sxy -= o.sxy;
+    syy -= o.syy;
+  }
+  /// Sum of squared orthogonal distances to the best line (n * smallest covariance eigenvalue).
+  float residual() const noexcept {
+    if (n < 2.0F) {
+      return 0.0F;
+    }
+    const float inv = 1.0F / n;
+    const float mx = sx * inv;
+    const float my = sy * inv;
+    const float cxx = sxx * inv - mx * mx;
+    const float cyy = syy * inv - my * my;
+    const float cxy = sxy * inv - mx * my;
+    const float h = 0.5F * (cxx - cyy);
+    const float lmin = 0.5F * (cxx + cyy) - std::sqrt(h * h + cxy * cxy);
+    return n * (lmin > 0.0F ? lmin : 0.0F);
+  }
+  /// Centroid (mx, my) and unit direction (dx, dy); false when fewer than 2 points or isotropic.
+  bool fit(Line& line) const noexcept {
+    if (n < 2.0F) {
+      return false;
+    }
+    float& mx = line.mx;
+    float& my = line.my;
+    float& dx = line.dx;
+    float& dy = line.dy;
+    mx = sx / n;
+    my = sy / n;
+    const float cxx = sxx / n - mx * mx;
+    const float cyy = syy / n - my * my;
+    const float cxy = sxy / n - mx * my;
+    // Major axis angle phi: tan(2 phi) = 2 cxy / (cxx - cyy); direction from the half-angle
+    // formulas, no trigonometric call.
+    const float a = cxx - cyy;
+    const float b = 2.0F * cxy;
+    const float h = std::sqrt(a * a + b * b);
+    if (!(h > 1.0e-12F)) {
+      return false;
+    }
+    const float cos2 = a / h;
+    dx = std::sqrt(0.5F * (1.0F + cos2));
+    dy = std::copysign(std::sqrt(0.5F * (1.0F - cos2 > 0.0F ? 1.0F - cos2 : 0.0F)), b);
+    return true;
+  }
+};
+
+/// Intersection of two lines; false when they are nearly parallel (less than 3 deg apart).
+bool intersect(const Line& a, const Line& b, float& cx, float& cy) noexcept {
+  const float den = a.dx * b.dy - a.dy * b.dx;  // sin of the angle between the lines
+  if (std::fabs(den) < 0.05F) {
+    return false;
+  }
+  const float t = ((b.mx - a.mx) * b.dy - (b.my - a.my) * b.dx) / den;
+  cx = a.mx + t * a.dx;
+  cy = a.my + t * a.dy;
+  return std::isfinite(cx) && std::isfinite(cy);
+}
+
+}  // namespace
+
+FalkoDetector::FalkoDetector(const FalkoParams& params) noexcept : params_(params) {}
+
+bool FalkoDetector::paramsValid() const noexcept {
+  const FalkoParams& p = params_;
+  const bool finite = std::isfinite(p.neighA) && std::isfinite(p.neighB) && std::isfinite(p.beta) &&
+                      std::isfinite(p.maxScore) && std::isfinite(p.nmsRadius) && std::isfinite(p.subbeamMaxShift) &&
+                      std::isfinite(p.refineRadiusFactor) && std::isfinite(p.refineInlierDistance) &&
+                      std::isfinite(p.minCornerResidualRatio) && std::isfinite(p.minExtractionRange) &&
+                      std::isfinite(p.maxRadiusRangeRatio) && !std::isnan(p.maxExtractionRange);
+  return finite && p.neighA > 0.0F && p.neighB >= 0.0F && p.beta > 0.0F && p.minSidePoints >= 1 && p.gridSectors >= 4 &&
+         p.gridSectors <= kMaxGridSectors && p.maxScore >= 0.0F && p.nmsRadius >= 0.0F && p.subbeamMaxShift >= 0.0F &&
+         p.refineRadiusFactor >= 1.0F && p.refineInlierDistance > 0.0F && p.minCornerResidualRatio >= 0.0F &&
+         p.maxRadiusRangeRatio > 0.0F && p.maxRadiusRangeRatio < 1.0F;
+}
+
+Status FalkoDetector::detect(const LaserScan& scan, IVector<FalkoKeypoint>& out) noexcept {
+  out.clear();
+  const Status st = points_.assign(scan);
+  if (!isOk(st)) {
+    candidateCount_ = 0;
+    return st;
+  }
+  return detect(points_, out);
+}
+
+namespace {
+/// Farthest point within `radius` of beam i on one side (dir -1: earlier beams, +1: later), found
+/// by walking from the edge of the angular window inwards: on a straight wall the window edge is
+/// about r away, so this usually stops after a few beams. Returns false when the side is empty.
+bool farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::size_t kmax, float r2, float& fx,
+                    float& fy) noexcept {
+  const std::size_t n = pts.size();
+  const float cx = pts.x(i);
+  const float cy = pts.y(i);
+  auto within = [&](std::size_t j) {
+    const float dx = pts.x(j) - cx;
+    const float dy = pts.y(j) - cy;
+    if (dx * dx + dy * dy <= r2) {  // invalid readings are far away
+      fx = dx;
+      fy = dy;
+      return true;
+    }
+    return false;
+  };
+  // The beams i + dir * k, k = kmax .. 1, as at most two plain index runs (farthest first).
+  if (dir < 0) {
+    if (kmax > i && pts.wraps()) {
+      for (std::size_t j = n + i - kmax; j < n; ++j) {
+        if (within(j)) {
+          return true;
+        }
+      }
+    }
+    for (std::size_t j = kmax > i ? 0 : i - kmax; j < i; ++j) {
+      if (within(j)) {
+        return true;
+      }
+    }
+    return false;
+  }
+  if (i + kmax >= n && pts.wraps()) {
+    for (std::size_t j = i + kmax - n + 1; j-- > 0;) {
+      if (within(j)) {
+        return true;
+      }
+    }
+  }
+  for (std::size_t j = i + kmax < n ? i + kmax : n - 1; j > i; --j) {
+    if (within(j)) {
+      return true;
+    }
+  }
+  return false;
+}
+}  // namespace
+
+bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, Side& left, Side& right) noexcept {
+  const float cx = pts.x(i);
+  const float cy = pts.y(i);
+  const float r2 = radius * radius;
+  const std::size_t kmax = pts.maxOffset(pts.range(i), radius);
+  // Invalid readings are far away (ScanPoints::kFarAway): the radius test drops them.
+  std::size_t nl = 0;
+  float slx = 0.0F;
+  float sly = 0.0F;
+  float* lx = leftX_.data();
+  float* ly = leftY_.data();
+  falko_detail::walkBeams(pts, i, -1, kmax, [&](std::size_t j) {
+    const float dx = pts.x(j) - cx;
+    const float dy = pts.y(j) - cy;
+    if (dx * dx + dy * dy <= r2) {
+      lx[nl] = dx;
+      ly[nl] = dy;
+      ++nl;
+      slx += dx;
+      sly += dy;
+    }
+  });
+  left.count = nl;
+  left.sumX = slx;
+  left.sumY = sly;
+  if (nl < params_.minSidePoints) {
+    return false;  // early rejection: the other side is not needed
+  }
+  std::size_t nr = 0;
+  float srx = 0.0F;
+  float sry = 0.0F;
+  float* rx = rightX_.data();
+  float* ry = rightY_.data();
+  falko_detail::walkBeams(pts, i, 1, kmax, [&](std::size_t j) {
+    const float dx = pts.x(j) - cx;
+    const float dy = pts.y(j) - cy;
+    if (dx * dx + dy * dy <= r2) {
+      rx[nr] = dx;
+      ry[nr] = dy;
+      ++nr;
+      srx += dx;
+      sry += dy;
+    }
+  });
+  right.count = nr;
+  right.sumX = srx;
+  right.sumY = sry;
+  return nr >= params_.minSidePoints;
+}
+
+float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float s) noexcept {
+  const auto bins = static_cast<unsigned>(params_.gridSectors);
+  const float binsPerRadian = static_cast<float>(bins) / kTwoPi<float>;
+  const unsigned half = bins / 2U;
+  const bool fast16 = bins == 16U;
+  float total = 0.0F;
+  float pairs = 0.0F;
+  for (int side = 0; side < 2; ++side) {
+    const Side& sd = side == 0 ? left : right;
+    const float* px = side == 0 ? leftX_.data() : rightX_.data();
+    const float* py = side == 0 ? leftY_.data() : rightY_.data();
+    // hist_ is all zero between calls: only the used bins are reset at the end.
+    std::array<unsigned, kMaxGridSectors> used;  // only [0, usedCount) is read
+    unsigned usedCount = 0;
+    for (std::size_t k = 0; k < sd.count; ++k) {
+      // Bearing of the neighbour seen from the candidate, relative to the corner orientation.
+      const float u = px[k] * c + py[k] * s;
+      const float v = py[k] * c - px[k] * s;
+      const unsigned b = fast16 ? falko_detail::sector16(u, v) : falko_detail::sectorOf(v, u, binsPerRadian, bins);
+      if (hist_[b]++ == 0U) {
+        used[usedCount++] = b;
+      }
+    }
+    // Sum over point pairs of the circular sector distance = sum over pairs of occupied sectors.
+    std::uint32_t sum = 0;
+    for (unsigned a = 0; a < usedCount; ++a) {
+      for (unsigned b = a + 1U; b < usedCount; ++b) {
+        const unsigned d0 = used[a] > used[b] ? used[a] - used[b] : used[b] - used[a];
+        const unsigned d = d0 > half ? bins - d0 : d0;
+        sum += hist_[used[a]] * hist_[used[b]] * d;  // < 2048^2 * 32: fits
+      }
+    }
+    for (unsigned a = 0; a < usedCount; ++a) {
+      hist_[used[a]] = 0U;
+    }
+    const auto cnt = static_cast<float>(sd.count);
+    total += static_cast<float>(sum);
+    pairs += 0.5F * cnt * (cnt - 1.0F);
+  }
+  return pairs > 0.0F ? total / pairs : 0.0F;
+}
+
+bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept {
+  const float mxAbs = pts.x(i);
+  const float myAbs = pts.y(i);
+  const float maxShift2 = params_.subbeamMaxShift * params_.subbeamMaxShift;
+  Line lineL;
+  Line lineR;
+  float cx = 0.0F;
+  float cy = 0.0F;
+  // Pass 1: the best two-line split of the points within refineRadiusFactor * r of the candidate,
+  // in beam order: every split point s (excluded from both lines: it is the one nearest the
+  // corner) with at least minSidePoints + 1 points on each side is tried, and the one with the
+  // least total squared orthogonal residual wins. Incremental sums make it linear in the window.
+  // The side buffers are reused for the window (the side sums stay in `left` / `right`).
+  const float reach = params_.refineRadiusFactor * kp.radius;
+  const float reach2 = reach * reach;
+  bool ok = false;
+  std::size_t windowCount = 0;
+  {
+    float* wx = leftX_.data();
+    float* wy = leftY_.data();
+    std::size_t m = 0;
+    const std::size_t kmax = pts.maxOffset(pts.range(i), reach);
+    LineAcc total;
+    // Window in beam order: the earlier beams are walked nearest first, then reversed.
+    auto take = [&](std::size_t j) {
+      const float qx = pts.x(j) - mxAbs;
+      const float qy = pts.y(j) - myAbs;
+      if (qx * qx + qy * qy <= reach2) {  // invalid readings are far away
+        wx[m] = qx;
+        wy[m] = qy;
+        ++m;
+        total.add(qx, qy);
+      }
+    };
+    falko_detail::walkBeams(pts, i, -1, kmax, take);
+    for (std::size_t a = 0, b = m; a + 1 < b; ++a, --b) {
+      const float tx = wx[a];
+      const float ty = wy[a];
+      wx[a] = wx[b - 1];
+      wy[a] = wy[b - 1];
+      wx[b - 1] = tx;
+      wy[b - 1] = ty;
+    }
+    take(i);
+    falko_detail::walkBeams(pts, i, 1, kmax, take);
+    windowCount = m;
+    const std::size_t minSide = params_.minSidePoints + 1;
+    LineAcc before;  // points [0, q)
+    float bestCost = std::numeric_limits<float>::infinity();
+    LineAcc bestL;
+    LineAcc bestR;
+    // The split point is the one nearest the corner, which lies within subbeamMaxShift of the
+    // candidate: farther splits are not tried (cheaper, and they could only be rejected).
+    const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
+    const float splitReach2 = splitReach * splitReach;
+    for (std::size_t q = 0; q < m; ++q) {
+      if (q >= minSide && m - q - 1 >= minSide && wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
+        LineAcc after = total;
+        after.subtract(before);
+        after.remove(wx[q], wy[q]);
+        const float cost = before.residual() + after.residual();
+        if (cost < bestCost) {
+          bestCost = cost;
+          bestL = before;
+          bestR = after;
+        }
+      }
+      before.add(wx[q], wy[q]);
+    }
+    // One line explaining the window almost as well as two: a noisy straight wall, not a corner.
+    if (bestCost < std::numeric_limits<float>::infinity() &&
+        total.residual() <= params_.minCornerResidualRatio * bestCost) {
+      return false;
+    }
+    ok = bestCost < std::numeric_limits<float>::infinity() && bestL.fit(lineL) && bestR.fit(lineR) &&
+         intersect(lineL, lineR, cx, cy);
+    if (ok && cx * cx + cy * cy > maxShift2) {
+      // The two walls meet farther than subbeamMaxShift away: this candidate sees a corner
+      // elsewhere (e.g. beside an acute corner), whose own candidates will report it.
+      return false;
+    }
+  }
+  if (ok) {
+    // Passes 2 and 3: the neighbourhood holds few points per side at long range, and the
+    // candidate beam may lie a beam or two off the corner. Re-split the points of a wider disc at
+    // the bearing of the estimated corner, keep those close to their side's line and not within
+    // 1.5 beam spacings of the corner, and fit again.
+    const float gap = 1.5F * pts.range(i) * pts.angleIncrement();
+    const float gap2 = gap * gap;
+    const float tol = params_.refineInlierDistance;
+    for (int pass = 0; pass < 2; ++pass) {
+      const float ccx = mxAbs + cx;
+      const float ccy = myAbs + cy;
+      LineAcc l;
+      LineAcc r;
+      for (std::size_t q = 0; q < windowCount; ++q) {
+        const float qx = leftX_[q];
+        const float qy = leftY_[q];
+        const float ex = qx - cx;
+        const float ey = qy - cy;
+        const float e2 = ex * ex + ey * ey;
+        if (e2 > reach2 || e2 < gap2) {
+          continue;
+        }
+        // Sign of cross(corner, point) in the sensor frame: negative = clockwise = earlier beam.
+        const bool isLeft = ccx * (myAbs + qy) - ccy * (mxAbs + qx) < 0.0F;
+        const Line& ln = isLeft ? lineL : lineR;
+        const float dist = std::fabs(ln.dx * (qy - ln.my) - ln.dy * (qx - ln.mx));
+        if (dist > tol) {
+          continue;
+        }
+        (isLeft ? l : r).add(qx, qy);
+      }
+      Line nl;
+      Line nr;
+      float c2x = 0.0F;
+      float c2y = 0.0F;
+      const auto minPts = static_cast<float>(params_.minSidePoints);
+      if (!(l.n >= minPts && r.n >= minPts && l.fit(nl) && r.fit(nr) && intersect(nl, nr, c2x, c2y) &&
+            c2x * c2x + c2y * c2y <= maxShift2)) {
+        break;
+      }
+      cx = c2x;
+      cy = c2y;
+      lineL = nl;
+      lineR = nr;
+    }
+  } else {
+    cx = 0.0F;
+    cy = 0.0F;
+  }
+  kp.refined = ok;
+  kp.x = mxAbs + cx;
+  kp.y = myAbs + cy;
+  // Orientation: mean direction from the corner to the centroids of its two sides. Refined
+  // corners use the centroids of the points of each fitted wall, as unit vectors: the bisector
+  // of the corner, independent of how much of each wall the sensor sees. Unrefined ones use the
+  // neighbourhood sides as they are.
+  float ox = 0.0F;
+  float oy = 0.0F;
+  if (ok) {
+    const float lx = lineL.mx - cx;
+    const float ly = lineL.my - cy;
+    const float rx = lineR.mx - cx;
+    const float ry = lineR.my - cy;
+    const float ln = std::sqrt(lx * lx + ly * ly);
+    const float rn = std::sqrt(rx * rx + ry * ry);
+    if (ln > 0.0F && rn > 0.0F) {
+      ox = lx / ln + rx / rn;
+      oy = ly / ln + ry / rn;
+    }
+  }
+  if (ox == 0.0F && oy == 0.0F) {
+    ox = sideX - 2.0F * cx;
+    oy = sideY - 2.0F * cy;
+  }
+  kp.orientation = std::atan2(oy, ox);
+  return true;
+}
+
+Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out) noexcept {
+  out.clear();
+  candidateCount_ = 0;
+  if (!paramsValid()) {
+    return Status::InvalidArgument;
+  }
+  const std::size_t n = pts.size();
+  const FalkoParams& p = params_;
+  const float invBeta = 1.0F / p.beta;
+  std::size_t candidates = 0;
+
+  // 1. Candidates: side split, triangle test, score.
+  for (std::size_t i = 0; i < n; ++i) {
+    score_[i] = kNotCandidate;
+    if (!pts.valid(i)) {
+      continue;
+    }
+    const float rho = pts.range(i);
+    if (rho < p.minExtractionRange || rho > p.maxExtractionRange) {
+      continue;
+    }
+    float radius = p.neighA * std::exp(p.neighB * rho);
+    const float maxRadius = p.maxRadiusRangeRatio * rho;
+    if (radius > maxRadius) {
+      radius = maxRadius;
+    }
+    // Early rejection: the triangle test needs only the first (front) and last (back) neighbours,
+    // found from the window edges inwards; most beams (walls) stop here, before the full
+    // neighbourhood and the score.
+    const float r2 = radius * radius;
+    const std::size_t kmax = pts.maxOffset(rho, radius);
+    float fx = 0.0F;
+    float fy = 0.0F;
+    float bx = 0.0F;
+    float by = 0.0F;
+    if (!farthestWithin(pts, i, -1, kmax, r2, fx, fy) || !farthestWithin(pts, i, 1, kmax, r2, bx, by)) {
+      continue;
+    }
+    // Triangle front / candidate (origin) / back: base and height at least r / beta.
+    const float minLen = radius * invBeta;
+    const float base2 = (bx - fx) * (bx - fx) + (by - fy) * (by - fy);
+    if (base2 < minLen * minLen) {
+      continue;
+    }
+    const float cross = fx * by - fy * bx;  // = base * height
+    if (cross * cross < base2 * minLen * minLen) {
+      continue;
+    }
+    Side left;
+    Side right;
+    if (!gather(pts, i, radius, left, right)) {
+      continue;
+    }
+    const float ox = left.sumX / static_cast<float>(left.count) + right.sumX / static_cast<float>(right.count);
+    const float oy = left.sumY / static_cast<float>(left.count) + right.sumY / static_cast<float>(right.count);
+    const float on = std::sqrt(ox * ox + oy * oy);
+    if (!(on > 1.0e-6F * radius)) {
+      continue;
+    }
+    const float score = scoreOf(left, right, ox / on, oy / on);
+    if (score <= p.maxScore) {
+      score_[i] = score;
+      radius_[i] = radius;
+      sideX_[i] = ox;
+      sideY_[i] = oy;
+      ++candidates;
+    }
+  }
+  candidateCount_ = candidates;
+
+  // 2. Greedy non-maxima suppression, best score first (ties to the lower beam index): a
+  //    candidate whose beam point lies within nmsRadius of an accepted corner is suppressed;
+  //    otherwise it is refined, and accepted unless the refinement rejects it or it lands within
+  //    nmsRadius of an accepted corner. A rejected candidate suppresses nothing, so the next best
+  //    candidate of the same corner gets its turn. O(candidates x accepted).
+  std::size_t nc = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (score_[i] != kNotCandidate) {
+      order_[nc++] = static_cast<std::uint32_t>(i);
+    }
+  }
+  const float* sc = score_.data();
+  std::sort(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(nc),
+            [sc](std::uint32_t a, std::uint32_t b) { return sc[a] < sc[b] || (sc[a] == sc[b] && a < b); });
+  const float nms2 = p.nmsRadius * p.nmsRadius;
+  std::size_t kept = 0;
+  for (std::size_t o = 0; o < nc; ++o) {
+    const std::size_t i = order_[o];
+    const float xi = pts.x(i);
+    const float yi = pts.y(i);
+    bool suppressed = false;
+    for (std::size_t c = 0; c < kept && !suppressed; ++c) {
+      const float dx = cands_[c].x - xi;
+      const float dy = cands_[c].y - yi;
+      suppressed = dx * dx + dy * dy <= nms2;
+    }
+    if (suppressed) {
+      continue;
+    }
+    FalkoKeypoint kp;
+    kp.beamIndex = static_cast<std::uint32_t>(i);
+    kp.radius = radius_[i];
+    kp.score = score_[i];
+    if (!refine(pts, i, sideX_[i], sideY_[i], kp)) {
+      continue;
+    }
+    for (std::size_t c = 0; c < kept && !suppressed; ++c) {
+      const float dx = cands_[c].x - kp.x;
+      const float dy = cands_[c].y - kp.y;
+      suppressed = dx * dx + dy * dy <= nms2;
+    }
+    if (!suppressed) {
+      cands_[kept++] = kp;
+    }
+  }
+  // Output in beam order.
+  std::sort(cands_.begin(), cands_.begin() + static_cast<std::ptrdiff_t>(kept),
+            [](const FalkoKeypoint& a, const FalkoKeypoint& b) { return a.beamIndex < b.beamIndex; });
+  Status result = Status::Ok;
+  for (std::size_t c = 0; c < kept; ++c) {
+    if (!isOk(out.push_back(cands_[c]))) {
+      result = Status::CapacityExceeded;
+    }
+  }
+  return result;
+}
+
+}  // namespace agv
