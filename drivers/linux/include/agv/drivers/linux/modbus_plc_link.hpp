@@ -1,0 +1,134 @@
+#pragma once
+/// @file modbus_plc_link.hpp
+/// The PLC link over Modbus TCP (libmodbus): the vehicle either serves its register map to a
+/// polling PLC (role Server) or writes its status into the PLC and reads the PLC's command
+/// registers (role Client). Register map and checks: agv/drivers/plc/plc_register_map.hpp and
+/// docs/plc-link.md.
+///
+/// Cycle budget: `cycle()` never blocks longer than the budget it is given (server) or than two
+/// requests bounded by `responseTimeout` (client). A lost PLC is retried at most once per
+/// `reconnectInterval`, with one connection attempt bounded by `responseTimeout`; in between, the
+/// cycle returns Lost at once, so the localization cycle goes on.
+
+#include <array>
+#include <cstdint>
+
+#include "agv/core/status.hpp"
+#include "agv/core/timestamp.hpp"
+#include "agv/drivers/plc/plc_register_map.hpp"
+#include "agv/hal/plc_link.hpp"
+
+struct _modbus;  // libmodbus context (modbus_t)
+
+namespace agv::drivers {
+
+/// Which side of the Modbus exchange the vehicle is.
+enum class PlcLinkRole : std::uint8_t {
+  Server,  ///< the PLC polls the vehicle (Modbus TCP server on `port`)
+  Client,  ///< the vehicle writes to the PLC (Modbus TCP client to `address:port`)
+};
+
+struct ModbusPlcLinkConfig {
+  PlcLinkRole role = PlcLinkRole::Server;
+  char address[64] = "0.0.0.0";           ///< server: address to bind; client: the PLC's IPv4 address
+  std::uint16_t port = 502;               ///< server: 0 picks a free port (see boundPort())
+  plc::PlcMapConfig map;                  ///< word order, set-pose bounds
+  std::uint16_t remoteStatusBase = 0;     ///< client: PLC holding register receiving the status block
+  std::uint16_t remoteCommandBase = 100;  ///< client: PLC holding register of the command block
+  bool clientReadsCommands = true;        ///< client: read the command block every cycle
+  Duration responseTimeout = Duration::fromMilliseconds(50);  ///< one request / connect attempt
+  Duration reconnectInterval = Duration::fromMilliseconds(1000);
+  Duration plcHeartbeatTimeout =
+      Duration::fromMilliseconds(1000);  ///< PLC heartbeat register unchanged this long = lost
+  int maxConnections = 4;                ///< server: simultaneous PLC connections (more are refused)
+  /// hal::PlcLink::publish(): how long one publication may serve requests (server role). 0 =
+  /// answer what is pending and return at once (the HAL's "never blocks").
+  Duration publishBudget = Duration{};
+};
+
+struct PlcLinkCounters {
+  std::uint32_t requests = 0;        ///< server: requests answered; client: requests sent
+  std::uint32_t rejectedWrites = 0;  ///< server: writes refused (exception); client: command blocks out of bounds
+  std::uint32_t commands = 0;        ///< new commands accepted (sequence register changed)
+  std::uint32_t connects = 0;
+  std::uint32_t disconnects = 0;
+  std::uint32_t connectFailures = 0;  ///< client attempts failed; server connections refused (full)
+  std::uint32_t requestErrors = 0;    ///< failed exchanges (timeouts, broken connections)
+};
+
+/// Also the HAL's `hal::PlcLink` (publish a `hal::PoseReport`, read `hal::PlcCommand`s).
+class ModbusPlcLink final : public hal::PlcLink {
+ public:
+  explicit ModbusPlcLink(const ModbusPlcLinkConfig& config) noexcept;
+  ~ModbusPlcLink();
+  ModbusPlcLink(const ModbusPlcLink&) = delete;
+  ModbusPlcLink& operator=(const ModbusPlcLink&) = delete;
+
+  /// Server: creates the context and listens (InvalidArgument bad address, Lost bind failure).
+  /// Client: creates the context (the connection is made by cycle()).
+  Status open() noexcept;
+  /// Server: the listening port (useful with port 0).
+  std::uint16_t boundPort() const noexcept { return boundPort_; }
+
+  /// One PLC-link cycle at vehicle time `now`: publishes `status` (the link ORs in its own health
+  /// bits PlcHeartbeatLost and CommandRejected), then serves requests for at most `budget`
+  /// (server) or writes the status and reads the commands (client). Ok; Lost (client: PLC not
+  /// reachable, retried later); NotInitialized (open() not called or failed).
+  Status cycle(const plc::PlcStatus& status, Timestamp now, Duration budget) noexcept;
+
+  /// hal::PlcLink: publishes `report` (heartbeat counted here, health bits and calibration from
+  /// setHealthBits()/setCalibration()) with one cycle of `publishBudget` on the monotonic clock.
+  /// Ok; Timeout when the PLC cannot be reached (client role; retried later); NotInitialized.
+  Status publish(const hal::PoseReport& report) noexcept override;
+  /// hal::PlcLink: the newest new command (Localize with its initial pose, Calibrate, Stop);
+  /// NotFound when there is none.
+  Status readCommand(hal::PlcCommand& out) noexcept override;
+  /// Health bits (PlcHealthBit) published with the next reports.
+  void setHealthBits(std::uint16_t bits) noexcept { healthBits_ = bits; }
+  /// Calibration values published with the next reports.
+  void setCalibration(const plc::PlcCalibration& calibration) noexcept { calibration_ = calibration; }
+
+  /// A new command (its sequence register changed) since the last call: copies it and returns true.
+  bool takeCommand(plc::PlcCommand& command) noexcept;
+  /// True while the PLC's heartbeat register changed within plcHeartbeatTimeout.
+  bool plcAlive() const noexcept { return plcAlive_; }
+  bool connected() const noexcept;
+
+  const PlcLinkCounters& counters() const noexcept { return counters_; }
+
+ private:
+  static constexpr int kMaxClients = 8;
+  Status serve(Timestamp now, Duration budget) noexcept;
+  Status exchange(Timestamp now) noexcept;
+  void handleRequest(int fd, Timestamp now) noexcept;
+  void acceptCommand(const plc::PlcCommand& c, Timestamp now) noexcept;
+  void closeClient(int index) noexcept;
+
+  ModbusPlcLinkConfig config_;
+  plc::PlcRegisterMap map_;
+  _modbus* ctx_ = nullptr;
+  void* mapping_ = nullptr;  // modbus_mapping_t*
+  int listenFd_ = -1;
+  std::array<int, kMaxClients> clients_{};
+  bool clientConnected_ = false;
+  std::uint16_t boundPort_ = 0;
+  Timestamp nextAttempt_{};
+  std::array<std::uint16_t, plc::PlcRegisterMap::kRegisterCount> table_{};  // client: last published + read
+  bool haveCommand_ = false;
+  bool newCommand_ = false;
+  plc::PlcCommand command_{};
+  std::uint16_t lastSequence_ = 0;
+  bool sequenceSeen_ = false;
+  std::uint16_t lastPlcHeartbeat_ = 0;
+  Timestamp lastPlcHeartbeatChange_{};
+  bool heartbeatSeen_ = false;
+  bool plcAlive_ = false;
+  bool lastRejected_ = false;
+  Timestamp commandStamp_{};
+  std::uint16_t publishCount_ = 0;
+  std::uint16_t healthBits_ = 0;
+  plc::PlcCalibration calibration_{};
+  PlcLinkCounters counters_{};
+};
+
+}  // namespace agv::drivers

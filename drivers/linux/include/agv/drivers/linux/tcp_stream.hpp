@@ -1,0 +1,69 @@
+#pragma once
+/// @file tcp_stream.hpp
+/// Non-blocking TCP client with bounded waits and rate-limited reconnection (Linux sockets).
+///
+/// Every call returns within the time it is given: connect, read and write never block past their
+/// timeout, and a lost connection is retried at most once per `reconnectInterval`, so a dead
+/// device cannot stall the caller's cycle.
+
+#include <cstddef>
+#include <cstdint>
+
+#include "agv/core/span.hpp"
+#include "agv/core/status.hpp"
+#include "agv/core/timestamp.hpp"
+
+namespace agv::drivers {
+
+/// Reads CLOCK_MONOTONIC, the vehicle clock of the Linux drivers (defined with the SocketCAN
+/// transport, declared in agv/drivers/socketcan_bus.hpp too).
+Timestamp monotonicNow() noexcept;
+
+/// Address and timing of a TCP peer.
+struct TcpStreamConfig {
+  char host[64] = "192.168.0.1";                                 ///< numeric IPv4 address of the device
+  std::uint16_t port = 2111;                                     ///< SICK CoLa A 2111, CoLa B 2112
+  Duration connectTimeout = Duration::fromMilliseconds(1000);    ///< bound of one connection attempt
+  Duration reconnectInterval = Duration::fromMilliseconds(500);  ///< minimum time between attempts
+};
+
+/// Counters of the connection's life.
+struct TcpStreamCounters {
+  std::uint32_t connects = 0;         ///< successful connections
+  std::uint32_t connectFailures = 0;  ///< attempts that failed or timed out
+  std::uint32_t disconnects = 0;      ///< connections lost (peer closed, error) or closed by us
+};
+
+class TcpStream {
+ public:
+  explicit TcpStream(const TcpStreamConfig& config) noexcept;
+  ~TcpStream();
+  TcpStream(const TcpStream&) = delete;
+  TcpStream& operator=(const TcpStream&) = delete;
+
+  bool connected() const noexcept { return fd_ >= 0; }
+  /// Connects when not connected and the reconnect interval has passed since the last attempt;
+  /// waits at most min(connectTimeout, `budget`). Ok when connected; Timeout (attempt not due yet
+  /// or not finished in time), Lost (refused/unreachable), InvalidArgument (bad host).
+  Status ensureConnected(Duration budget) noexcept;
+  /// Receives what is available into `buf`, waiting at most `timeout` for the first byte.
+  /// Ok with n > 0; Timeout with n = 0; Lost when the peer closed or failed (the socket is closed).
+  Status read(Span<std::uint8_t> buf, Duration timeout, std::size_t& n) noexcept;
+  /// Sends all of `data` within `timeout`; Lost on error (closed), Timeout if not all sent.
+  Status writeAll(Span<const std::uint8_t> data, Duration timeout) noexcept;
+  /// Closes the connection (counted as a disconnect when it was open).
+  void close() noexcept;
+  /// The earliest time the next connection attempt is allowed.
+  Timestamp nextAttempt() const noexcept { return nextAttempt_; }
+
+  const TcpStreamCounters& counters() const noexcept { return counters_; }
+  const TcpStreamConfig& config() const noexcept { return config_; }
+
+ private:
+  TcpStreamConfig config_;
+  int fd_ = -1;
+  Timestamp nextAttempt_{};
+  TcpStreamCounters counters_{};
+};
+
+}  // namespace agv::drivers

@@ -1,0 +1,168 @@
+#include "agv/drivers/linux/sick_laser_client.hpp"
+
+#include <cstring>
+#include <ctime>
+
+namespace agv::drivers {
+namespace {
+
+bool startsWith(Span<const std::uint8_t> t, const char* prefix) noexcept {
+  const std::size_t n = std::strlen(prefix);
+  return t.size() >= n && std::memcmp(t.data(), prefix, n) == 0;
+}
+
+void sleepFor(Duration d) noexcept {
+  if (d.ns <= 0) {
+    return;
+  }
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(d.ns / 1000000000);
+  ts.tv_nsec = static_cast<long>(d.ns % 1000000000);
+  (void)nanosleep(&ts, nullptr);
+}
+
+/// Makes sure `tcp` is connected before `deadline`: waits for the next allowed attempt if it falls
+/// before the deadline. Ok when connected (and `fresh` tells whether the connection is new).
+Status connectBy(TcpStream& tcp, Timestamp deadline, bool& fresh) noexcept {
+  fresh = false;
+  if (tcp.connected()) {
+    return Status::Ok;
+  }
+  const Timestamp now = monotonicNow();
+  if (tcp.nextAttempt() > now) {
+    if (tcp.nextAttempt() >= deadline) {
+      sleepFor(deadline - now);
+      return Status::Lost;
+    }
+    sleepFor(tcp.nextAttempt() - now);
+  }
+  const Status s = tcp.ensureConnected(deadline - monotonicNow());
+  if (s != Status::Ok) {
+    return Status::Lost;
+  }
+  fresh = true;
+  return Status::Ok;
+}
+
+/// Reads once into the framer; false when the connection was lost (the framer is reset).
+bool pump(TcpStream& tcp, sick::TelegramFramer& framer, Duration wait) noexcept {
+  std::size_t n = 0;
+  const Status s = tcp.read(framer.writable(), wait, n);
+  if (s == Status::Ok) {
+    framer.commit(n);
+  } else if (s == Status::Lost) {
+    framer.reset();
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+ColaAScanClient::ColaAScanClient(const ColaAScanClientConfig& config) noexcept : config_(config), tcp_(config.tcp) {}
+
+Status ColaAScanClient::sendCommand(const char* command, Duration timeout) noexcept {
+  std::uint8_t buf[64];
+  const std::size_t n = std::strlen(command);
+  if (n + 2 > sizeof buf) {
+    return Status::InvalidArgument;
+  }
+  buf[0] = 0x02;
+  // A telegram, not a C string: framed by STX/ETX, no terminating NUL.
+  std::memcpy(buf + 1, command, n);  // NOLINT(bugprone-not-null-terminated-result)
+  buf[n + 1] = 0x03;
+  return tcp_.writeAll(Span<const std::uint8_t>(buf, n + 2), timeout);
+}
+
+Status ColaAScanClient::receive(LaserScan& scan, Duration timeout) noexcept {
+  const Timestamp deadline = monotonicNow() + timeout;
+  bool requested = false;
+  // Each pass reads once or (re)connects; the deadline bounds the loop.
+  for (;;) {
+    Span<const std::uint8_t> t;
+    while (framer_.next(t)) {
+      if (startsWith(t, "sSN LMDscandata ") || startsWith(t, "sRA LMDscandata ")) {
+        const Status s = sick::parseColaAScan(t, config_.scan, monotonicNow(), scan, &info_);
+        if (s == Status::Ok || s == Status::CapacityExceeded) {
+          ++counters_.decoded;
+          return s;
+        }
+        ++counters_.decodeErrors;
+      } else {
+        ++counters_.otherTelegrams;
+      }
+    }
+    const Timestamp now = monotonicNow();
+    if (now >= deadline) {
+      return Status::Timeout;
+    }
+    bool fresh = false;
+    if (connectBy(tcp_, deadline, fresh) != Status::Ok) {
+      return Status::Lost;
+    }
+    if (fresh) {
+      framer_.reset();
+      requested = false;
+      if (config_.subscribe && sendCommand("sEN LMDscandata 1", deadline - monotonicNow()) != Status::Ok) {
+        tcp_.close();
+        continue;
+      }
+    }
+    if (!config_.subscribe && !requested) {
+      if (sendCommand("sRN LMDscandata", deadline - monotonicNow()) != Status::Ok) {
+        tcp_.close();
+        continue;
+      }
+      requested = true;
+    }
+    (void)pump(tcp_, framer_, deadline - monotonicNow());
+  }
+}
+
+Nav350Client::Nav350Client(const Nav350ClientConfig& config) noexcept : config_(config), tcp_(config.tcp) {}
+
+Status Nav350Client::requestPose(bool waitForNextScan, sick::Nav350Mask mask, sick::Nav350PoseReply& reply,
+                                 Duration timeout) noexcept {
+  const Timestamp deadline = monotonicNow() + timeout;
+  bool requested = false;
+  for (;;) {
+    Span<const std::uint8_t> t;
+    while (framer_.next(t)) {
+      if (requested && startsWith(t, "sAN mNPOSGetData ")) {
+        const Status s = sick::parseNav350PoseReply(t, config_.nav, monotonicNow(), reply);
+        if (s == Status::Ok || s == Status::CapacityExceeded) {
+          ++counters_.decoded;
+          return s;
+        }
+        ++counters_.decodeErrors;
+      } else {
+        ++counters_.otherTelegrams;  // stale replies from before the request, events
+      }
+    }
+    if (monotonicNow() >= deadline) {
+      return Status::Timeout;
+    }
+    bool fresh = false;
+    if (connectBy(tcp_, deadline, fresh) != Status::Ok) {
+      return Status::Lost;
+    }
+    if (fresh) {
+      framer_.reset();
+      requested = false;
+    }
+    if (!requested) {
+      std::uint8_t payload[32];
+      std::uint8_t telegram[48];
+      const std::size_t n = sick::encodeNav350PoseRequest(waitForNextScan, mask, Span<std::uint8_t>(payload));
+      const std::size_t m = sick::encodeColaB(Span<const std::uint8_t>(payload, n), Span<std::uint8_t>(telegram));
+      if (tcp_.writeAll(Span<const std::uint8_t>(telegram, m), deadline - monotonicNow()) != Status::Ok) {
+        tcp_.close();
+        continue;
+      }
+      requested = true;
+    }
+    (void)pump(tcp_, framer_, deadline - monotonicNow());
+  }
+}
+
+}  // namespace agv::drivers

@@ -1,0 +1,444 @@
+// The PLC link against real libmodbus peers on 127.0.0.1: the vehicle as server polled by a
+// libmodbus client (the PLC), and as client writing to a libmodbus server (the PLC) that goes away
+// and comes back. Loops are bounded by iteration counts.
+#include <modbus.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "agv/drivers/linux/modbus_plc_link.hpp"
+#include "agv/drivers/linux/tcp_stream.hpp"
+#include "agv_test.hpp"
+
+using agv::Duration;
+using agv::Status;
+using namespace agv::drivers;
+using namespace agv::drivers::plc;
+
+namespace {
+void sleepMs(int ms) {
+  std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+}
+
+PlcStatus sampleStatus(std::uint16_t heartbeat) {
+  PlcStatus s;
+  s.heartbeat = heartbeat;
+  s.mode = agv::hal::NavMode::Localizing;
+  s.health = static_cast<std::uint16_t>(PlcHealthBit::LaserOk) | static_cast<std::uint16_t>(PlcHealthBit::EncodersOk);
+  s.pose = agv::Pose2d(10.25, -4.5, 0.75);
+  s.covariance = {1e-4, 0, 0, 2e-4, 0, 3e-5};
+  return s;
+}
+
+/// A PLC playing Modbus TCP server with libmodbus, on its own thread.
+class PlcServer {
+ public:
+  explicit PlcServer(std::uint16_t port) {
+    ctx_ = modbus_new_tcp("127.0.0.1", port);
+    mapping_ = modbus_mapping_new_start_address(0, 0, 0, 0, 0, 300, 0, 0);
+    listen_ = modbus_tcp_listen(ctx_, 1);
+    sockaddr_in a{};
+    socklen_t len = sizeof a;
+    getsockname(listen_, reinterpret_cast<sockaddr*>(&a), &len);
+    port_ = ntohs(a.sin_port);
+    thread_ = std::thread([this] { run(); });
+  }
+  ~PlcServer() { stop(); }
+  void stop() {
+    stop_ = true;
+    if (thread_.joinable())
+      thread_.join();
+    if (client_ >= 0)
+      ::close(client_);
+    client_ = -1;
+    if (listen_ >= 0)
+      ::close(listen_);
+    listen_ = -1;
+    if (ctx_)
+      modbus_free(ctx_);
+    ctx_ = nullptr;
+    if (mapping_)
+      modbus_mapping_free(mapping_);
+    mapping_ = nullptr;
+  }
+  bool ok() const { return listen_ >= 0; }
+  std::uint16_t port() const { return port_; }
+  std::uint16_t reg(int a) {
+    std::lock_guard<std::mutex> l(m_);
+    return mapping_->tab_registers[a];
+  }
+  void setReg(int a, std::uint16_t v) {
+    std::lock_guard<std::mutex> l(m_);
+    mapping_->tab_registers[a] = v;
+  }
+
+ private:
+  void run() {
+    for (int guard = 0; guard < 100000 && !stop_; ++guard) {
+      pollfd p[2] = {{listen_, POLLIN, 0}, {client_, POLLIN, 0}};
+      if (::poll(p, client_ >= 0 ? 2 : 1, 10) <= 0)
+        continue;
+      if (p[0].revents) {
+        const int fd = ::accept(listen_, nullptr, nullptr);
+        if (client_ >= 0)
+          ::close(client_);
+        client_ = fd;
+        continue;
+      }
+      if (client_ >= 0 && p[1].revents) {
+        std::uint8_t q[MODBUS_TCP_MAX_ADU_LENGTH];
+        modbus_set_socket(ctx_, client_);
+        const int rc = modbus_receive(ctx_, q);
+        if (rc > 0) {
+          std::lock_guard<std::mutex> l(m_);
+          modbus_reply(ctx_, q, rc, mapping_);
+        } else if (rc < 0) {
+          ::close(client_);
+          client_ = -1;
+        }
+      }
+    }
+  }
+  modbus_t* ctx_ = nullptr;
+  modbus_mapping_t* mapping_ = nullptr;
+  int listen_ = -1;
+  int client_ = -1;
+  std::uint16_t port_ = 0;
+  std::atomic<bool> stop_{false};
+  std::mutex m_;
+  std::thread thread_;
+};
+}  // namespace
+
+TEST_CASE("Vehicle as Modbus server: a libmodbus PLC reads the map, writes commands, gets exceptions",
+          "[drivers][modbus]") {
+  ModbusPlcLinkConfig cfg;
+  cfg.role = PlcLinkRole::Server;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = 0;
+  cfg.map.wordOrder = WordOrder::CDAB;
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  REQUIRE(link.boundPort() != 0);
+
+  struct Seen {
+    int connect = -1;
+    std::uint16_t regs[40] = {};
+    float x = 0, y = 0, theta = 0;
+    int setPose = -1;
+    int errStatusWrite = 0, errBadCode = 0, errHalfFloat = 0, errReadPast = 0, errMask = 0, errCoil = 0;
+    std::uint16_t healthAfterReject = 0;
+    std::uint16_t hb1 = 0, hb2 = 0;
+  } seen;
+  std::atomic<bool> done{false};
+  std::thread plcThread([&] {
+    modbus_t* plc = modbus_new_tcp("127.0.0.1", link.boundPort());
+    modbus_set_response_timeout(plc, 2, 0);
+    seen.connect = modbus_connect(plc);
+    if (seen.connect == 0) {
+      modbus_read_registers(plc, 0, 40, seen.regs);
+      seen.x = modbus_get_float_cdab(&seen.regs[4]);
+      seen.y = modbus_get_float_cdab(&seen.regs[6]);
+      seen.theta = modbus_get_float_cdab(&seen.regs[8]);
+      std::uint16_t cmd[9] = {1, 1, 0, 0, 0, 0, 0, 0, 17};
+      modbus_set_float_cdab(0.0F, &cmd[2]);  // (0 is the same in every order)
+      // Set-pose (3.5, -1.25, -0.5) in CDAB packed by hand: low word first.
+      const float pose[3] = {3.5F, -1.25F, -0.5F};
+      for (int i = 0; i < 3; ++i) {
+        std::uint32_t b;
+        std::memcpy(&b, &pose[i], 4);
+        cmd[2 + 2 * i] = static_cast<std::uint16_t>(b & 0xFFFF);
+        cmd[3 + 2 * i] = static_cast<std::uint16_t>(b >> 16);
+      }
+      seen.setPose = modbus_write_registers(plc, 100, 9, cmd);
+      if (modbus_write_register(plc, 4, 1) == -1)
+        seen.errStatusWrite = errno;
+      if (modbus_write_register(plc, 100, 9) == -1)
+        seen.errBadCode = errno;
+      if (modbus_write_register(plc, 102, 0) == -1)
+        seen.errHalfFloat = errno;
+      std::uint16_t dummy[4];
+      if (modbus_read_registers(plc, 108, 4, dummy) == -1)
+        seen.errReadPast = errno;
+      if (modbus_mask_write_register(plc, 100, 0xFFFF, 0) == -1)
+        seen.errMask = errno;
+      if (modbus_write_bit(plc, 0, 1) == -1)
+        seen.errCoil = errno;
+      sleepMs(50);
+      modbus_read_registers(plc, 2, 1, &seen.healthAfterReject);
+      modbus_read_registers(plc, 0, 1, &seen.hb1);
+      sleepMs(50);
+      modbus_read_registers(plc, 0, 1, &seen.hb2);
+      modbus_close(plc);
+    }
+    modbus_free(plc);
+    done = true;
+  });
+  std::uint16_t heartbeat = 0;
+  for (int i = 0; i < 1000 && !done; ++i) {
+    REQUIRE(link.cycle(sampleStatus(heartbeat++), monotonicNow(), Duration::fromMilliseconds(10)) == Status::Ok);
+  }
+  plcThread.join();
+  REQUIRE(seen.connect == 0);
+  AGV_CHECK_NEAR(seen.x, 10.25, 1e-6);
+  AGV_CHECK_NEAR(seen.y, -4.5, 1e-6);
+  AGV_CHECK_NEAR(seen.theta, 0.75, 1e-6);
+  CHECK(seen.regs[1] == static_cast<std::uint16_t>(agv::hal::NavMode::Localizing));
+  CHECK(seen.setPose == 9);
+  CHECK(seen.errStatusWrite == EMBXILADD);
+  CHECK(seen.errBadCode == EMBXILVAL);
+  CHECK(seen.errHalfFloat == EMBXILVAL);
+  CHECK(seen.errReadPast == EMBXILADD);
+  CHECK(seen.errMask == EMBXILFUN);
+  CHECK(seen.errCoil == EMBXILFUN);
+  CHECK((seen.healthAfterReject & static_cast<std::uint16_t>(PlcHealthBit::CommandRejected)) != 0);
+  CHECK(seen.hb2 != seen.hb1);  // the vehicle's heartbeat moves between polls
+  PlcCommand c;
+  REQUIRE(link.takeCommand(c));
+  CHECK(c.code == PlcCommandCode::Localize);
+  AGV_CHECK_NEAR(c.pose.x, 3.5, 1e-9);
+  AGV_CHECK_NEAR(c.pose.y, -1.25, 1e-9);
+  AGV_CHECK_NEAR(c.pose.theta, -0.5, 1e-9);
+  CHECK(c.plcHeartbeat == 17);
+  CHECK_FALSE(link.takeCommand(c));  // delivered once
+  CHECK(link.counters().rejectedWrites == 5U);
+  CHECK(link.counters().commands == 1U);
+  CHECK(link.plcAlive());
+}
+
+TEST_CASE("Vehicle as Modbus client: writes status, reads commands, survives the PLC going away", "[drivers][modbus]") {
+  auto plc = std::make_unique<PlcServer>(0);
+  REQUIRE(plc->ok());
+  const std::uint16_t port = plc->port();
+  plc->setReg(100, 2);  // a stale command present before the vehicle starts: not executed
+  plc->setReg(101, 5);
+
+  ModbusPlcLinkConfig cfg;
+  cfg.role = PlcLinkRole::Client;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = port;
+  cfg.map.wordOrder = WordOrder::ABCD;
+  cfg.remoteStatusBase = 0;
+  cfg.remoteCommandBase = 100;
+  cfg.responseTimeout = Duration::fromMilliseconds(100);
+  cfg.reconnectInterval = Duration::fromMilliseconds(50);
+  cfg.plcHeartbeatTimeout = Duration::fromMilliseconds(100);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+
+  std::uint16_t hb = 0;
+  auto cycle = [&] { return link.cycle(sampleStatus(hb++), monotonicNow(), Duration::fromMilliseconds(10)); };
+  REQUIRE(cycle() == Status::Ok);
+  CHECK(plc->reg(0) == 0);
+  REQUIRE(cycle() == Status::Ok);
+  CHECK(plc->reg(0) == 1);
+  CHECK(modbus_get_float_abcd(std::vector<std::uint16_t>{plc->reg(4), plc->reg(5)}.data()) == 10.25F);
+  PlcCommand c;
+  CHECK_FALSE(link.takeCommand(c));  // the stale block is a baseline only
+
+  plc->setReg(100, 3);
+  plc->setReg(101, 6);
+  plc->setReg(108, 1);
+  REQUIRE(cycle() == Status::Ok);
+  REQUIRE(link.takeCommand(c));
+  CHECK(c.code == PlcCommandCode::Stop);
+  CHECK(c.sequence == 6);
+
+  // An out-of-bounds block in the PLC is refused and flagged.
+  plc->setReg(100, 77);
+  REQUIRE(cycle() == Status::Ok);
+  CHECK(link.counters().rejectedWrites == 1U);
+  REQUIRE(cycle() == Status::Ok);
+  CHECK((plc->reg(2) & static_cast<std::uint16_t>(PlcHealthBit::CommandRejected)) != 0);
+  plc->setReg(100, 0);
+
+  // The PLC disappears: cycles report Lost and go on (rate-limited reconnection attempts).
+  plc->stop();
+  int lost = 0;
+  for (int i = 0; i < 20; ++i) {
+    if (cycle() == Status::Lost)
+      ++lost;
+    sleepMs(10);
+  }
+  CHECK(lost >= 19);  // the first may still succeed on the half-closed connection
+  CHECK(link.counters().disconnects >= 1U);
+  CHECK(link.counters().connectFailures >= 1U);
+  CHECK_FALSE(link.plcAlive());  // heartbeat register unchanged for > 100 ms
+
+  // It comes back on the same port: the link reconnects by itself.
+  plc = std::make_unique<PlcServer>(port);
+  REQUIRE(plc->ok());
+  int ok = 0;
+  for (int i = 0; i < 100 && ok < 3; ++i) {
+    if (cycle() == Status::Ok)
+      ++ok;
+    sleepMs(10);
+  }
+  CHECK(ok == 3);
+  CHECK(link.counters().connects >= 2U);
+  CHECK(plc->reg(0) == static_cast<std::uint16_t>(hb - 1));
+}
+
+TEST_CASE("Vehicle as Modbus client: an unreachable PLC costs one bounded attempt per interval", "[drivers][modbus]") {
+  ModbusPlcLinkConfig cfg;
+  cfg.role = PlcLinkRole::Client;
+  std::strcpy(cfg.address, "127.0.0.1");
+  {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    socklen_t len = sizeof a;
+    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+    ::close(fd);
+    cfg.port = ntohs(a.sin_port);
+  }
+  cfg.reconnectInterval = Duration::fromMilliseconds(10000);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  for (int i = 0; i < 50; ++i) {
+    CHECK(link.cycle(sampleStatus(0), monotonicNow(), Duration::fromMilliseconds(1)) == Status::Lost);
+  }
+  CHECK(link.counters().connectFailures == 1U);  // one attempt; the other 49 cycles did not wait
+}
+
+TEST_CASE("Link used before open() says so", "[drivers][modbus]") {
+  ModbusPlcLink link(ModbusPlcLinkConfig{});
+  CHECK(link.cycle(sampleStatus(0), monotonicNow(), Duration::fromMilliseconds(1)) == Status::NotInitialized);
+}
+
+TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connections do not block other PLCs",
+          "[drivers][modbus]") {
+  ModbusPlcLinkConfig cfg;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = 0;
+  cfg.maxConnections = 2;
+  cfg.responseTimeout = Duration::fromMilliseconds(50);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  auto rawConnect = [&] {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = htons(link.boundPort());
+    ::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    return fd;
+  };
+  // A PLC that sends 5 bytes of a 12-byte read request and then nothing.
+  const int stalled = rawConnect();
+  const std::uint8_t half[5] = {0x00, 0x01, 0x00, 0x00, 0x00};
+  REQUIRE(::send(stalled, half, sizeof half, MSG_NOSIGNAL) == 5);
+  for (int i = 0; i < 10; ++i) {
+    REQUIRE(link.cycle(sampleStatus(static_cast<std::uint16_t>(i)), monotonicNow(), Duration::fromMilliseconds(10)) ==
+            Status::Ok);
+  }
+  CHECK(link.counters().requestErrors >= 1U);  // the half request timed out ...
+  CHECK(link.counters().disconnects >= 1U);    // ... and its connection was dropped
+  ::close(stalled);
+
+  // Two well-behaved PLCs fill the connection slots; a third is refused; the two are served.
+  std::atomic<int> reads{0};
+  std::atomic<bool> done{false};
+  std::thread plcs([&] {
+    modbus_t* a = modbus_new_tcp("127.0.0.1", link.boundPort());
+    modbus_t* b = modbus_new_tcp("127.0.0.1", link.boundPort());
+    modbus_set_response_timeout(a, 2, 0);
+    modbus_set_response_timeout(b, 2, 0);
+    if (modbus_connect(a) == 0 && modbus_connect(b) == 0) {
+      sleepMs(200);                    // both accepted before the surplus one arrives
+      const int extra = rawConnect();  // over maxConnections
+      std::uint16_t r[4];
+      for (int i = 0; i < 5; ++i) {
+        if (modbus_read_registers(a, 0, 4, r) == 4)
+          ++reads;
+        if (modbus_read_registers(b, 4, 4, r) == 4)
+          ++reads;
+      }
+      ::close(extra);
+      modbus_close(a);
+      modbus_close(b);
+    }
+    modbus_free(a);
+    modbus_free(b);
+    done = true;
+  });
+  for (int i = 0; i < 1000 && !done; ++i) {
+    REQUIRE(link.cycle(sampleStatus(static_cast<std::uint16_t>(i)), monotonicNow(), Duration::fromMilliseconds(10)) ==
+            Status::Ok);
+  }
+  plcs.join();
+  CHECK(reads.load() == 10);
+  CHECK(link.counters().connectFailures >= 1U);  // the surplus connection was refused
+}
+
+TEST_CASE("The link as hal::PlcLink: PoseReport published, PLC command read as hal::PlcCommand", "[drivers][modbus]") {
+  ModbusPlcLinkConfig cfg;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = 0;
+  cfg.publishBudget = Duration::fromMilliseconds(5);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  agv::hal::PlcLink& hal = link;
+
+  agv::hal::PoseReport report;
+  report.pose = agv::Pose2d(5.5, -2.25, 1.0);
+  report.covariance << 4e-4, 1e-5, 2e-6, 1e-5, 9e-4, 3e-6, 2e-6, 3e-6, 1e-5;
+  report.health.mode = agv::hal::NavMode::Lost;
+  report.health.matchedLandmarks = 6;
+  report.health.visibleReflectors = 8;
+  struct Seen {
+    int connect = -1;
+    std::uint16_t regs[26] = {};
+    int wrote = -1;
+  } seen;
+  std::atomic<bool> done{false};
+  std::thread plcThread([&] {
+    modbus_t* plc = modbus_new_tcp("127.0.0.1", link.boundPort());
+    modbus_set_response_timeout(plc, 2, 0);
+    seen.connect = modbus_connect(plc);
+    if (seen.connect == 0) {
+      sleepMs(30);
+      modbus_read_registers(plc, 0, 26, seen.regs);
+      std::uint16_t cmd[9] = {2, 1, 0, 0, 0, 0, 0, 0, 1};  // Calibrate, sequence 1
+      seen.wrote = modbus_write_registers(plc, 100, 9, cmd);
+      modbus_close(plc);
+    }
+    modbus_free(plc);
+    done = true;
+  });
+  agv::hal::PlcCommand cmd;
+  Status got = Status::NotFound;
+  for (int i = 0; i < 1000 && got != Status::Ok; ++i) {
+    REQUIRE(hal.publish(report) == Status::Ok);
+    got = hal.readCommand(cmd);
+    if (done && got != Status::Ok) {
+      got = hal.readCommand(cmd);
+      break;
+    }
+  }
+  plcThread.join();
+  REQUIRE(seen.connect == 0);
+  CHECK(seen.wrote == 9);
+  CHECK(seen.regs[1] == static_cast<std::uint16_t>(agv::hal::NavMode::Lost));
+  AGV_CHECK_NEAR(modbus_get_float_abcd(&seen.regs[4]), 5.5, 1e-6);
+  AGV_CHECK_NEAR(modbus_get_float_abcd(&seen.regs[10]), 4e-4, 1e-10);  // xx
+  AGV_CHECK_NEAR(modbus_get_float_abcd(&seen.regs[16]), 9e-4, 1e-10);  // yy
+  AGV_CHECK_NEAR(modbus_get_float_abcd(&seen.regs[20]), 1e-5, 1e-11);  // theta-theta
+  CHECK(seen.regs[24] == 6);
+  CHECK(seen.regs[25] == 8);
+  REQUIRE(got == Status::Ok);
+  CHECK(cmd.kind == agv::hal::PlcCommandKind::Calibrate);
+  CHECK(hal.readCommand(cmd) == Status::NotFound);
+}

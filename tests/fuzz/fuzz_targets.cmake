@@ -1,0 +1,23 @@
+# The libFuzzer targets (clang only): included by tests/fuzz/CMakeLists.txt when the project's
+# compiler is clang, and by tests/fuzz/standalone/CMakeLists.txt for a separate clang build.
+# Needs AGV_FUZZ_ROOT = the project source root.
+set(_agv_fuzz_flags -fsanitize=fuzzer,address -fno-omit-frame-pointer -g)
+add_library(agv_fuzz_protocol STATIC
+  ${AGV_FUZZ_ROOT}/core/src/status.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/telegram_framer.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/cola_a_scan.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/nav350.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/plc_register_map.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/canopen_encoders.cpp)
+target_include_directories(agv_fuzz_protocol PUBLIC ${AGV_FUZZ_ROOT}/core/include ${AGV_FUZZ_ROOT}/hal/include
+                                                    ${AGV_FUZZ_ROOT}/drivers/protocol/include)
+target_link_libraries(agv_fuzz_protocol PUBLIC Eigen3::Eigen)
+target_compile_features(agv_fuzz_protocol PUBLIC cxx_std_17)
+target_compile_options(agv_fuzz_protocol PRIVATE -fsanitize=fuzzer-no-link,address -fno-omit-frame-pointer -g)
+target_link_options(agv_fuzz_protocol INTERFACE -fsanitize=address)
+foreach(_t cola_a nav350 canopen)
+  add_executable(fuzz_${_t} ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_${_t}.cpp)
+  target_link_libraries(fuzz_${_t} PRIVATE agv_fuzz_protocol)
+  target_compile_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
+  target_link_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
+endforeach()
