@@ -43,8 +43,24 @@ int main(int argc, char** argv) {
   app.add_option("--update-rate", options.map.updateRate, "map update rate");
   app.add_option("--gate", options.localizer.gate, "squared Mahalanobis gate");
   app.add_option("--ambiguity", options.localizer.ambiguityMargin, "ambiguity margin (0: off)");
-  app.add_flag("--no-reset", [&options](std::int64_t) { options.resetWhenLost = false; },
-               "keep the latched lost state (no reinitialisation)");
+  app.add_option("--max-position-sigma", options.localizer.maxPositionSigma, "[m] covariance limit of a good cycle");
+  app.add_option("--max-heading-sigma", options.localizer.maxHeadingSigma, "[rad] covariance limit of a good cycle");
+  app.add_option("--min-matched-fraction", options.localizer.minMatchedFraction, "of the landmarks expected in view");
+  app.add_option("--min-expected", options.localizer.minExpectedForCheck,
+                 "landmarks expected before the match check runs");
+  app.add_option("--lost-after", options.localizer.lostAfterBadCycles, "consecutive bad cycles that make it lost");
+  app.add_option("--initial-hits", options.map.initialHits, "hit count of a new landmark");
+  app.add_option("--max-hits", options.map.maxHits, "landmark hit-count cap");
+  app.add_option("--insert-separation", options.localizer.insertSeparation, "[m]");
+  app.add_option("--falko-max-score", options.falko.maxScore, "FALKO cornerness score limit");
+  app.add_option("--falko-beta", options.falko.beta, "FALKO corner angle parameter");
+  app.add_option("--trace", options.tracePath, "write one CSV line per scan (health, errors)");
+  app.add_flag("--truth-odometry", options.truthOdometry,
+               "diagnostic: predict with the ground-truth increments instead of the raw odometry");
+  app.add_option("--laser-x", options.laserMounting.x, "[m] laser position ahead of the robot centre");
+  app.add_flag(
+      "--no-reset", [&options](std::int64_t) { options.resetWhenLost = false; },
+      "keep the latched lost state (no reinitialisation)");
   app.add_option("--expect-odometry", expectOdometry,
                  "[m] expected mean per-metre position error of raw odometry; with --check");
   app.add_option("--tolerance", tolerance, "relative tolerance of --expect-odometry");
@@ -79,8 +95,8 @@ int main(int argc, char** argv) {
   if (check) {
     const double odo = r.odometryRelative.position.mean;
     const bool odoOk = expectOdometry > 0.0 && std::fabs(odo - expectOdometry) <= tolerance * expectOdometry;
-    const bool locOk = r.localizerRelative.position.mean < odo && r.localizerRelative.heading.mean <
-                                                                         r.odometryRelative.heading.mean;
+    const bool locOk =
+        r.localizerRelative.position.mean < odo && r.localizerRelative.heading.mean < r.odometryRelative.heading.mean;
     std::printf("check: odometry %.4f m/m vs expected %.4f (+-%.0f %%): %s; localizer below odometry: %s\n", odo,
                 expectOdometry, tolerance * 100.0, odoOk ? "ok" : "FAIL", locOk ? "ok" : "FAIL");
     return odoOk && locOk ? 0 : 2;

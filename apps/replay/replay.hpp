@@ -19,8 +19,8 @@ namespace replay {
 
 /// Settings of one replay (defaults: the fr079 run documented in docs/localization.md).
 struct ReplayOptions {
-  std::size_t maxScans = 0;       ///< 0: every scan of the log
-  double segmentLength = 1.0;     ///< [m] ground-truth path length of the relative-error segments
+  std::size_t maxScans = 0;               ///< 0: every scan of the log
+  double segmentLength = 1.0;             ///< [m] ground-truth path length of the relative-error segments
   Pose2d laserMounting{-0.04, 0.0, 0.0};  ///< fr079: `robot_frontlaser_offset -0.04`
   /// Odometry noise of the unicycle input (variances grow with distance and rotation).
   UnicycleNoiseParams odometryNoise{};
@@ -33,6 +33,11 @@ struct ReplayOptions {
   /// Initial pose standard deviations [m, rad] around the first corrected pose.
   double initialSigmaXY = 0.01;
   double initialSigmaTheta = 0.01;
+  /// Diagnostic: feed the localizer the ground-truth increments instead of the raw odometry
+  /// (isolates the error the landmarks add).
+  bool truthOdometry = false;
+  /// When not empty, one CSV line per scan (health and errors) is written here.
+  std::string tracePath;
 };
 
 /// Defaults for the fr079 run (see the docs for the derivation).
@@ -68,31 +73,31 @@ AbsoluteError absoluteError(const std::vector<Pose2d>& truth, const std::vector<
 struct ReplayResult {
   std::string log;
   std::size_t scans = 0;
-  double pathLength = 0.0;     ///< [m] of the ground truth
-  double duration = 0.0;       ///< [s]
+  double pathLength = 0.0;         ///< [m] of the ground truth
+  double duration = 0.0;           ///< [s]
   std::size_t zeroIncrements = 0;  ///< scans with no timestamped ODOM line since the previous scan
-  std::vector<Pose2d> truth;     ///< corrected robot poses
-  std::vector<Pose2d> odometry;  ///< raw odometry track (chained increments from truth[0])
-  std::vector<Pose2d> localizer; ///< localizer estimates at the scan times
+  std::vector<Pose2d> truth;       ///< corrected robot poses
+  std::vector<Pose2d> odometry;    ///< raw odometry track (chained increments from truth[0])
+  std::vector<Pose2d> localizer;   ///< localizer estimates at the scan times
   RelativeError odometryRelative;
   RelativeError localizerRelative;
   AbsoluteError odometryAbsolute;
   AbsoluteError localizerAbsolute;
   // Localizer statistics.
-  std::size_t keypoints = 0;        ///< FALKO keypoints given to the localizer
-  std::size_t used = 0;             ///< observations used in updates
-  std::size_t fixCycles = 0;        ///< cycles with at least minMatchesForFix used
+  std::size_t keypoints = 0;  ///< FALKO keypoints given to the localizer
+  std::size_t used = 0;       ///< observations used in updates
+  std::size_t fixCycles = 0;  ///< cycles with at least minMatchesForFix used
   std::size_t rejectedGate = 0;
   std::size_t rejectedAmbiguous = 0;
   std::size_t rejectedDuplicate = 0;
   std::size_t rejectedUpdate = 0;
   std::size_t badCycles = 0;
-  std::size_t lostEvents = 0;       ///< times the localizer declared itself lost
-  std::size_t mapSize = 0;          ///< landmarks at the end
+  std::size_t lostEvents = 0;  ///< times the localizer declared itself lost
+  std::size_t mapSize = 0;     ///< landmarks at the end
   std::size_t mapInserted = 0;
   std::size_t mapDeleted = 0;
-  double meanTestRatio = 0.0;       ///< over cycles with used observations
-  double seconds = 0.0;             ///< wall time of the replay loop
+  double meanTestRatio = 0.0;  ///< over cycles with used observations
+  double seconds = 0.0;        ///< wall time of the replay loop
 };
 
 /// Rebuilds the raw odometry increments of a corrected log: for scan i, inverse(corrected_{i-1})
@@ -101,8 +106,7 @@ struct ReplayResult {
 std::size_t odometryIncrements(const datasets::CarmenLog& log, std::size_t scans, std::vector<Pose2d>& increments);
 
 /// Replays `log`; false with `error` when the log has no usable scans.
-bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, ReplayResult& result,
-               std::string& error);
+bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, ReplayResult& result, std::string& error);
 
 /// Human-readable summary.
 std::string resultText(const ReplayResult& r);
