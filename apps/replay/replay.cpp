@@ -365,9 +365,12 @@ std::string trajectorySvg(const ReplayResult& r) {
   line(r.odometry, "#d62728");
   line(r.truth, "#000000");
   line(r.localizer, "#1f77b4");
-  o << "<text x=\"10\" y=\"20\" font-family=\"sans-serif\" font-size=\"14\">" << r.log << " (" << r.scans
-    << " scans): corrected poses (black), raw odometry (red), localizer with dynamic FALKO map (blue)</text>\n";
-  o << "<text x=\"10\" y=\"40\" font-family=\"sans-serif\" font-size=\"12\">"
+  o << "<text x=\"10\" y=\"18\" font-family=\"sans-serif\" font-size=\"13\">" << r.log << " (" << r.scans
+    << " scans)</text>\n";
+  o << "<text x=\"10\" y=\"34\" font-family=\"sans-serif\" font-size=\"12\"><tspan fill=\"#000000\">corrected "
+       "poses</tspan>, <tspan fill=\"#d62728\">raw odometry</tspan>, <tspan fill=\"#1f77b4\">localizer "
+       "(dynamic FALKO map)</tspan></text>\n";
+  o << "<text x=\"10\" y=\"50\" font-family=\"sans-serif\" font-size=\"12\">"
     << fmt("per metre (mean): odometry %.3f m / %.2f deg, localizer %.3f m / %.2f deg",
            r.odometryRelative.position.mean, r.odometryRelative.heading.mean * kDeg, r.localizerRelative.position.mean,
            r.localizerRelative.heading.mean * kDeg)
