@@ -55,6 +55,10 @@ int main(int argc, char** argv) {
   app.add_option("--insert-separation", options.localizer.insertSeparation, "[m]");
   app.add_option("--falko-max-score", options.falko.maxScore, "FALKO cornerness score limit");
   app.add_option("--falko-beta", options.falko.beta, "FALKO corner angle parameter");
+  app.add_flag("--static-map-from-truth", options.staticMapFromTruth,
+               "localization case: static corner map built first from the corrected poses (optimistic)");
+  app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");
+  app.add_option("--static-min-count", options.staticMinCount, "detections a static corner needs");
   app.add_option("--trace", options.tracePath, "write one CSV line per scan (health, errors)");
   app.add_flag("--truth-odometry", options.truthOdometry,
                "diagnostic: predict with the ground-truth increments instead of the raw odometry");

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <memory>
 #include <sstream>
+#include <unordered_map>
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_detector.hpp"
@@ -52,6 +53,81 @@ std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0, double 
 void statsJson(std::ostringstream& o, const char* name, const ErrorStats& s, double scale) {
   o << "\"" << name << "\": {\"count\": " << s.count << ", \"mean\": " << s.mean * scale
     << ", \"median\": " << s.median * scale << ", \"rms\": " << s.rms * scale << ", \"max\": " << s.max * scale << "}";
+}
+
+// Clusters the keypoints of every scan, placed in the world with the corrected poses, and adds
+// the clusters seen often enough to `map` as surveyed corners.
+std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const ReplayOptions& options,
+                           LandmarkMap& map) {
+  struct Cluster {
+    double sx = 0.0;
+    double sy = 0.0;
+    std::size_t count = 0;
+  };
+  std::vector<Cluster> clusters;
+  std::unordered_map<long long, std::vector<std::size_t>> grid;
+  const double cell = options.staticClusterRadius;
+  const auto key = [cell](double x, double y) {
+    return (static_cast<long long>(std::floor(x / cell)) << 32) ^
+           (static_cast<long long>(std::floor(y / cell)) & 0xffffffffLL);
+  };
+  FalkoDetector detector(options.falko);
+  auto scan = std::make_unique<LaserScan>();
+  auto kps = std::make_unique<FalkoKeypoints>();
+  for (std::size_t i = 0; i < n; ++i) {
+    (void)log.scans[i].toLaserScan(*scan);
+    if (detector.detect(*scan, *kps) != Status::Ok) {
+      continue;
+    }
+    const Pose2d laser = log.scans[i].robotPose.compose(options.laserMounting);
+    for (const FalkoKeypoint& k : *kps) {
+      if (std::hypot(k.x, k.y) > static_cast<float>(options.localizer.laser.rangeMax)) {
+        continue;
+      }
+      const auto w = laser.transformPoint(Eigen::Vector2d(static_cast<double>(k.x), static_cast<double>(k.y)));
+      std::size_t best = clusters.size();
+      double bestD = cell;
+      const long long cx = static_cast<long long>(std::floor(w.x() / cell));
+      const long long cy = static_cast<long long>(std::floor(w.y() / cell));
+      for (long long dx = -1; dx <= 1; ++dx) {
+        for (long long dy = -1; dy <= 1; ++dy) {
+          const auto it =
+              grid.find(key((static_cast<double>(cx + dx) + 0.5) * cell, (static_cast<double>(cy + dy) + 0.5) * cell));
+          if (it == grid.end()) {
+            continue;
+          }
+          for (std::size_t c : it->second) {
+            const double mx = clusters[c].sx / static_cast<double>(clusters[c].count);
+            const double my = clusters[c].sy / static_cast<double>(clusters[c].count);
+            const double d = std::hypot(mx - w.x(), my - w.y());
+            if (d < bestD) {
+              bestD = d;
+              best = c;
+            }
+          }
+        }
+      }
+      if (best == clusters.size()) {
+        clusters.push_back(Cluster{});
+        grid[key(w.x(), w.y())].push_back(best);
+      }
+      clusters[best].sx += w.x();
+      clusters[best].sy += w.y();
+      ++clusters[best].count;
+    }
+  }
+  std::uint32_t id = 1;
+  for (const Cluster& c : clusters) {
+    if (c.count >= options.staticMinCount) {
+      if (map.addSurveyed(LandmarkKind::Corner, c.sx / static_cast<double>(c.count),
+                          c.sy / static_cast<double>(c.count), options.staticSigma, id)
+              .ok()) {
+        ++id;
+      }
+    }
+  }
+  map.setMode(MapMode::Static);
+  return id - 1U;
 }
 
 }  // namespace
@@ -186,6 +262,10 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, Rep
   auto localizer = std::make_unique<Localizer>(lp);
   auto map = std::make_unique<LandmarkMap>(options.map);
   auto detector = std::make_unique<FalkoDetector>(options.falko);
+  r.staticMap = options.staticMapFromTruth;
+  if (options.staticMapFromTruth) {
+    (void)buildStaticMap(log, n, options, *map);
+  }
   auto scan = std::make_unique<LaserScan>();
   auto kps = std::make_unique<FalkoKeypoints>();
   auto obs = std::make_unique<ScanObservations>();
@@ -305,8 +385,9 @@ std::string resultText(const ReplayResult& r) {
     << r.badCycles << " bad cycles, " << r.lostEvents << " lost events; rejected gate " << r.rejectedGate
     << ", ambiguous " << r.rejectedAmbiguous << ", duplicate " << r.rejectedDuplicate << ", update " << r.rejectedUpdate
     << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
-  o << "map: " << r.mapSize << " landmarks at the end, " << r.mapInserted << " inserted, " << r.mapDeleted
-    << " deleted; replay " << fmt("%.1f s\n", r.seconds);
+  o << (r.staticMap ? "static map (built from the corrected poses): " : "dynamic map: ") << r.mapSize
+    << " landmarks at the end, " << r.mapInserted << " inserted, " << r.mapDeleted << " deleted; replay "
+    << fmt("%.1f s\n", r.seconds);
   return o.str();
 }
 
@@ -325,6 +406,7 @@ std::string resultJson(const ReplayResult& r) {
   rel("localizer_per_metre", r.localizerRelative);
   rel("odometry_absolute", RelativeError{r.odometryAbsolute.position, r.odometryAbsolute.heading});
   rel("localizer_absolute", RelativeError{r.localizerAbsolute.position, r.localizerAbsolute.heading});
+  o << "  \"static_map\": " << (r.staticMap ? "true" : "false") << ",\n";
   o << "  \"localizer\": {\"keypoints\": " << r.keypoints << ", \"used\": " << r.used
     << ", \"fix_cycles\": " << r.fixCycles << ", \"bad_cycles\": " << r.badCycles
     << ", \"lost_events\": " << r.lostEvents << ", \"rejected_gate\": " << r.rejectedGate

@@ -36,6 +36,14 @@ struct ReplayOptions {
   /// Diagnostic: feed the localizer the ground-truth increments instead of the raw odometry
   /// (isolates the error the landmarks add).
   bool truthOdometry = false;
+  /// Localization case instead of the dynamic map: a static corner map is built first from every
+  /// scan's keypoints placed with the corrected poses (clusters within `staticClusterRadius`
+  /// seen at least `staticMinCount` times), then the localizer runs on it in Static mode. The map
+  /// shares the ground truth the result is compared with: an optimistic bound.
+  bool staticMapFromTruth = false;
+  double staticClusterRadius = 0.10;  ///< [m]
+  std::size_t staticMinCount = 5;
+  double staticSigma = 0.02;  ///< [m] declared sigma of the static corners
   /// When not empty, one CSV line per scan (health and errors) is written here.
   std::string tracePath;
 };
@@ -96,6 +104,7 @@ struct ReplayResult {
   std::size_t mapSize = 0;     ///< landmarks at the end
   std::size_t mapInserted = 0;
   std::size_t mapDeleted = 0;
+  bool staticMap = false;
   double meanTestRatio = 0.0;  ///< over cycles with used observations
   double seconds = 0.0;        ///< wall time of the replay loop
 };
