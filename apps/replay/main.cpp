@@ -1,0 +1,110 @@
+// agvnav-replay: the EKF localizer with a dynamic FALKO corner map replayed on a gmapping-corrected
+// CARMEN log, compared with raw odometry and the log's corrected poses (relative pose error per
+// metre of path, absolute trajectory error). Figures on stdout, --json, --svg of the trajectories.
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "agv/datasets/carmen_log.hpp"
+#include "replay.hpp"
+
+namespace {
+
+bool writeFile(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  f << text;
+  return static_cast<bool>(f);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"EKF localizer with a dynamic FALKO map replayed on a corrected CARMEN log"};
+  std::string logPath = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/laser2d/fr079/freiburg-079-corrected.log.gz";
+  std::string jsonPath;
+  std::string svgPath;
+  agv::replay::ReplayOptions options = agv::replay::fr079Defaults();
+  double expectOdometry = 0.0;
+  double tolerance = 0.10;
+  bool check = false;
+  app.add_option("log", logPath, "gmapping-corrected CARMEN log (FLASER + ODOM), default fr079");
+  app.add_option("--max-scans", options.maxScans, "replay only the first N scans (0: all)");
+  app.add_option("--json", jsonPath, "write the figures as JSON");
+  app.add_option("--svg", svgPath, "write the trajectories as SVG");
+  app.add_option("--segment", options.segmentLength, "[m] path length of the relative-error segments");
+  app.add_option("--corner-sigma", options.localizer.laser.kindSigma[1], "[m] extra corner position noise");
+  app.add_option("--range-max", options.localizer.laser.rangeMax, "[m] farthest keypoint used");
+  app.add_option("--odo-trans-var", options.odometryNoise.translationVariancePerMetre, "[m^2/m]");
+  app.add_option("--odo-rot-var-m", options.odometryNoise.rotationVariancePerMetre, "[rad^2/m]");
+  app.add_option("--odo-rot-var-rad", options.odometryNoise.rotationVariancePerRadian, "[rad^2/rad]");
+  app.add_option("--update-rate", options.map.updateRate, "map update rate");
+  app.add_option("--gate", options.localizer.gate, "squared Mahalanobis gate");
+  app.add_option("--ambiguity", options.localizer.ambiguityMargin, "ambiguity margin (0: off)");
+  app.add_option("--max-position-sigma", options.localizer.maxPositionSigma, "[m] covariance limit of a good cycle");
+  app.add_option("--max-heading-sigma", options.localizer.maxHeadingSigma, "[rad] covariance limit of a good cycle");
+  app.add_option("--min-matched-fraction", options.localizer.minMatchedFraction, "of the landmarks expected in view");
+  app.add_option("--min-expected", options.localizer.minExpectedForCheck,
+                 "landmarks expected before the match check runs");
+  app.add_option("--lost-after", options.localizer.lostAfterBadCycles, "consecutive bad cycles that make it lost");
+  app.add_option("--initial-hits", options.map.initialHits, "hit count of a new landmark");
+  app.add_option("--max-hits", options.map.maxHits, "landmark hit-count cap");
+  app.add_option("--insert-separation", options.localizer.insertSeparation, "[m]");
+  app.add_option("--falko-max-score", options.falko.maxScore, "FALKO cornerness score limit");
+  app.add_option("--falko-beta", options.falko.beta, "FALKO corner angle parameter");
+  app.add_flag("--static-map-from-truth", options.staticMapFromTruth,
+               "localization case: static corner map built first from the corrected poses (optimistic)");
+  app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");
+  app.add_option("--static-min-count", options.staticMinCount, "detections a static corner needs");
+  app.add_option("--trace", options.tracePath, "write one CSV line per scan (health, errors)");
+  app.add_flag("--truth-odometry", options.truthOdometry,
+               "diagnostic: predict with the ground-truth increments instead of the raw odometry");
+  app.add_option("--laser-x", options.laserMounting.x, "[m] laser position ahead of the robot centre");
+  app.add_flag(
+      "--no-reset", [&options](std::int64_t) { options.resetWhenLost = false; },
+      "keep the latched lost state (no reinitialisation)");
+  app.add_option("--expect-odometry", expectOdometry,
+                 "[m] expected mean per-metre position error of raw odometry; with --check");
+  app.add_option("--tolerance", tolerance, "relative tolerance of --expect-odometry");
+  app.add_flag("--check", check,
+               "exit 2 unless the odometry figure matches --expect-odometry and the localizer beats odometry");
+  CLI11_PARSE(app, argc, argv);
+
+  agv::datasets::CarmenLog log;
+  std::string err;
+  if (!agv::datasets::readCarmenLog(logPath, log, err)) {
+    std::fprintf(stderr, "agvnav-replay: %s\n", err.c_str());
+    return 1;
+  }
+  for (const auto& issue : log.issues) {
+    std::fprintf(stderr, "%s:%zu: %s (skipped)\n", logPath.c_str(), issue.line, issue.message.c_str());
+  }
+  agv::replay::ReplayResult r;
+  r.log = logPath.substr(logPath.find_last_of('/') + 1);
+  if (!agv::replay::replayLog(log, options, r, err)) {
+    std::fprintf(stderr, "agvnav-replay: %s\n", err.c_str());
+    return 1;
+  }
+  std::fputs(agv::replay::resultText(r).c_str(), stdout);
+  if (!jsonPath.empty() && !writeFile(jsonPath, agv::replay::resultJson(r))) {
+    std::fprintf(stderr, "agvnav-replay: cannot write %s\n", jsonPath.c_str());
+    return 1;
+  }
+  if (!svgPath.empty() && !writeFile(svgPath, agv::replay::trajectorySvg(r))) {
+    std::fprintf(stderr, "agvnav-replay: cannot write %s\n", svgPath.c_str());
+    return 1;
+  }
+  if (check) {
+    const double odo = r.odometryRelative.position.mean;
+    const bool odoOk = expectOdometry > 0.0 && std::fabs(odo - expectOdometry) <= tolerance * expectOdometry;
+    const bool locOk =
+        r.localizerRelative.position.mean < odo && r.localizerRelative.heading.mean < r.odometryRelative.heading.mean;
+    std::printf("check: odometry %.4f m/m vs expected %.4f (+-%.0f %%): %s; localizer below odometry: %s\n", odo,
+                expectOdometry, tolerance * 100.0, odoOk ? "ok" : "FAIL", locOk ? "ok" : "FAIL");
+    return odoOk && locOk ? 0 : 2;
+  }
+  return 0;
+}

@@ -1,0 +1,467 @@
+#include "replay.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <sstream>
+#include <unordered_map>
+
+#include "agv/core/angle.hpp"
+#include "agv/falko/falko_detector.hpp"
+#include "agv/scan/laser_scan.hpp"
+
+namespace agv {
+namespace replay {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = 180.0 / kPi;
+
+ErrorStats stats(std::vector<double> v) {
+  ErrorStats s;
+  s.count = v.size();
+  if (v.empty()) {
+    return s;
+  }
+  double sum = 0.0;
+  double sq = 0.0;
+  for (double x : v) {
+    sum += x;
+    sq += x * x;
+    s.max = std::max(s.max, x);
+  }
+  s.mean = sum / static_cast<double>(v.size());
+  s.rms = std::sqrt(sq / static_cast<double>(v.size()));
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  s.median = v[mid];
+  if (v.size() % 2 == 0) {
+    const double lower = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid));
+    s.median = 0.5 * (s.median + lower);
+  }
+  return s;
+}
+
+std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0, double d = 0.0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, f, a, b, c, d);
+  return buf;
+}
+
+void statsJson(std::ostringstream& o, const char* name, const ErrorStats& s, double scale) {
+  o << "\"" << name << "\": {\"count\": " << s.count << ", \"mean\": " << s.mean * scale
+    << ", \"median\": " << s.median * scale << ", \"rms\": " << s.rms * scale << ", \"max\": " << s.max * scale << "}";
+}
+
+// Clusters the keypoints of every scan, placed in the world with the corrected poses, and adds
+// the clusters seen often enough to `map` as surveyed corners.
+std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const ReplayOptions& options,
+                           LandmarkMap& map) {
+  struct Cluster {
+    double sx = 0.0;
+    double sy = 0.0;
+    std::size_t count = 0;
+  };
+  std::vector<Cluster> clusters;
+  std::unordered_map<long long, std::vector<std::size_t>> grid;
+  const double cell = options.staticClusterRadius;
+  const auto key = [cell](double x, double y) {
+    return (static_cast<long long>(std::floor(x / cell)) << 32) ^
+           (static_cast<long long>(std::floor(y / cell)) & 0xffffffffLL);
+  };
+  FalkoDetector detector(options.falko);
+  auto scan = std::make_unique<LaserScan>();
+  auto kps = std::make_unique<FalkoKeypoints>();
+  for (std::size_t i = 0; i < n; ++i) {
+    (void)log.scans[i].toLaserScan(*scan);
+    if (detector.detect(*scan, *kps) != Status::Ok) {
+      continue;
+    }
+    const Pose2d laser = log.scans[i].robotPose.compose(options.laserMounting);
+    for (const FalkoKeypoint& k : *kps) {
+      if (std::hypot(k.x, k.y) > static_cast<float>(options.localizer.laser.rangeMax)) {
+        continue;
+      }
+      const auto w = laser.transformPoint(Eigen::Vector2d(static_cast<double>(k.x), static_cast<double>(k.y)));
+      std::size_t best = clusters.size();
+      double bestD = cell;
+      const long long cx = static_cast<long long>(std::floor(w.x() / cell));
+      const long long cy = static_cast<long long>(std::floor(w.y() / cell));
+      for (long long dx = -1; dx <= 1; ++dx) {
+        for (long long dy = -1; dy <= 1; ++dy) {
+          const auto it =
+              grid.find(key((static_cast<double>(cx + dx) + 0.5) * cell, (static_cast<double>(cy + dy) + 0.5) * cell));
+          if (it == grid.end()) {
+            continue;
+          }
+          for (std::size_t c : it->second) {
+            const double mx = clusters[c].sx / static_cast<double>(clusters[c].count);
+            const double my = clusters[c].sy / static_cast<double>(clusters[c].count);
+            const double d = std::hypot(mx - w.x(), my - w.y());
+            if (d < bestD) {
+              bestD = d;
+              best = c;
+            }
+          }
+        }
+      }
+      if (best == clusters.size()) {
+        clusters.push_back(Cluster{});
+        grid[key(w.x(), w.y())].push_back(best);
+      }
+      clusters[best].sx += w.x();
+      clusters[best].sy += w.y();
+      ++clusters[best].count;
+    }
+  }
+  std::uint32_t id = 1;
+  for (const Cluster& c : clusters) {
+    if (c.count >= options.staticMinCount) {
+      if (map.addSurveyed(LandmarkKind::Corner, c.sx / static_cast<double>(c.count),
+                          c.sy / static_cast<double>(c.count), options.staticSigma, id)
+              .ok()) {
+        ++id;
+      }
+    }
+  }
+  map.setMode(MapMode::Static);
+  return id - 1U;
+}
+
+}  // namespace
+
+ReplayOptions fr079Defaults() {
+  ReplayOptions o;
+  // Unicycle odometry noise from the raw odometry's own drift on this log (data README, median
+  // relative error over 1 m of path: 0.063 m and 2.8 deg): a random walk reaching those one-sigma
+  // figures after 1 m, and 0.1 rad^2 per radian turned (0.3 rad = 18 deg sigma after a full turn;
+  // the Pioneer's heading error is dominated by turning on the spot).
+  o.odometryNoise.translationVariancePerMetre = 0.063 * 0.063;
+  o.odometryNoise.rotationVariancePerMetre = (2.8 / kDeg) * (2.8 / kDeg);
+  o.odometryNoise.rotationVariancePerRadian = 0.01;
+  LaserModel& l = o.localizer.laser;
+  l.mounting = o.laserMounting;
+  l.rangeMin = 0.1;
+  l.rangeMax = 20.0;
+  l.angleMin = -kPi / 2.0;
+  l.angleMax = kPi / 2.0;
+  l.rangeSigma = 0.01;                            // SICK LMS 200: ~1 cm
+  l.bearingSigma = 0.5 / kDeg / std::sqrt(12.0);  // 0.5 deg beam spacing, uniform
+  l.kindSigma[1] = 0.03;                          // real corners: clutter, partial views
+  // The interlock limits of LocalizerParams are an industrial vehicle's (10 cm, 2 deg). The
+  // Pioneer's odometry drifts 6 cm and 3 deg per metre (median), so dead reckoning through a
+  // stretch without corners crosses them within metres; a bad cycle then stops the map updates
+  // and the dynamic map can never catch up. Relaxed to 1 m / 0.5 rad for the replay.
+  o.localizer.maxPositionSigma = 1.0;
+  o.localizer.maxHeadingSigma = 0.5;
+  // The matched/expected check assumes a repeatable detector: FALKO gives ~4 corners per scan
+  // here and re-detects about half of them, so "fewer than 2 of >= 3 expected matched" happens in
+  // a third of the cycles and the check would declare the localizer lost every few metres.
+  // Disabled (never enough expected landmarks) for the replay; the statistics are still reported.
+  o.localizer.minExpectedForCheck = 60000;
+  o.map.initialHits = 3;  // a corner seen once survives two missed re-detections
+  return o;
+}
+
+RelativeError relativeError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate, double length) {
+  const std::size_t n = std::min(truth.size(), estimate.size());
+  std::vector<double> cum(n, 0.0);
+  for (std::size_t i = 1; i < n; ++i) {
+    cum[i] = cum[i - 1] + std::hypot(truth[i].x - truth[i - 1].x, truth[i].y - truth[i - 1].y);
+  }
+  std::vector<double> pos;
+  std::vector<double> head;
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    j = std::max(j, i);
+    while (j < n && cum[j] - cum[i] < length) {
+      ++j;
+    }
+    if (j >= n) {
+      break;
+    }
+    const Pose2d gt = between(truth[i], truth[j]);
+    const Pose2d est = between(estimate[i], estimate[j]);
+    const Pose2d e = between(gt, est);
+    pos.push_back(std::hypot(e.x, e.y));
+    head.push_back(std::fabs(normalizeAngle(e.theta)));
+  }
+  return RelativeError{stats(pos), stats(head)};
+}
+
+AbsoluteError absoluteError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate) {
+  const std::size_t n = std::min(truth.size(), estimate.size());
+  std::vector<double> pos;
+  std::vector<double> head;
+  if (n == 0) {
+    return {};
+  }
+  const Pose2d align = truth[0].compose(estimate[0].inverse());
+  for (std::size_t i = 0; i < n; ++i) {
+    const Pose2d e = align.compose(estimate[i]);
+    pos.push_back(std::hypot(e.x - truth[i].x, e.y - truth[i].y));
+    head.push_back(std::fabs(normalizeAngle(e.theta - truth[i].theta)));
+  }
+  return AbsoluteError{stats(pos), stats(head)};
+}
+
+std::size_t odometryIncrements(const datasets::CarmenLog& log, std::size_t scans, std::vector<Pose2d>& increments) {
+  increments.assign(scans, Pose2d{});
+  std::size_t zero = 0;
+  std::size_t k = 0;  // next ODOM line
+  for (std::size_t i = 0; i < scans; ++i) {
+    const std::size_t line = log.scans[i].line;
+    const datasets::LogOdometry* last = nullptr;
+    for (; k < log.odometry.size() && log.odometry[k].line < line; ++k) {
+      // Timestamp 0: the repeated corrected pose written after each FLASER line (not odometry).
+      if (log.odometry[k].timestamp != 0.0) {
+        last = &log.odometry[k];
+      }
+    }
+    if (i == 0) {
+      continue;
+    }
+    if (last == nullptr) {
+      ++zero;
+      continue;
+    }
+    increments[i] = between(log.scans[i - 1].robotPose, last->pose);
+  }
+  return zero;
+}
+
+bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, ReplayResult& r, std::string& error) {
+  std::size_t n = log.scans.size();
+  if (options.maxScans != 0) {
+    n = std::min(n, options.maxScans);
+  }
+  if (n < 2) {
+    error = "fewer than 2 scans";
+    return false;
+  }
+  r.scans = n;
+  r.duration = log.scans[n - 1].timestamp - log.scans[0].timestamp;
+  std::vector<Pose2d> inc;
+  r.zeroIncrements = odometryIncrements(log, n, inc);
+  r.truth.clear();
+  r.odometry.clear();
+  r.localizer.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    r.truth.push_back(log.scans[i].robotPose);
+    r.odometry.push_back(i == 0 ? r.truth[0] : r.odometry.back().compose(inc[i]));
+  }
+  r.pathLength = 0.0;
+  for (std::size_t i = 1; i < n; ++i) {
+    r.pathLength += std::hypot(r.truth[i].x - r.truth[i - 1].x, r.truth[i].y - r.truth[i - 1].y);
+  }
+
+  LocalizerParams lp = options.localizer;
+  lp.laser.mounting = options.laserMounting;
+  auto localizer = std::make_unique<Localizer>(lp);
+  auto map = std::make_unique<LandmarkMap>(options.map);
+  auto detector = std::make_unique<FalkoDetector>(options.falko);
+  r.staticMap = options.staticMapFromTruth;
+  if (options.staticMapFromTruth) {
+    (void)buildStaticMap(log, n, options, *map);
+  }
+  auto scan = std::make_unique<LaserScan>();
+  auto kps = std::make_unique<FalkoKeypoints>();
+  auto obs = std::make_unique<ScanObservations>();
+  Eigen::Matrix3d p0 = Eigen::Matrix3d::Zero();
+  p0(0, 0) = p0(1, 1) = options.initialSigmaXY * options.initialSigmaXY;
+  p0(2, 2) = options.initialSigmaTheta * options.initialSigmaTheta;
+
+  // Strictly increasing stamps (a repeated logger time is nudged by 1 us).
+  Timestamp last = Timestamp::fromSeconds(log.scans[0].timestamp);
+  if (localizer->reset(last, r.truth[0], p0) != Status::Ok) {
+    error = "localizer refused the initial pose";
+    return false;
+  }
+  double ratioSum = 0.0;
+  std::size_t ratioCount = 0;
+  std::FILE* trace = options.tracePath.empty() ? nullptr : std::fopen(options.tracePath.c_str(), "w");
+  if (trace != nullptr) {
+    std::fputs(
+        "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
+        "map\n",
+        trace);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  for (std::size_t i = 0; i < n; ++i) {
+    Timestamp stamp = Timestamp::fromSeconds(log.scans[i].timestamp);
+    if (i > 0) {
+      if (!(last < stamp)) {
+        stamp = last + Duration::fromNanoseconds(1000);
+      }
+      const Pose2d delta = options.truthOdometry ? between(r.truth[i - 1], r.truth[i]) : inc[i];
+      const Status st = localizer->predict(unicycleIncrement(stamp, delta, options.odometryNoise));
+      if (st != Status::Ok) {
+        error = std::string("prediction refused at scan ") + std::to_string(i) + ": " + toString(st);
+        return false;
+      }
+      last = stamp;
+    }
+    (void)log.scans[i].toLaserScan(*scan);
+    obs->stamp = stamp;
+    obs->kindsDetected = landmarkKindBit(LandmarkKind::Corner);
+    obs->points.clear();
+    if (detector->detect(*scan, *kps) == Status::Ok) {
+      for (const FalkoKeypoint& k : *kps) {
+        (void)obs->points.push_back(
+            PointObservation{static_cast<double>(k.x), static_cast<double>(k.y), LandmarkKind::Corner});
+      }
+    }
+    r.keypoints += obs->points.size();
+    const LocalizerHealth& h = localizer->correct(*obs, *map);
+    r.used += h.used;
+    r.fixCycles += h.used >= lp.minMatchesForFix ? 1U : 0U;
+    r.rejectedGate += h.rejectedGate;
+    r.rejectedAmbiguous += h.rejectedAmbiguous;
+    r.rejectedDuplicate += h.rejectedDuplicate;
+    r.rejectedUpdate += h.rejectedUpdate;
+    r.badCycles += hasFlag(h.flags, LocalizerFlag::BadCycle) ? 1U : 0U;
+    if (h.used > 0) {
+      ratioSum += h.meanTestRatio;
+      ++ratioCount;
+    }
+    if (h.lost) {
+      ++r.lostEvents;
+      if (options.resetWhenLost) {
+        // Keep the estimate, re-open the covariance to the initial uncertainty plus what it had.
+        const Eigen::Matrix3d cov = localizer->covariance() + p0;
+        (void)localizer->reset(stamp, localizer->pose(), cov);
+      }
+    }
+    r.localizer.push_back(localizer->pose());
+    if (trace != nullptr) {
+      const Pose2d& e = r.localizer.back();
+      std::fprintf(trace, "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu\n", i, obs->points.size(),
+                   unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched}, unsigned{h.rejectedGate},
+                   unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma, h.headingSigma,
+                   std::hypot(e.x - r.truth[i].x, e.y - r.truth[i].y), normalizeAngle(e.theta - r.truth[i].theta),
+                   map->size());
+    }
+  }
+  if (trace != nullptr) {
+    std::fclose(trace);
+  }
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.meanTestRatio = ratioCount > 0 ? ratioSum / static_cast<double>(ratioCount) : 0.0;
+  r.mapSize = map->size();
+  r.mapInserted = map->counters().inserted;
+  r.mapDeleted = map->counters().deleted;
+  r.odometryRelative = relativeError(r.truth, r.odometry, options.segmentLength);
+  r.localizerRelative = relativeError(r.truth, r.localizer, options.segmentLength);
+  r.odometryAbsolute = absoluteError(r.truth, r.odometry);
+  r.localizerAbsolute = absoluteError(r.truth, r.localizer);
+  return true;
+}
+
+std::string resultText(const ReplayResult& r) {
+  std::ostringstream o;
+  o << r.log << ": " << r.scans << " scans, " << fmt("%.1f m of path, %.1f s", r.pathLength, r.duration) << ", "
+    << r.zeroIncrements << " zero odometry increments\n";
+  o << "relative error per metre of path (" << r.odometryRelative.position.count << " segments)\n";
+  o << "                 position mean / median [m]   heading mean / median [deg]\n";
+  o << fmt("  raw odometry   %.4f / %.4f              %.2f / %.2f\n", r.odometryRelative.position.mean,
+           r.odometryRelative.position.median, r.odometryRelative.heading.mean * kDeg,
+           r.odometryRelative.heading.median * kDeg);
+  o << fmt("  localizer      %.4f / %.4f              %.2f / %.2f\n", r.localizerRelative.position.mean,
+           r.localizerRelative.position.median, r.localizerRelative.heading.mean * kDeg,
+           r.localizerRelative.heading.median * kDeg);
+  o << "absolute trajectory error (start aligned)\n";
+  o << "                 position rms / median / max [m]   heading rms / max [deg]\n";
+  o << fmt("  raw odometry   %.3f / %.3f / %.3f", r.odometryAbsolute.position.rms, r.odometryAbsolute.position.median,
+           r.odometryAbsolute.position.max)
+    << fmt("               %.2f / %.2f\n", r.odometryAbsolute.heading.rms * kDeg,
+           r.odometryAbsolute.heading.max * kDeg);
+  o << fmt("  localizer      %.3f / %.3f / %.3f", r.localizerAbsolute.position.rms, r.localizerAbsolute.position.median,
+           r.localizerAbsolute.position.max)
+    << fmt("               %.2f / %.2f\n", r.localizerAbsolute.heading.rms * kDeg,
+           r.localizerAbsolute.heading.max * kDeg);
+  o << "localizer: " << r.keypoints << " keypoints, " << r.used << " used, " << r.fixCycles << " cycles with a fix, "
+    << r.badCycles << " bad cycles, " << r.lostEvents << " lost events; rejected gate " << r.rejectedGate
+    << ", ambiguous " << r.rejectedAmbiguous << ", duplicate " << r.rejectedDuplicate << ", update " << r.rejectedUpdate
+    << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
+  o << (r.staticMap ? "static map (built from the corrected poses): " : "dynamic map: ") << r.mapSize
+    << " landmarks at the end, " << r.mapInserted << " inserted, " << r.mapDeleted << " deleted; replay "
+    << fmt("%.1f s\n", r.seconds);
+  return o.str();
+}
+
+std::string resultJson(const ReplayResult& r) {
+  std::ostringstream o;
+  o << "{\n  \"log\": \"" << r.log << "\",\n  \"scans\": " << r.scans << ",\n  \"path_length_m\": " << r.pathLength
+    << ",\n  \"duration_s\": " << r.duration << ",\n  \"zero_increments\": " << r.zeroIncrements << ",\n";
+  const auto rel = [&o](const char* name, const RelativeError& e) {
+    o << "  \"" << name << "\": {";
+    statsJson(o, "position_m", e.position, 1.0);
+    o << ", ";
+    statsJson(o, "heading_deg", e.heading, kDeg);
+    o << "},\n";
+  };
+  rel("odometry_per_metre", r.odometryRelative);
+  rel("localizer_per_metre", r.localizerRelative);
+  rel("odometry_absolute", RelativeError{r.odometryAbsolute.position, r.odometryAbsolute.heading});
+  rel("localizer_absolute", RelativeError{r.localizerAbsolute.position, r.localizerAbsolute.heading});
+  o << "  \"static_map\": " << (r.staticMap ? "true" : "false") << ",\n";
+  o << "  \"localizer\": {\"keypoints\": " << r.keypoints << ", \"used\": " << r.used
+    << ", \"fix_cycles\": " << r.fixCycles << ", \"bad_cycles\": " << r.badCycles
+    << ", \"lost_events\": " << r.lostEvents << ", \"rejected_gate\": " << r.rejectedGate
+    << ", \"rejected_ambiguous\": " << r.rejectedAmbiguous << ", \"rejected_duplicate\": " << r.rejectedDuplicate
+    << ", \"rejected_update\": " << r.rejectedUpdate << ", \"mean_test_ratio\": " << r.meanTestRatio
+    << ", \"map_size\": " << r.mapSize << ", \"map_inserted\": " << r.mapInserted
+    << ", \"map_deleted\": " << r.mapDeleted << "},\n  \"replay_seconds\": " << r.seconds << "\n}\n";
+  return o.str();
+}
+
+std::string trajectorySvg(const ReplayResult& r) {
+  double minX = 1e300;
+  double minY = 1e300;
+  double maxX = -1e300;
+  double maxY = -1e300;
+  for (const auto* track : {&r.truth, &r.odometry, &r.localizer}) {
+    for (const Pose2d& p : *track) {
+      minX = std::min(minX, p.x);
+      minY = std::min(minY, p.y);
+      maxX = std::max(maxX, p.x);
+      maxY = std::max(maxY, p.y);
+    }
+  }
+  const double margin = 1.0;
+  const double scale = 800.0 / std::max(1.0, std::max(maxX - minX, maxY - minY) + 2.0 * margin);
+  const double w = (maxX - minX + 2.0 * margin) * scale;
+  const double h = (maxY - minY + 2.0 * margin) * scale + 60.0;
+  std::ostringstream o;
+  o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h << "\">\n"
+    << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+  const auto line = [&](const std::vector<Pose2d>& t, const char* colour) {
+    o << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"1\" points=\"";
+    for (const Pose2d& p : t) {
+      o << (p.x - minX + margin) * scale << "," << (maxY - p.y + margin) * scale + 60.0 << " ";
+    }
+    o << "\"/>\n";
+  };
+  line(r.odometry, "#d62728");
+  line(r.truth, "#000000");
+  line(r.localizer, "#1f77b4");
+  o << "<text x=\"10\" y=\"18\" font-family=\"sans-serif\" font-size=\"13\">" << r.log << " (" << r.scans
+    << " scans)</text>\n";
+  o << "<text x=\"10\" y=\"34\" font-family=\"sans-serif\" font-size=\"12\"><tspan fill=\"#000000\">corrected "
+       "poses</tspan>, <tspan fill=\"#d62728\">raw odometry</tspan>, <tspan fill=\"#1f77b4\">localizer "
+       "(dynamic FALKO map)</tspan></text>\n";
+  o << "<text x=\"10\" y=\"50\" font-family=\"sans-serif\" font-size=\"12\">"
+    << fmt("per metre (mean): odometry %.3f m / %.2f deg, localizer %.3f m / %.2f deg",
+           r.odometryRelative.position.mean, r.odometryRelative.heading.mean * kDeg, r.localizerRelative.position.mean,
+           r.localizerRelative.heading.mean * kDeg)
+    << "</text>\n";
+  o << "<line x1=\"10\" y1=\"" << h - 10 << "\" x2=\"" << 10 + 5.0 * scale << "\" y2=\"" << h - 10
+    << "\" stroke=\"black\" stroke-width=\"2\"/><text x=\"14\" y=\"" << h - 14
+    << "\" font-family=\"sans-serif\" font-size=\"11\">5 m</text>\n</svg>\n";
+  return o.str();
+}
+
+}  // namespace replay
+}  // namespace agv

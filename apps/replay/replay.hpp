@@ -1,0 +1,128 @@
+#pragma once
+// Replay of the localizer on a gmapping-corrected CARMEN log (FLASER scans, ODOM lines): raw
+// odometry rebuilt from the ODOM lines, the EKF localizer with a dynamic FALKO corner map, and
+// both compared with the corrected poses (docs/localization.md, "Real data: fr079").
+// Host tool code (heap, files); not core.
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "agv/core/pose2.hpp"
+#include "agv/datasets/carmen_log.hpp"
+#include "agv/falko/falko_params.hpp"
+#include "agv/localization/localizer.hpp"
+#include "agv/localization/odometry.hpp"
+
+namespace agv {
+namespace replay {
+
+/// Settings of one replay (defaults: the fr079 run documented in docs/localization.md).
+struct ReplayOptions {
+  std::size_t maxScans = 0;               ///< 0: every scan of the log
+  double segmentLength = 1.0;             ///< [m] ground-truth path length of the relative-error segments
+  Pose2d laserMounting{-0.04, 0.0, 0.0};  ///< fr079: `robot_frontlaser_offset -0.04`
+  /// Odometry noise of the unicycle input (variances grow with distance and rotation).
+  UnicycleNoiseParams odometryNoise{};
+  LocalizerParams localizer{};
+  LandmarkMapParams map{};
+  FalkoParams falko{};
+  /// Reinitialise the localizer at its own estimate when it declares itself lost (the map is
+  /// kept); counted in the result. Off: the latched lost state ends the corrections.
+  bool resetWhenLost = true;
+  /// Initial pose standard deviations [m, rad] around the first corrected pose.
+  double initialSigmaXY = 0.01;
+  double initialSigmaTheta = 0.01;
+  /// Diagnostic: feed the localizer the ground-truth increments instead of the raw odometry
+  /// (isolates the error the landmarks add).
+  bool truthOdometry = false;
+  /// Localization case instead of the dynamic map: a static corner map is built first from every
+  /// scan's keypoints placed with the corrected poses (clusters within `staticClusterRadius`
+  /// seen at least `staticMinCount` times), then the localizer runs on it in Static mode. The map
+  /// shares the ground truth the result is compared with: an optimistic bound.
+  bool staticMapFromTruth = false;
+  double staticClusterRadius = 0.10;  ///< [m]
+  std::size_t staticMinCount = 5;
+  double staticSigma = 0.02;  ///< [m] declared sigma of the static corners
+  /// When not empty, one CSV line per scan (health and errors) is written here.
+  std::string tracePath;
+};
+
+/// Defaults for the fr079 run (see the docs for the derivation).
+ReplayOptions fr079Defaults();
+
+/// Mean / median / max of a set of errors.
+struct ErrorStats {
+  std::size_t count = 0;
+  double mean = 0.0;
+  double median = 0.0;
+  double rms = 0.0;
+  double max = 0.0;
+};
+
+/// Relative pose error over segments of `segmentLength` of ground-truth path, starting at every scan.
+struct RelativeError {
+  ErrorStats position;  ///< [m] per segment
+  ErrorStats heading;   ///< [rad] per segment
+};
+
+/// Absolute trajectory error (estimate and ground truth start at the same pose).
+struct AbsoluteError {
+  ErrorStats position;  ///< [m]
+  ErrorStats heading;   ///< [rad]
+};
+
+/// Relative error per segment of ground-truth path length `length`.
+RelativeError relativeError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate, double length);
+/// Absolute error after aligning the first poses (estimate moved rigidly onto truth[0]).
+AbsoluteError absoluteError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate);
+
+/// Everything measured by one replay.
+struct ReplayResult {
+  std::string log;
+  std::size_t scans = 0;
+  double pathLength = 0.0;         ///< [m] of the ground truth
+  double duration = 0.0;           ///< [s]
+  std::size_t zeroIncrements = 0;  ///< scans with no timestamped ODOM line since the previous scan
+  std::vector<Pose2d> truth;       ///< corrected robot poses
+  std::vector<Pose2d> odometry;    ///< raw odometry track (chained increments from truth[0])
+  std::vector<Pose2d> localizer;   ///< localizer estimates at the scan times
+  RelativeError odometryRelative;
+  RelativeError localizerRelative;
+  AbsoluteError odometryAbsolute;
+  AbsoluteError localizerAbsolute;
+  // Localizer statistics.
+  std::size_t keypoints = 0;  ///< FALKO keypoints given to the localizer
+  std::size_t used = 0;       ///< observations used in updates
+  std::size_t fixCycles = 0;  ///< cycles with at least minMatchesForFix used
+  std::size_t rejectedGate = 0;
+  std::size_t rejectedAmbiguous = 0;
+  std::size_t rejectedDuplicate = 0;
+  std::size_t rejectedUpdate = 0;
+  std::size_t badCycles = 0;
+  std::size_t lostEvents = 0;  ///< times the localizer declared itself lost
+  std::size_t mapSize = 0;     ///< landmarks at the end
+  std::size_t mapInserted = 0;
+  std::size_t mapDeleted = 0;
+  bool staticMap = false;
+  double meanTestRatio = 0.0;  ///< over cycles with used observations
+  double seconds = 0.0;        ///< wall time of the replay loop
+};
+
+/// Rebuilds the raw odometry increments of a corrected log: for scan i, inverse(corrected_{i-1})
+/// composed with the last timestamped ODOM pose between FLASER_{i-1} and FLASER_i (zero if none).
+/// `increments[0]` is zero. Returns the number of zero increments.
+std::size_t odometryIncrements(const datasets::CarmenLog& log, std::size_t scans, std::vector<Pose2d>& increments);
+
+/// Replays `log`; false with `error` when the log has no usable scans.
+bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, ReplayResult& result, std::string& error);
+
+/// Human-readable summary.
+std::string resultText(const ReplayResult& r);
+/// JSON object of the figures (no trajectories).
+std::string resultJson(const ReplayResult& r);
+/// SVG of the three trajectories (ground truth, raw odometry, localizer).
+std::string trajectorySvg(const ReplayResult& r);
+
+}  // namespace replay
+}  // namespace agv

@@ -1,0 +1,104 @@
+// Error metrics and odometry rebuild of agvnav-replay on synthetic trajectories with known error.
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "agv_test.hpp"
+#include "replay.hpp"
+
+namespace r = agv::replay;
+using agv::Pose2d;
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+// Straight line along x, one pose every `step` metres.
+std::vector<Pose2d> line(std::size_t n, double step) {
+  std::vector<Pose2d> t;
+  for (std::size_t i = 0; i < n; ++i) {
+    t.push_back(Pose2d{step * static_cast<double>(i), 0.0, 0.0});
+  }
+  return t;
+}
+}  // namespace
+
+TEST_CASE("replay metrics: a scale error gives its per-metre figure, a perfect estimate zero", "[replay]") {
+  const auto truth = line(81, 0.125);  // 10 m, steps exact in binary
+  SECTION("identical") {
+    const auto e = r::relativeError(truth, truth, 1.0);
+    CHECK(e.position.count == 73U);  // segments from scans 0..72 reach 1 m
+    CHECK(e.position.max < 1e-12);
+    CHECK(e.heading.max < 1e-12);
+    const auto a = r::absoluteError(truth, truth);
+    CHECK(a.position.max < 1e-12);
+  }
+  SECTION("5 % scale error") {
+    auto est = truth;
+    for (auto& p : est) {
+      p.x *= 1.05;
+    }
+    const auto e = r::relativeError(truth, est, 1.0);
+    CHECK(e.position.mean == Approx(0.05).epsilon(1e-9));
+    CHECK(e.position.median == Approx(0.05).epsilon(1e-9));
+    CHECK(e.heading.max < 1e-12);
+    const auto a = r::absoluteError(truth, est);
+    CHECK(a.position.max == Approx(0.5).epsilon(1e-9));  // 5 % of 10 m at the end
+  }
+  SECTION("constant heading drift: 1 deg per step of 0.125 m") {
+    std::vector<Pose2d> est{truth[0]};
+    const double d = kPi / 180.0;
+    for (std::size_t i = 1; i < truth.size(); ++i) {
+      est.push_back(est.back().compose(Pose2d{0.125, 0.0, d}));
+    }
+    const auto e = r::relativeError(truth, est, 1.0);
+    CHECK(e.heading.mean == Approx(8.0 * d).epsilon(1e-9));  // 8 steps per metre
+    CHECK(e.heading.median == Approx(8.0 * d).epsilon(1e-9));
+  }
+}
+
+TEST_CASE("replay metrics: the start is aligned before the absolute error", "[replay]") {
+  const auto truth = line(20, 0.1);
+  std::vector<Pose2d> est;
+  const Pose2d offset{3.0, -2.0, 0.7};
+  for (const auto& p : truth) {
+    est.push_back(offset.compose(p));
+  }
+  const auto a = r::absoluteError(truth, est);
+  CHECK(a.position.max < 1e-9);
+  CHECK(a.heading.max < 1e-9);
+  const auto e = r::relativeError(truth, est, 1.0);
+  CHECK(e.position.max < 1e-9);
+}
+
+TEST_CASE("replay odometry rebuild follows the data README's rule", "[replay]") {
+  // scan 0 at A; ODOM (timestamped) = A (+) raw motion; scan 1 at its corrected pose B; no
+  // timestamped ODOM between scans 1 and 2: zero increment.
+  const std::string text =
+      "ODOM 0 0 0 0 0 0 0.1 h 0.1\n"
+      "FLASER 3 1 1 1 1.0 2.0 0.5 1.0 2.0 0.5 0.2 h 0.2\n"
+      "ODOM 1.0 2.0 0.5 0 0 0 0 h 0\n"
+      "ODOM 1.5 2.0 0.5 0 0 0 0.25 h 0.25\n"
+      "ODOM 1.6 2.1 0.6 0 0 0 0.3 h 0.3\n"
+      "FLASER 3 1 1 1 1.7 2.05 0.55 1.7 2.05 0.55 0.3 h 0.3\n"
+      "ODOM 1.7 2.05 0.55 0 0 0 0 h 0\n"
+      "FLASER 3 1 1 1 1.8 2.05 0.55 1.8 2.05 0.55 0.4 h 0.4\n";
+  const auto log = agv::datasets::parseCarmenLog(text);
+  REQUIRE(log.scans.size() == 3U);
+  std::vector<Pose2d> inc;
+  CHECK(r::odometryIncrements(log, 3, inc) == 1U);
+  REQUIRE(inc.size() == 3U);
+  const Pose2d expected = agv::between(Pose2d{1.0, 2.0, 0.5}, Pose2d{1.6, 2.1, 0.6});
+  CHECK(inc[1].x == Approx(expected.x));
+  CHECK(inc[1].y == Approx(expected.y));
+  CHECK(inc[1].theta == Approx(0.1));
+  CHECK(inc[2].x == 0.0);
+  CHECK(inc[2].theta == 0.0);
+}
+
+TEST_CASE("replay refuses a log without scans", "[replay]") {
+  const auto log = agv::datasets::parseCarmenLog("ODOM 0 0 0 0 0 0 0.1 h 0.1\n");
+  r::ReplayResult res;
+  std::string err;
+  CHECK_FALSE(r::replayLog(log, r::fr079Defaults(), res, err));
+  CHECK_FALSE(err.empty());
+}
