@@ -138,11 +138,13 @@ Status FalkoDetector::detect(const LaserScan& scan, IVector<FalkoKeypoint>& out)
 }
 
 namespace {
-/// Farthest point within `radius` of beam i on one side (dir -1: earlier beams, +1: later), found
-/// by walking from the edge of the angular window inwards: on a straight wall the window edge is
-/// about r away, so this usually stops after a few beams. Returns false when the side is empty.
-bool farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::size_t kmax, float r2, float& fx,
-                    float& fy) noexcept {
+/// Offset k (in beams, 1..kmax) of the farthest point within `radius` of beam i on one side (dir
+/// -1: earlier beams, +1: later), found by walking from the edge of the angular window inwards: on
+/// a straight wall the window edge is about r away, so this usually stops after a few beams. The
+/// point relative to beam i is written to (fx, fy). Returns 0 when the side is empty. No beam
+/// beyond the returned offset (up to kmax) lies within the radius.
+std::size_t farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::size_t kmax, float r2, float& fx,
+                           float& fy) noexcept {
   const std::size_t n = pts.size();
   const float cx = pts.x(i);
   const float cy = pts.y(i);
@@ -161,45 +163,45 @@ bool farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::size_t k
     if (kmax > i && pts.wraps()) {
       for (std::size_t j = n + i - kmax; j < n; ++j) {
         if (within(j)) {
-          return true;
+          return n + i - j;
         }
       }
     }
     for (std::size_t j = kmax > i ? 0 : i - kmax; j < i; ++j) {
       if (within(j)) {
-        return true;
+        return i - j;
       }
     }
-    return false;
+    return 0;
   }
   if (i + kmax >= n && pts.wraps()) {
     for (std::size_t j = i + kmax - n + 1; j-- > 0;) {
       if (within(j)) {
-        return true;
+        return n - i + j;
       }
     }
   }
   for (std::size_t j = i + kmax < n ? i + kmax : n - 1; j > i; --j) {
     if (within(j)) {
-      return true;
+      return j - i;
     }
   }
-  return false;
+  return 0;
 }
 }  // namespace
 
-bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, Side& left, Side& right) noexcept {
+bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight,
+                           Side& left, Side& right) noexcept {
   const float cx = pts.x(i);
   const float cy = pts.y(i);
   const float r2 = radius * radius;
-  const std::size_t kmax = pts.maxOffset(pts.range(i), radius);
   // Invalid readings are far away (ScanPoints::kFarAway): the radius test drops them.
   std::size_t nl = 0;
   float slx = 0.0F;
   float sly = 0.0F;
   float* lx = leftX_.data();
   float* ly = leftY_.data();
-  falko_detail::walkBeams(pts, i, -1, kmax, [&](std::size_t j) {
+  falko_detail::walkBeams(pts, i, -1, kLeft, [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {
@@ -221,7 +223,7 @@ bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, S
   float sry = 0.0F;
   float* rx = rightX_.data();
   float* ry = rightY_.data();
-  falko_detail::walkBeams(pts, i, 1, kmax, [&](std::size_t j) {
+  falko_detail::walkBeams(pts, i, 1, kRight, [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {
@@ -303,18 +305,22 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     std::size_t m = 0;
     const std::size_t kmax = pts.maxOffset(pts.range(i), reach);
     LineAcc total;
-    // Window in beam order: the earlier beams are walked nearest first, then reversed.
+    // Window in beam order: the earlier beams are walked nearest first, then reversed. Branch-free
+    // compaction: every beam is written, the count advances only for points within reach (at
+    // most one write beyond the kept points, inside the buffer: the window never exceeds the
+    // scan). The sums are accumulated afterwards in the same point order.
     auto take = [&](std::size_t j) {
       const float qx = pts.x(j) - mxAbs;
       const float qy = pts.y(j) - myAbs;
-      if (qx * qx + qy * qy <= reach2) {  // invalid readings are far away
-        wx[m] = qx;
-        wy[m] = qy;
-        ++m;
-        total.add(qx, qy);
-      }
+      wx[m] = qx;
+      wy[m] = qy;
+      m += qx * qx + qy * qy <= reach2 ? 1U : 0U;  // invalid readings are far away
     };
     falko_detail::walkBeams(pts, i, -1, kmax, take);
+    for (std::size_t a = 0; a < m; ++a) {
+      total.add(wx[a], wy[a]);
+    }
+    const std::size_t mLeft = m;
     for (std::size_t a = 0, b = m; a + 1 < b; ++a, --b) {
       const float tx = wx[a];
       const float ty = wy[a];
@@ -325,6 +331,9 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     }
     take(i);
     falko_detail::walkBeams(pts, i, 1, kmax, take);
+    for (std::size_t a = mLeft; a < m; ++a) {
+      total.add(wx[a], wy[a]);
+    }
     windowCount = m;
     const std::size_t minSide = params_.minSidePoints + 1;
     LineAcc before;  // points [0, q)
@@ -335,19 +344,31 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     // candidate: farther splits are not tried (cheaper, and they could only be rejected).
     const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
     const float splitReach2 = splitReach * splitReach;
-    for (std::size_t q = 0; q < m; ++q) {
-      if (q >= minSide && m - q - 1 >= minSide && wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
-        LineAcc after = total;
-        after.subtract(before);
-        after.remove(wx[q], wy[q]);
-        const float cost = before.residual() + after.residual();
-        if (cost < bestCost) {
-          bestCost = cost;
-          bestL = before;
-          bestR = after;
-        }
+    if (m >= 2 * minSide + 1) {
+      const std::size_t qLast = m - minSide - 1;  // the last split point with minSide after it
+      for (std::size_t q = 0; q < minSide; ++q) {
+        before.add(wx[q], wy[q]);
       }
-      before.add(wx[q], wy[q]);
+      for (std::size_t q = minSide; q <= qLast; ++q) {
+        if (wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
+          const float costL = before.residual();
+          // The residual of the points before the split only grows with q (a line through more
+          // points fits no better), so no later split can beat the best one any more.
+          if (!(costL < bestCost)) {
+            break;
+          }
+          LineAcc after = total;
+          after.subtract(before);
+          after.remove(wx[q], wy[q]);
+          const float cost = costL + after.residual();
+          if (cost < bestCost) {
+            bestCost = cost;
+            bestL = before;
+            bestR = after;
+          }
+        }
+        before.add(wx[q], wy[q]);
+      }
     }
     // One line explaining the window almost as well as two: a noisy straight wall, not a corner.
     if (bestCost < std::numeric_limits<float>::infinity() &&
@@ -475,7 +496,12 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     float fy = 0.0F;
     float bx = 0.0F;
     float by = 0.0F;
-    if (!farthestWithin(pts, i, -1, kmax, r2, fx, fy) || !farthestWithin(pts, i, 1, kmax, r2, bx, by)) {
+    const std::size_t kLeft = farthestWithin(pts, i, -1, kmax, r2, fx, fy);
+    if (kLeft == 0) {
+      continue;
+    }
+    const std::size_t kRight = farthestWithin(pts, i, 1, kmax, r2, bx, by);
+    if (kRight == 0) {
       continue;
     }
     // Triangle front / candidate (origin) / back: base and height at least r / beta.
@@ -490,7 +516,7 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     }
     Side left;
     Side right;
-    if (!gather(pts, i, radius, left, right)) {
+    if (!gather(pts, i, radius, kLeft, kRight, left, right)) {
       continue;
     }
     const float ox = left.sumX / static_cast<float>(left.count) + right.sumX / static_cast<float>(right.count);
