@@ -148,43 +148,41 @@ std::size_t farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::s
   const std::size_t n = pts.size();
   const float cx = pts.x(i);
   const float cy = pts.y(i);
-  auto within = [&](std::size_t j) {
-    const float dx = pts.x(j) - cx;
-    const float dy = pts.y(j) - cy;
-    if (dx * dx + dy * dy <= r2) {  // invalid readings are far away
-      fx = dx;
-      fy = dy;
-      return true;
-    }
-    return false;
+  const float* xs = pts.xData();
+  const float* ys = pts.yData();
+  auto found = [&](std::size_t j) {
+    fx = xs[j] - cx;
+    fy = ys[j] - cy;
   };
   // The beams i + dir * k, k = kmax .. 1, as at most two plain index runs (farthest first).
   if (dir < 0) {
     if (kmax > i && pts.wraps()) {
-      for (std::size_t j = n + i - kmax; j < n; ++j) {
-        if (within(j)) {
-          return n + i - j;
-        }
+      const std::size_t j = falko_detail::firstWithinAscending(xs, ys, n + i - kmax, n, cx, cy, r2);
+      if (j < n) {
+        found(j);
+        return n + i - j;
       }
     }
-    for (std::size_t j = kmax > i ? 0 : i - kmax; j < i; ++j) {
-      if (within(j)) {
-        return i - j;
-      }
+    const std::size_t j = falko_detail::firstWithinAscending(xs, ys, kmax > i ? 0 : i - kmax, i, cx, cy, r2);
+    if (j < i) {
+      found(j);
+      return i - j;
     }
     return 0;
   }
   if (i + kmax >= n && pts.wraps()) {
-    for (std::size_t j = i + kmax - n + 1; j-- > 0;) {
-      if (within(j)) {
-        return n - i + j;
-      }
+    const std::size_t end = i + kmax - n + 1;
+    const std::size_t j = falko_detail::lastWithinDescending(xs, ys, 0, end, cx, cy, r2);
+    if (j < end) {
+      found(j);
+      return n - i + j;
     }
   }
-  for (std::size_t j = i + kmax < n ? i + kmax : n - 1; j > i; --j) {
-    if (within(j)) {
-      return j - i;
-    }
+  const std::size_t end = (i + kmax < n ? i + kmax : n - 1) + 1;
+  const std::size_t j = falko_detail::lastWithinDescending(xs, ys, i + 1, end, cx, cy, r2);
+  if (j < end) {
+    found(j);
+    return j - i;
   }
   return 0;
 }
@@ -254,7 +252,24 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
     // hist_ is all zero between calls: only the used bins are reset at the end.
     std::array<unsigned, kMaxGridSectors> used;  // only [0, usedCount) is read
     unsigned usedCount = 0;
-    for (std::size_t k = 0; k < sd.count; ++k) {
+    std::size_t k = 0;
+    if (fast16) {
+      // Sectors of four neighbours at a time, branch-free (vector registers where available).
+      for (; k + 4 <= sd.count; k += 4) {
+        std::array<unsigned, 4> b4;
+        for (std::size_t l = 0; l < 4; ++l) {
+          const float u = px[k + l] * c + py[k + l] * s;
+          const float v = py[k + l] * c - px[k + l] * s;
+          b4[l] = falko_detail::sector16Branchless(u, v);
+        }
+        for (std::size_t l = 0; l < 4; ++l) {
+          if (hist_[b4[l]]++ == 0U) {
+            used[usedCount++] = b4[l];
+          }
+        }
+      }
+    }
+    for (; k < sd.count; ++k) {
       // Bearing of the neighbour seen from the candidate, relative to the corner orientation.
       const float u = px[k] * c + py[k] * s;
       const float v = py[k] * c - px[k] * s;
