@@ -253,7 +253,7 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
     std::array<unsigned, kMaxGridSectors> used;  // only [0, usedCount) is read
     unsigned usedCount = 0;
     std::size_t k = 0;
-    if (fast16) {
+    if (fast16 && falko_detail::kFourWide) {
       // Sectors of four neighbours at a time, branch-free (vector registers where available).
       for (; k + 4 <= sd.count; k += 4) {
         std::array<unsigned, 4> b4;

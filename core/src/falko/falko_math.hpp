@@ -63,6 +63,15 @@ inline unsigned sector16(float u, float v) noexcept {
   return (fromZero + 8U) & 15U;
 }
 
+/// True where the compiler can keep four float tests in one vector register (x86 SSE2, ARM NEON):
+/// the four-at-a-time loops below pay off there. Without a vector unit (Cortex-M7) they only
+/// add work, so the plain one-beam loops are used.
+#if defined(__SSE2__) || defined(__ARM_NEON)
+constexpr bool kFourWide = true;
+#else
+constexpr bool kFourWide = false;
+#endif
+
 /// sector16 without branches (select arithmetic on the signs), for loops over several points.
 /// Same result as sector16 for every input.
 inline unsigned sector16Branchless(float u, float v) noexcept {
@@ -87,7 +96,7 @@ inline unsigned sector16Branchless(float u, float v) noexcept {
 inline std::size_t firstWithinAscending(const float* x, const float* y, std::size_t begin, std::size_t end, float cx,
                                         float cy, float r2) noexcept {
   std::size_t j = begin;
-  for (; j + 4 <= end; j += 4) {
+  for (; kFourWide && j + 4 <= end; j += 4) {
     unsigned hit = 0;
     for (std::size_t k = 0; k < 4; ++k) {
       const float dx = x[j + k] - cx;
@@ -113,7 +122,7 @@ inline std::size_t firstWithinAscending(const float* x, const float* y, std::siz
 inline std::size_t lastWithinDescending(const float* x, const float* y, std::size_t begin, std::size_t end, float cx,
                                         float cy, float r2) noexcept {
   std::size_t j = end;
-  for (; j >= begin + 4; j -= 4) {
+  for (; kFourWide && j >= begin + 4; j -= 4) {
     unsigned hit = 0;
     for (std::size_t k = 1; k <= 4; ++k) {
       const float dx = x[j - k] - cx;
