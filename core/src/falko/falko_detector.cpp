@@ -138,68 +138,68 @@ Status FalkoDetector::detect(const LaserScan& scan, IVector<FalkoKeypoint>& out)
 }
 
 namespace {
-/// Farthest point within `radius` of beam i on one side (dir -1: earlier beams, +1: later), found
-/// by walking from the edge of the angular window inwards: on a straight wall the window edge is
-/// about r away, so this usually stops after a few beams. Returns false when the side is empty.
-bool farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::size_t kmax, float r2, float& fx,
-                    float& fy) noexcept {
+/// Offset k (in beams, 1..kmax) of the farthest point within `radius` of beam i on one side (dir
+/// -1: earlier beams, +1: later), found by walking from the edge of the angular window inwards: on
+/// a straight wall the window edge is about r away, so this usually stops after a few beams. The
+/// point relative to beam i is written to (fx, fy). Returns 0 when the side is empty. No beam
+/// beyond the returned offset (up to kmax) lies within the radius.
+std::size_t farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::size_t kmax, float r2, float& fx,
+                           float& fy) noexcept {
   const std::size_t n = pts.size();
   const float cx = pts.x(i);
   const float cy = pts.y(i);
-  auto within = [&](std::size_t j) {
-    const float dx = pts.x(j) - cx;
-    const float dy = pts.y(j) - cy;
-    if (dx * dx + dy * dy <= r2) {  // invalid readings are far away
-      fx = dx;
-      fy = dy;
-      return true;
-    }
-    return false;
+  const float* xs = pts.xData();
+  const float* ys = pts.yData();
+  auto found = [&](std::size_t j) {
+    fx = xs[j] - cx;
+    fy = ys[j] - cy;
   };
   // The beams i + dir * k, k = kmax .. 1, as at most two plain index runs (farthest first).
   if (dir < 0) {
     if (kmax > i && pts.wraps()) {
-      for (std::size_t j = n + i - kmax; j < n; ++j) {
-        if (within(j)) {
-          return true;
-        }
+      const std::size_t j = falko_detail::firstWithinAscending(xs, ys, n + i - kmax, n, cx, cy, r2);
+      if (j < n) {
+        found(j);
+        return n + i - j;
       }
     }
-    for (std::size_t j = kmax > i ? 0 : i - kmax; j < i; ++j) {
-      if (within(j)) {
-        return true;
-      }
+    const std::size_t j = falko_detail::firstWithinAscending(xs, ys, kmax > i ? 0 : i - kmax, i, cx, cy, r2);
+    if (j < i) {
+      found(j);
+      return i - j;
     }
-    return false;
+    return 0;
   }
   if (i + kmax >= n && pts.wraps()) {
-    for (std::size_t j = i + kmax - n + 1; j-- > 0;) {
-      if (within(j)) {
-        return true;
-      }
+    const std::size_t end = i + kmax - n + 1;
+    const std::size_t j = falko_detail::lastWithinDescending(xs, ys, 0, end, cx, cy, r2);
+    if (j < end) {
+      found(j);
+      return n - i + j;
     }
   }
-  for (std::size_t j = i + kmax < n ? i + kmax : n - 1; j > i; --j) {
-    if (within(j)) {
-      return true;
-    }
+  const std::size_t end = (i + kmax < n ? i + kmax : n - 1) + 1;
+  const std::size_t j = falko_detail::lastWithinDescending(xs, ys, i + 1, end, cx, cy, r2);
+  if (j < end) {
+    found(j);
+    return j - i;
   }
-  return false;
+  return 0;
 }
 }  // namespace
 
-bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, Side& left, Side& right) noexcept {
+bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight,
+                           Side& left, Side& right) noexcept {
   const float cx = pts.x(i);
   const float cy = pts.y(i);
   const float r2 = radius * radius;
-  const std::size_t kmax = pts.maxOffset(pts.range(i), radius);
   // Invalid readings are far away (ScanPoints::kFarAway): the radius test drops them.
   std::size_t nl = 0;
   float slx = 0.0F;
   float sly = 0.0F;
   float* lx = leftX_.data();
   float* ly = leftY_.data();
-  falko_detail::walkBeams(pts, i, -1, kmax, [&](std::size_t j) {
+  falko_detail::walkBeams(pts, i, -1, kLeft, [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {
@@ -221,7 +221,7 @@ bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, S
   float sry = 0.0F;
   float* rx = rightX_.data();
   float* ry = rightY_.data();
-  falko_detail::walkBeams(pts, i, 1, kmax, [&](std::size_t j) {
+  falko_detail::walkBeams(pts, i, 1, kRight, [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {
@@ -252,7 +252,24 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
     // hist_ is all zero between calls: only the used bins are reset at the end.
     std::array<unsigned, kMaxGridSectors> used;  // only [0, usedCount) is read
     unsigned usedCount = 0;
-    for (std::size_t k = 0; k < sd.count; ++k) {
+    std::size_t k = 0;
+    if (fast16 && falko_detail::kFourWide) {
+      // Sectors of four neighbours at a time, branch-free (vector registers where available).
+      for (; k + 4 <= sd.count; k += 4) {
+        std::array<unsigned, 4> b4;
+        for (std::size_t l = 0; l < 4; ++l) {
+          const float u = px[k + l] * c + py[k + l] * s;
+          const float v = py[k + l] * c - px[k + l] * s;
+          b4[l] = falko_detail::sector16Branchless(u, v);
+        }
+        for (std::size_t l = 0; l < 4; ++l) {
+          if (hist_[b4[l]]++ == 0U) {
+            used[usedCount++] = b4[l];
+          }
+        }
+      }
+    }
+    for (; k < sd.count; ++k) {
       // Bearing of the neighbour seen from the candidate, relative to the corner orientation.
       const float u = px[k] * c + py[k] * s;
       const float v = py[k] * c - px[k] * s;
@@ -303,18 +320,22 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     std::size_t m = 0;
     const std::size_t kmax = pts.maxOffset(pts.range(i), reach);
     LineAcc total;
-    // Window in beam order: the earlier beams are walked nearest first, then reversed.
+    // Window in beam order: the earlier beams are walked nearest first, then reversed. Branch-free
+    // compaction: every beam is written, the count advances only for points within reach (at
+    // most one write beyond the kept points, inside the buffer: the window never exceeds the
+    // scan). The sums are accumulated afterwards in the same point order.
     auto take = [&](std::size_t j) {
       const float qx = pts.x(j) - mxAbs;
       const float qy = pts.y(j) - myAbs;
-      if (qx * qx + qy * qy <= reach2) {  // invalid readings are far away
-        wx[m] = qx;
-        wy[m] = qy;
-        ++m;
-        total.add(qx, qy);
-      }
+      wx[m] = qx;
+      wy[m] = qy;
+      m += qx * qx + qy * qy <= reach2 ? 1U : 0U;  // invalid readings are far away
     };
     falko_detail::walkBeams(pts, i, -1, kmax, take);
+    for (std::size_t a = 0; a < m; ++a) {
+      total.add(wx[a], wy[a]);
+    }
+    const std::size_t mLeft = m;
     for (std::size_t a = 0, b = m; a + 1 < b; ++a, --b) {
       const float tx = wx[a];
       const float ty = wy[a];
@@ -325,6 +346,9 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     }
     take(i);
     falko_detail::walkBeams(pts, i, 1, kmax, take);
+    for (std::size_t a = mLeft; a < m; ++a) {
+      total.add(wx[a], wy[a]);
+    }
     windowCount = m;
     const std::size_t minSide = params_.minSidePoints + 1;
     LineAcc before;  // points [0, q)
@@ -335,19 +359,31 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     // candidate: farther splits are not tried (cheaper, and they could only be rejected).
     const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
     const float splitReach2 = splitReach * splitReach;
-    for (std::size_t q = 0; q < m; ++q) {
-      if (q >= minSide && m - q - 1 >= minSide && wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
-        LineAcc after = total;
-        after.subtract(before);
-        after.remove(wx[q], wy[q]);
-        const float cost = before.residual() + after.residual();
-        if (cost < bestCost) {
-          bestCost = cost;
-          bestL = before;
-          bestR = after;
-        }
+    if (m >= 2 * minSide + 1) {
+      const std::size_t qLast = m - minSide - 1;  // the last split point with minSide after it
+      for (std::size_t q = 0; q < minSide; ++q) {
+        before.add(wx[q], wy[q]);
       }
-      before.add(wx[q], wy[q]);
+      for (std::size_t q = minSide; q <= qLast; ++q) {
+        if (wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
+          const float costL = before.residual();
+          // The residual of the points before the split only grows with q (a line through more
+          // points fits no better), so no later split can beat the best one any more.
+          if (!(costL < bestCost)) {
+            break;
+          }
+          LineAcc after = total;
+          after.subtract(before);
+          after.remove(wx[q], wy[q]);
+          const float cost = costL + after.residual();
+          if (cost < bestCost) {
+            bestCost = cost;
+            bestL = before;
+            bestR = after;
+          }
+        }
+        before.add(wx[q], wy[q]);
+      }
     }
     // One line explaining the window almost as well as two: a noisy straight wall, not a corner.
     if (bestCost < std::numeric_limits<float>::infinity() &&
@@ -475,7 +511,12 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     float fy = 0.0F;
     float bx = 0.0F;
     float by = 0.0F;
-    if (!farthestWithin(pts, i, -1, kmax, r2, fx, fy) || !farthestWithin(pts, i, 1, kmax, r2, bx, by)) {
+    const std::size_t kLeft = farthestWithin(pts, i, -1, kmax, r2, fx, fy);
+    if (kLeft == 0) {
+      continue;
+    }
+    const std::size_t kRight = farthestWithin(pts, i, 1, kmax, r2, bx, by);
+    if (kRight == 0) {
       continue;
     }
     // Triangle front / candidate (origin) / back: base and height at least r / beta.
@@ -490,7 +531,7 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     }
     Side left;
     Side right;
-    if (!gather(pts, i, radius, left, right)) {
+    if (!gather(pts, i, radius, kLeft, kRight, left, right)) {
       continue;
     }
     const float ox = left.sumX / static_cast<float>(left.count) + right.sumX / static_cast<float>(right.count);

@@ -63,6 +63,87 @@ inline unsigned sector16(float u, float v) noexcept {
   return (fromZero + 8U) & 15U;
 }
 
+/// True where the compiler can keep four float tests in one vector register (x86 SSE2, ARM NEON):
+/// the four-at-a-time loops below pay off there. Without a vector unit (Cortex-M7) they only
+/// add work, so the plain one-beam loops are used.
+#if defined(__SSE2__) || defined(__ARM_NEON)
+constexpr bool kFourWide = true;
+#else
+constexpr bool kFourWide = false;
+#endif
+
+/// sector16 without branches (select arithmetic on the signs), for loops over several points.
+/// Same result as sector16 for every input.
+inline unsigned sector16Branchless(float u, float v) noexcept {
+  const float ax = std::fabs(u);
+  const float ay = std::fabs(v);
+  const unsigned q = static_cast<unsigned>(ay > 0.19891237F * ax) + static_cast<unsigned>(ay > 0.66817864F * ax) +
+                     static_cast<unsigned>(ay > 1.49660576F * ax) + static_cast<unsigned>(ay > 5.02733949F * ax);
+  // (fromZero + 8) mod 16 of sector16: u >= 0: v >= 0 -> 8 + q, v < 0 -> 24 - q;
+  // u < 0: v >= 0 -> 16 - q, v < 0 -> 16 + q.
+  const unsigned uNeg = static_cast<unsigned>(u < 0.0F);
+  const unsigned vNeg = static_cast<unsigned>(v < 0.0F);
+  const unsigned base = 8U + 8U * uNeg + 16U * (vNeg & (1U - uNeg));
+  const unsigned flip = uNeg ^ vNeg;                  // q is subtracted when exactly one sign is negative
+  const unsigned signedQ = (q ^ (0U - flip)) + flip;  // q or -q (mod 2^32)
+  return (base + signedQ) & 15U;
+}
+
+/// First index j in [begin, end), ascending, whose point (x[j], y[j]) lies within sqrt(r2) of
+/// (cx, cy); end when none does. Beams are tested four at a time without a branch per beam (the
+/// compiler can keep the four tests in vector registers); the block holding the hit is then
+/// searched beam by beam.
+inline std::size_t firstWithinAscending(const float* x, const float* y, std::size_t begin, std::size_t end, float cx,
+                                        float cy, float r2) noexcept {
+  std::size_t j = begin;
+  for (; kFourWide && j + 4 <= end; j += 4) {
+    unsigned hit = 0;
+    for (std::size_t k = 0; k < 4; ++k) {
+      const float dx = x[j + k] - cx;
+      const float dy = y[j + k] - cy;
+      hit |= dx * dx + dy * dy <= r2 ? 1U : 0U;
+    }
+    if (hit != 0U) {
+      break;
+    }
+  }
+  for (; j < end; ++j) {
+    const float dx = x[j] - cx;
+    const float dy = y[j] - cy;
+    if (dx * dx + dy * dy <= r2) {
+      return j;
+    }
+  }
+  return end;
+}
+
+/// Last index j in [begin, end) (searched descending) whose point lies within sqrt(r2) of
+/// (cx, cy); end when none does. Four beams per step as in firstWithinAscending.
+inline std::size_t lastWithinDescending(const float* x, const float* y, std::size_t begin, std::size_t end, float cx,
+                                        float cy, float r2) noexcept {
+  std::size_t j = end;
+  for (; kFourWide && j >= begin + 4; j -= 4) {
+    unsigned hit = 0;
+    for (std::size_t k = 1; k <= 4; ++k) {
+      const float dx = x[j - k] - cx;
+      const float dy = y[j - k] - cy;
+      hit |= dx * dx + dy * dy <= r2 ? 1U : 0U;
+    }
+    if (hit != 0U) {
+      break;
+    }
+  }
+  while (j > begin) {
+    --j;
+    const float dx = x[j] - cx;
+    const float dy = y[j] - cy;
+    if (dx * dx + dy * dy <= r2) {
+      return j;
+    }
+  }
+  return end;
+}
+
 /// Calls f(j) for the beams 1..k steps from beam i in direction dir (-1 or +1), nearest first,
 /// wrapping on 360 deg scans and stopping at the scan ends otherwise. Plain index loops (no modulo
 /// per step); k must not exceed pts.maxOffset(...) so that the two directions never overlap.

@@ -71,8 +71,10 @@ class FalkoDetector {
   };
   bool paramsValid() const noexcept;
   /// Gathers the neighbours of beam i into left/right buffers (coordinates relative to the
-  /// candidate); returns false when a side has too few points.
-  bool gather(const ScanPoints& pts, std::size_t i, float radius, Side& left, Side& right) noexcept;
+  /// candidate) from the beams at most kLeft before and kRight after it (the offsets of the
+  /// farthest neighbours); returns false when a side has too few points.
+  bool gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight, Side& left,
+              Side& right) noexcept;
   float scoreOf(const Side& left, const Side& right, float c, float s) noexcept;
   /// Sub-beam refinement and orientation; false when the points around the candidate are
   /// explained by one line (the candidate is then dropped).

@@ -48,6 +48,9 @@ class ScanPoints {
   float x(std::size_t i) const noexcept { return x_[i]; }
   float y(std::size_t i) const noexcept { return y_[i]; }
   float range(std::size_t i) const noexcept { return range_[i]; }
+  /// The coordinate arrays (size() entries), for loops that test several beams at once.
+  const float* xData() const noexcept { return x_.data(); }
+  const float* yData() const noexcept { return y_.data(); }
   /// Number of valid points.
   std::size_t validCount() const noexcept { return validCount_; }
 
