@@ -12,6 +12,7 @@
 
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/localizer.hpp"
+#include "ekf_cycle_scene.hpp"
 
 namespace {
 using namespace agv;
@@ -33,40 +34,9 @@ struct EkfBenchWorld {
     loc = std::make_unique<Localizer>(params);
     map = std::make_unique<LandmarkMap>();
     scan = std::make_unique<ScanObservations>();
-    const double spacing = 3.0;
-    const double half = 0.5 * spacing * side;
     pose = Pose2d{0.3, 0.2, 0.4};
-    const Pose2d laserWorld = pose.compose(params.laser.mounting);
-    std::uint64_t s = 99;
-    auto jitter = [&s]() {
-      s = s * 6364136223846793005ULL + 1442695040888963407ULL;
-      return (static_cast<double>(s >> 11) * (1.0 / 9007199254740992.0) - 0.5) * 1.0;
-    };
-    std::uint32_t id = 1;
     scan->kindsDetected = kAllLandmarkKinds;
-    for (int i = 0; i < side; ++i) {
-      for (int j = 0; j < side; ++j) {
-        const double x = -half + spacing * (i + 0.5) + jitter();
-        const double y = -half + spacing * (j + 0.5) + jitter();
-        const Eigen::Vector2d z = laserWorld.inverseTransformPoint(Eigen::Vector2d(x, y));
-        const double r = z.norm();
-        const double b = std::atan2(z.y(), z.x());
-        const bool visible = r > params.laser.rangeMin + 0.5 && r < params.laser.rangeMax - 0.5 &&
-                             std::fabs(b) < params.laser.angleMax - 0.05;
-        if (visible && observed < wanted) {
-          // observed every cycle: a dynamic landmark that lives through the lifecycle
-          const auto idx = map->insert(LandmarkKind::Reflector, x, y, 1e-6);
-          for (int k = 0; k < 30; ++k)
-            (void)map->reinforce(idx.value(), x, y, 1e-6, 0U);
-          const double n = 0.002 * jitter();
-          (void)scan->points.push_back(PointObservation{z.x() + n, z.y() - n, LandmarkKind::Reflector});
-          ++observed;
-        } else {
-          (void)map->addSurveyed(LandmarkKind::Reflector, x, y, 0.001, 100000U + id);
-        }
-        ++id;
-      }
-    }
+    observed = test::buildEkfCycleScene(params, pose, side, wanted, *map, *scan);
     Eigen::Matrix3d P0 = Eigen::Matrix3d::Identity() * 1e-4;
     (void)loc->reset(t, pose, P0);
   }
