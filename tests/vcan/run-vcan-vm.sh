@@ -214,7 +214,8 @@ rc=$?
 n=0
 while :; do
   missing=""
-  for f in 201#11223344 1ABCDE01#01 202#R; do
+  # 000#0111, 000#0112, 080#: NMT Start and SYNC from the CANopen encoder source test.
+  for f in 201#11223344 1ABCDE01#01 202#R 000#0111 000#0112 080#; do
     grep -q " vcan0 $f\$" /tmp/candump.log || missing="$missing $f"
   done
   [ -z "$missing" ] && break
