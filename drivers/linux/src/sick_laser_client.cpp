@@ -57,6 +57,32 @@ bool pump(TcpStream& tcp, sick::TelegramFramer& framer, Duration wait) noexcept 
   return true;
 }
 
+// Reads one poll() call makes from a socket that keeps having data.
+constexpr int kMaxPollReads = 16;
+
+/// Reads what the socket already holds into the framer, at most kMaxPollReads times, until `done`
+/// says a telegram of interest was decoded. Timeout when nothing (more) is there, Lost when the
+/// connection was lost (the framer is reset), Ok when `done` returned true.
+template <typename Done>
+Status drainSocket(TcpStream& tcp, sick::TelegramFramer& framer, Done done) noexcept {
+  for (int i = 0; i < kMaxPollReads; ++i) {
+    std::size_t n = 0;
+    const Status r = tcp.read(framer.writable(), Duration{}, n);
+    if (r == Status::Lost) {
+      framer.reset();
+      return Status::Lost;
+    }
+    if (r != Status::Ok) {
+      break;
+    }
+    framer.commit(n);
+    if (done()) {
+      return Status::Ok;
+    }
+  }
+  return Status::Timeout;
+}
+
 }  // namespace
 
 ColaAScanClient::ColaAScanClient(const ColaAScanClientConfig& config) noexcept : config_(config), tcp_(config.tcp) {}
@@ -74,23 +100,71 @@ Status ColaAScanClient::sendCommand(const char* command, Duration timeout) noexc
   return tcp_.writeAll(Span<const std::uint8_t>(buf, n + 2), timeout);
 }
 
+bool ColaAScanClient::decodeBuffered(LaserScan& scan, Status& result) noexcept {
+  Span<const std::uint8_t> t;
+  while (framer_.next(t)) {
+    if (startsWith(t, "sSN LMDscandata ") || startsWith(t, "sRA LMDscandata ")) {
+      const Status s = sick::parseColaAScan(t, config_.scan, monotonicNow(), scan, &info_);
+      if (s == Status::Ok || s == Status::CapacityExceeded) {
+        ++counters_.decoded;
+        result = s;
+        return true;
+      }
+      ++counters_.decodeErrors;
+    } else {
+      ++counters_.otherTelegrams;
+    }
+  }
+  return false;
+}
+
+void ColaAScanClient::disconnect() noexcept {
+  tcp_.close();
+  framer_.reset();
+  pollRequested_ = false;
+}
+
+Status ColaAScanClient::poll(LaserScan& scan, Duration connectBudget) noexcept {
+  Status decoded = Status::Ok;
+  if (decodeBuffered(scan, decoded)) {
+    pollRequested_ = false;
+    return decoded;
+  }
+  if (!tcp_.connected()) {
+    if (monotonicNow() < tcp_.nextAttempt() || tcp_.ensureConnected(connectBudget) != Status::Ok) {
+      return Status::Lost;
+    }
+    framer_.reset();
+    pollRequested_ = false;
+    if (config_.subscribe && sendCommand("sEN LMDscandata 1", connectBudget) != Status::Ok) {
+      disconnect();
+      return Status::Lost;
+    }
+  }
+  if (!config_.subscribe && !pollRequested_) {
+    if (sendCommand("sRN LMDscandata", connectBudget) != Status::Ok) {
+      disconnect();
+      return Status::Lost;
+    }
+    pollRequested_ = true;
+  }
+  // A bounded number of reads of what is already there: a fast stream cannot hold the caller.
+  const Status r = drainSocket(tcp_, framer_, [&]() noexcept { return decodeBuffered(scan, decoded); });
+  if (r == Status::Timeout) {
+    return Status::Timeout;
+  }
+  pollRequested_ = false;
+  return r == Status::Ok ? decoded : Status::Lost;
+}
+
 Status ColaAScanClient::receive(LaserScan& scan, Duration timeout) noexcept {
   const Timestamp deadline = monotonicNow() + timeout;
   bool requested = false;
   // Each pass reads once or (re)connects; the deadline bounds the loop.
   for (;;) {
-    Span<const std::uint8_t> t;
-    while (framer_.next(t)) {
-      if (startsWith(t, "sSN LMDscandata ") || startsWith(t, "sRA LMDscandata ")) {
-        const Status s = sick::parseColaAScan(t, config_.scan, monotonicNow(), scan, &info_);
-        if (s == Status::Ok || s == Status::CapacityExceeded) {
-          ++counters_.decoded;
-          return s;
-        }
-        ++counters_.decodeErrors;
-      } else {
-        ++counters_.otherTelegrams;
-      }
+    Status decoded = Status::Ok;
+    if (decodeBuffered(scan, decoded)) {
+      return decoded;
     }
     const Timestamp now = monotonicNow();
     if (now >= deadline) {
@@ -120,6 +194,62 @@ Status ColaAScanClient::receive(LaserScan& scan, Duration timeout) noexcept {
 }
 
 Nav350Client::Nav350Client(const Nav350ClientConfig& config) noexcept : config_(config), tcp_(config.tcp) {}
+
+bool Nav350Client::decodeBuffered(sick::Nav350PoseReply& reply, Status& result) noexcept {
+  Span<const std::uint8_t> t;
+  while (framer_.next(t)) {
+    if (pollRequested_ && startsWith(t, "sAN mNPOSGetData ")) {
+      const Status s = sick::parseNav350PoseReply(t, config_.nav, monotonicNow(), reply);
+      pollRequested_ = false;  // answered, well-formed or not
+      if (s == Status::Ok || s == Status::CapacityExceeded) {
+        ++counters_.decoded;
+        result = s;
+        return true;
+      }
+      ++counters_.decodeErrors;
+    } else {
+      ++counters_.otherTelegrams;
+    }
+  }
+  return false;
+}
+
+void Nav350Client::disconnect() noexcept {
+  tcp_.close();
+  framer_.reset();
+  pollRequested_ = false;
+}
+
+Status Nav350Client::poll(bool waitForNextScan, sick::Nav350Mask mask, sick::Nav350PoseReply& reply,
+                          Duration connectBudget) noexcept {
+  Status decoded = Status::Ok;
+  if (decodeBuffered(reply, decoded)) {
+    return decoded;
+  }
+  if (!tcp_.connected()) {
+    if (monotonicNow() < tcp_.nextAttempt() || tcp_.ensureConnected(connectBudget) != Status::Ok) {
+      return Status::Lost;
+    }
+    framer_.reset();
+    pollRequested_ = false;
+  }
+  if (!pollRequested_) {
+    std::uint8_t payload[32];
+    std::uint8_t telegram[48];
+    const std::size_t n = sick::encodeNav350PoseRequest(waitForNextScan, mask, Span<std::uint8_t>(payload));
+    const std::size_t m = sick::encodeColaB(Span<const std::uint8_t>(payload, n), Span<std::uint8_t>(telegram));
+    if (tcp_.writeAll(Span<const std::uint8_t>(telegram, m), connectBudget) != Status::Ok) {
+      disconnect();
+      return Status::Lost;
+    }
+    pollRequested_ = true;
+  }
+  const Status r = drainSocket(tcp_, framer_, [&]() noexcept { return decodeBuffered(reply, decoded); });
+  if (r == Status::Lost) {
+    pollRequested_ = false;
+  }
+  return r == Status::Ok ? decoded : r;
+}
 
 Status Nav350Client::requestPose(bool waitForNextScan, sick::Nav350Mask mask, sick::Nav350PoseReply& reply,
                                  Duration timeout) noexcept {

@@ -39,6 +39,16 @@ class ColaAScanClient {
   /// Lost when the device cannot be reached within the timeout (retried on the next call).
   Status receive(LaserScan& scan, Duration timeout) noexcept;
 
+  /// Non-blocking variant for a polling loop: returns a scan already received, else reads what the
+  /// socket holds without waiting. When not connected and an attempt is due (`reconnectInterval`),
+  /// connects (waiting at most `connectBudget`) and subscribes or polls again. Ok/CapacityExceeded
+  /// with `scan` filled; Timeout when no complete scan is there yet; Lost when not connected.
+  Status poll(LaserScan& scan, Duration connectBudget) noexcept;
+
+  /// Closes the connection (the next call reconnects when the interval allows and subscribes again).
+  void disconnect() noexcept;
+  bool connected() const noexcept { return tcp_.connected(); }
+
   const LaserClientCounters& counters() const noexcept { return counters_; }
   const sick::FramerCounters& framerCounters() const noexcept { return framer_.counters(); }
   const TcpStreamCounters& tcpCounters() const noexcept { return tcp_.counters(); }
@@ -46,12 +56,14 @@ class ColaAScanClient {
 
  private:
   Status sendCommand(const char* command, Duration timeout) noexcept;
+  bool decodeBuffered(LaserScan& scan, Status& result) noexcept;
 
   ColaAScanClientConfig config_;
   TcpStream tcp_;
   sick::TelegramFramer framer_{sick::Framing::ColaA};
   sick::ColaAScanInfo info_{};
   LaserClientCounters counters_{};
+  bool pollRequested_ = false;  ///< poll(): an `sRN LMDscandata` is outstanding (polling mode)
 };
 
 /// Configuration of the NAV350 client.
@@ -71,15 +83,28 @@ class Nav350Client {
   Status requestPose(bool waitForNextScan, sick::Nav350Mask mask, sick::Nav350PoseReply& reply,
                      Duration timeout) noexcept;
 
+  /// Non-blocking variant for a polling loop: sends the request when none is outstanding, returns
+  /// the reply once it is there, else reads what the socket holds without waiting. Connection as
+  /// `ColaAScanClient::poll`. Ok/CapacityExceeded with `reply`; Timeout; Lost.
+  Status poll(bool waitForNextScan, sick::Nav350Mask mask, sick::Nav350PoseReply& reply,
+              Duration connectBudget) noexcept;
+
+  /// Closes the connection (an outstanding request is forgotten).
+  void disconnect() noexcept;
+  bool connected() const noexcept { return tcp_.connected(); }
+
   const LaserClientCounters& counters() const noexcept { return counters_; }
   const sick::FramerCounters& framerCounters() const noexcept { return framer_.counters(); }
   const TcpStreamCounters& tcpCounters() const noexcept { return tcp_.counters(); }
 
  private:
+  bool decodeBuffered(sick::Nav350PoseReply& reply, Status& result) noexcept;
+
   Nav350ClientConfig config_;
   TcpStream tcp_;
   sick::TelegramFramer framer_{sick::Framing::ColaB};
   LaserClientCounters counters_{};
+  bool pollRequested_ = false;  ///< poll(): a request is outstanding
 };
 
 }  // namespace agv::drivers

@@ -1,0 +1,311 @@
+// SickLaserSource (hal::LaserSource over the SICK TCP clients) against a loopback peer speaking
+// CoLa A / binary CoLa: polled without waiting, sweeps in order, reconnection after a drop,
+// a silent laser reported and reconnected, an unreachable one reported, NAV350 reflectors in the
+// sensor frame, and no allocation in any read().
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <ctime>
+#include <string>
+#include <vector>
+
+#include "agv/core/angle.hpp"
+#include "agv/drivers/linux/sick_laser_source.hpp"
+#include "agv_test.hpp"
+#include "loopback_server.hpp"
+#include "sick_telegrams.hpp"
+
+using agv::Duration;
+using agv::Status;
+using agv::drivers::SickLaserModel;
+using agv::drivers::SickLaserSource;
+using agv::drivers::SickLaserSourceConfig;
+using agv::hal::LaserMeasurement;
+
+namespace {
+
+/// A telegram whose 10 ranges are `base + i` millimetres.
+std::vector<std::uint8_t> scanTelegram(std::uint32_t scanCounter, std::uint32_t baseMm) {
+  agv::test::ColaScanFields f;
+  f.scanCounter = scanCounter;
+  agv::test::ColaChannel c;
+  c.startAngle = -450000;
+  c.step = 5000;
+  for (std::uint32_t i = 0; i < 10; ++i) {
+    c.values.push_back(baseMm + i);
+  }
+  f.channels16.push_back(c);
+  return agv::test::stxEtx(agv::test::buildColaScan(f));
+}
+
+SickLaserSourceConfig loopbackConfig(SickLaserModel model, std::uint16_t port) {
+  SickLaserSourceConfig c;
+  c.model = model;
+  std::strcpy(c.tcp.host, "127.0.0.1");
+  c.tcp.port = port;
+  c.tcp.connectTimeout = Duration::fromMilliseconds(500);
+  c.tcp.reconnectInterval = Duration::fromMilliseconds(50);
+  c.connectBudget = Duration::fromMilliseconds(100);
+  c.scanTimeout = Duration::fromMilliseconds(300);
+  agv::drivers::applyModelRanges(model, c.scan, c.nav);
+  return c;
+}
+
+void sleepMs(int ms) {
+  timespec t{0, static_cast<long>(ms) * 1000000L};
+  (void)nanosleep(&t, nullptr);
+}
+
+/// Polls `read()` (1 ms apart, at most `ms` times) until it returns `want`; counts the
+/// allocations inside the read() calls and the other results seen.
+struct Poller {
+  SickLaserSource& src;
+  std::uint64_t allocs = 0;
+  int notFound = 0;
+  Status poll(LaserMeasurement& m, Status want, int ms) {
+    Status s = Status::NotFound;
+    const agv::Timestamp end = agv::drivers::monotonicNow() + Duration::fromMilliseconds(ms);
+    for (int i = 0; i < ms && agv::drivers::monotonicNow() < end; ++i) {
+      allocs += agv::test::countAllocations([&]() { s = src.read(m); });
+      if (s == want) {
+        return s;
+      }
+      notFound += s == Status::NotFound ? 1 : 0;
+      sleepMs(1);
+    }
+    return s;
+  }
+};
+
+const std::vector<std::uint8_t> kSubscribe = agv::test::stxEtx("sEN LMDscandata 1");
+
+/// Receives exactly `want.size()` bytes (bounded wait) and compares them, without allocating: the
+/// peer thread runs while the source's read() calls are counted for allocations (process-wide).
+bool receiveExactly(int fd, const std::vector<std::uint8_t>& want, int ms = 5000) {
+  std::uint8_t buf[256];
+  if (want.size() > sizeof buf)
+    return false;
+  std::size_t got = 0;
+  for (int i = 0; i < ms / 10 && got < want.size(); ++i) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 10) != 1)
+      continue;
+    const ssize_t n = ::recv(fd, buf + got, want.size() - got, 0);
+    if (n <= 0)
+      return false;
+    got += static_cast<std::size_t>(n);
+  }
+  return got == want.size() && std::memcmp(buf, want.data(), got) == 0;
+}
+
+}  // namespace
+
+TEST_CASE("SICK laser source: polled stream, noise, drop and reconnection", "[drivers][laser]") {
+  agv::test::LoopbackServer server;
+  REQUIRE(server.ok());
+  std::atomic<int> subscriptions{0};
+  std::atomic<bool> done{false};
+  std::vector<std::uint8_t> first = {'n', 'o', 'i', 's', 'e'};
+  const auto a = scanTelegram(1, 1000);
+  first.insert(first.end(), a.begin(), a.end());
+  const auto b = scanTelegram(2, 2000);
+  const auto c = scanTelegram(3, 3000);
+  const std::vector<std::uint8_t> halfC(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(c.size() / 2));
+  const auto d = scanTelegram(4, 4000);
+  server.start([&](agv::test::LoopbackServer& s) {
+    int fd = s.accept();
+    if (fd < 0)
+      return;
+    if (receiveExactly(fd, kSubscribe))
+      ++subscriptions;
+    sleepMs(50);  // the source is polled meanwhile and has nothing
+    s.send(fd, first, 29);
+    s.send(fd, b, 1000);
+    s.send(fd, halfC);
+    sleepMs(20);
+    ::close(fd);  // dropped in the middle of C
+    fd = s.accept();
+    if (fd < 0)
+      return;
+    if (receiveExactly(fd, kSubscribe))
+      ++subscriptions;
+    s.send(fd, d);
+    for (int i = 0; i < 300 && !done.load(); ++i)
+      sleepMs(10);
+    ::close(fd);
+  });
+
+  SickLaserSource src(loopbackConfig(SickLaserModel::Lms1xx, server.port()));
+  static LaserMeasurement m;
+  m.hasReflectors = true;
+  Poller p{src};
+  CHECK(src.health() == Status::NotInitialized);
+  for (std::uint32_t expected : {1000U, 2000U, 4000U}) {
+    REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
+    REQUIRE(m.scan.size() == 10U);
+    AGV_CHECK_NEAR(m.scan.ranges[0], expected * 1e-3, 1e-6);
+    AGV_CHECK_NEAR(m.scan.ranges[9], (expected + 9) * 1e-3, 1e-6);
+    AGV_CHECK_NEAR(m.scan.angleMin, agv::deg2rad(-135.0), 1e-6);
+    CHECK_FALSE(m.hasReflectors);
+    CHECK(src.health() == Status::Ok);
+  }
+  done = true;
+  server.join();
+  CHECK(p.notFound > 0);  // read() came back empty-handed instead of waiting
+  CHECK(p.allocs == 0U);
+  CHECK(subscriptions.load() == 2);
+  CHECK(src.counters().sweeps == 3U);
+  CHECK(src.counters().malformed == 0U);
+  CHECK(src.framerCounters().garbageBytes == 5U);
+  CHECK(src.framerCounters().truncated == 1U);
+  CHECK(src.tcpCounters().connects == 2U);
+}
+
+TEST_CASE("SICK laser source: a silent laser is a timeout and is reconnected", "[drivers][laser]") {
+  agv::test::LoopbackServer server;
+  REQUIRE(server.ok());
+  std::atomic<int> subscriptions{0};
+  const auto e = scanTelegram(7, 1500);
+  server.start([&](agv::test::LoopbackServer& s) {
+    int fd = s.accept();
+    if (fd < 0)
+      return;
+    if (receiveExactly(fd, kSubscribe))
+      ++subscriptions;
+    // Stays silent on this connection; the source gives up on it and connects again.
+    const int fd2 = s.accept();
+    ::close(fd);
+    if (fd2 < 0)
+      return;
+    if (receiveExactly(fd2, kSubscribe))
+      ++subscriptions;
+    s.send(fd2, e);
+    agv::test::LoopbackServer::drainAndClose(fd2, 3000);
+  });
+  SickLaserSource src(loopbackConfig(SickLaserModel::Lms5xx, server.port()));
+  static LaserMeasurement m;
+  Poller p{src};
+  CHECK(p.poll(m, Status::Timeout, 3000) == Status::Timeout);
+  CHECK(src.health() == Status::Timeout);
+  REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
+  AGV_CHECK_NEAR(m.scan.ranges[0], 1.5, 1e-6);
+  CHECK(src.counters().silenceReconnects == 1U);
+  CHECK(src.health() == Status::Ok);
+  CHECK(p.allocs == 0U);
+  server.join();
+  CHECK(subscriptions.load() == 2);
+}
+
+TEST_CASE("SICK laser source: an unreachable laser is a timeout, retried at the interval", "[drivers][laser]") {
+  SickLaserSource src(loopbackConfig(SickLaserModel::Tim, agv::test::closedPort()));
+  static LaserMeasurement m;
+  Poller p{src};
+  CHECK(p.poll(m, Status::Timeout, 3000) == Status::Timeout);
+  CHECK(p.notFound > 0);  // within the scan timeout: nothing yet, no fault
+  CHECK(src.health() == Status::Timeout);
+  CHECK_FALSE(src.connected());
+  CHECK(src.tcpCounters().connectFailures >= 2U);
+  CHECK(src.tcpCounters().connects == 0U);
+  CHECK(p.allocs == 0U);
+}
+
+TEST_CASE("SICK laser source: a malformed scan telegram is reported", "[drivers][laser]") {
+  agv::test::LoopbackServer server;
+  REQUIRE(server.ok());
+  const auto bad = agv::test::stxEtx("sSN LMDscandata 1 zz");
+  const auto good = scanTelegram(1, 900);
+  server.start([&](agv::test::LoopbackServer& s) {
+    const int fd = s.accept();
+    if (fd < 0)
+      return;
+    (void)receiveExactly(fd, kSubscribe);
+    s.send(fd, bad);
+    sleepMs(100);  // read on its own, not in the same call as the good one
+    s.send(fd, good);
+    agv::test::LoopbackServer::drainAndClose(fd, 3000);
+  });
+  SickLaserSource src(loopbackConfig(SickLaserModel::Lms1xx, server.port()));
+  static LaserMeasurement m;
+  Poller p{src};
+  CHECK(p.poll(m, Status::Malformed, 3000) == Status::Malformed);
+  REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
+  CHECK(m.scan.size() == 10U);
+  CHECK(src.counters().malformed == 1U);
+  CHECK(p.allocs == 0U);
+}
+
+TEST_CASE("SICK laser source: NAV350 replies give scan and reflectors in the sensor frame", "[drivers][laser]") {
+  agv::test::LoopbackServer server;
+  REQUIRE(server.ok());
+  std::uint8_t payload[32];
+  const std::size_t n = agv::drivers::sick::encodeNav350PoseRequest(
+      true, agv::drivers::sick::Nav350Mask::PoseReflectorsScan, agv::Span<std::uint8_t>(payload));
+  const auto request = agv::test::colaB(std::vector<std::uint8_t>(payload, payload + n));
+  agv::test::NavReplyFields f;
+  f.reflectors.resize(3);
+  for (std::size_t i = 0; i < 3; ++i) {
+    f.reflectors[i].distMm = static_cast<std::uint32_t>(4000 + 500 * i);
+    f.reflectors[i].phiMdeg = static_cast<std::uint32_t>(30000 + 60000 * i);  // 30, 90, 150 deg
+  }
+  f.scan = true;
+  f.startMdeg = 0;
+  f.stepMdeg = 250;
+  f.distMm.assign(1440, 5000U);
+  const auto reply = agv::test::colaB(agv::test::buildNavReply(f));
+  agv::test::NavReplyFields bad;
+  bad.errorCode = 4;  // no position
+  bad.pose = false;
+  bad.poseDetails = false;
+  bad.landmarks = false;
+  const auto failed = agv::test::colaB(agv::test::buildNavReply(bad));
+  std::atomic<int> requests{0};
+  server.start([&](agv::test::LoopbackServer& s) {
+    const int fd = s.accept();
+    if (fd < 0)
+      return;
+    for (int i = 0; i < 3; ++i) {
+      if (!receiveExactly(fd, request))
+        break;
+      ++requests;
+      s.send(fd, i == 1 ? failed : reply, 300);
+    }
+    agv::test::LoopbackServer::drainAndClose(fd, 3000);
+  });
+  SickLaserSourceConfig cfg = loopbackConfig(SickLaserModel::Nav350, server.port());
+  SickLaserSource src(cfg);
+  static LaserMeasurement m;
+  Poller p{src};
+  REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
+  CHECK(m.hasReflectors);
+  REQUIRE(m.reflectors.size() == 3U);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const double range = 4.0 + 0.5 * static_cast<double>(i);
+    const double bearing = agv::deg2rad(30.0 + 60.0 * static_cast<double>(i));
+    AGV_CHECK_NEAR(m.reflectors[i].x, range * std::cos(bearing), 1e-5);
+    AGV_CHECK_NEAR(m.reflectors[i].y, range * std::sin(bearing), 1e-5);
+  }
+  REQUIRE(m.scan.size() == 1440U);
+  AGV_CHECK_NEAR(m.scan.ranges[100], 5.0, 1e-6);
+  // The second reply says "no position": a device fault; the third is fine again.
+  CHECK(p.poll(m, Status::DeviceFault, 3000) == Status::DeviceFault);
+  REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
+  CHECK(m.reflectors.size() == 3U);
+  CHECK(src.counters().deviceErrors == 1U);
+  CHECK(src.counters().sweeps == 2U);
+  CHECK(p.allocs == 0U);
+  server.join();
+  CHECK(requests.load() == 3);
+}
+
+TEST_CASE("SICK laser model names", "[drivers][laser]") {
+  SickLaserModel model = SickLaserModel::Lms1xx;
+  for (SickLaserModel m :
+       {SickLaserModel::Lms1xx, SickLaserModel::Lms5xx, SickLaserModel::Tim, SickLaserModel::Nav350}) {
+    REQUIRE(agv::drivers::parseSickLaserModel(agv::drivers::toString(m), model));
+    CHECK(model == m);
+  }
+  CHECK_FALSE(agv::drivers::parseSickLaserModel("lms200", model));
+  CHECK_FALSE(agv::drivers::parseSickLaserModel(nullptr, model));
+  CHECK(agv::drivers::defaultPort(SickLaserModel::Nav350) == 2112U);
+  CHECK(agv::drivers::defaultPort(SickLaserModel::Tim) == 2111U);
+}
