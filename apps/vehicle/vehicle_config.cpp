@@ -1,0 +1,415 @@
+#include "vehicle_config.hpp"
+
+#include <arpa/inet.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <sstream>
+#include <vector>
+
+namespace agv::vehicle {
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586;
+
+std::string trim(const std::string& s) {
+  const std::size_t b = s.find_first_not_of(" \t\r");
+  if (b == std::string::npos) {
+    return std::string();
+  }
+  const std::size_t e = s.find_last_not_of(" \t\r");
+  return s.substr(b, e - b + 1);
+}
+
+bool parseDouble(const std::string& v, double& out) {
+  if (v.empty()) {
+    return false;
+  }
+  errno = 0;
+  char* end = nullptr;
+  const double d = std::strtod(v.c_str(), &end);
+  if (errno != 0 || end != v.c_str() + v.size() || !std::isfinite(d)) {
+    return false;
+  }
+  out = d;
+  return true;
+}
+
+bool parseInteger(const std::string& v, long long lo, long long hi, long long& out) {
+  if (v.empty()) {
+    return false;
+  }
+  errno = 0;
+  char* end = nullptr;
+  const long long x = std::strtoll(v.c_str(), &end, 0);  // decimal, or 0x.. hexadecimal
+  if (errno != 0 || end != v.c_str() + v.size() || x < lo || x > hi) {
+    return false;
+  }
+  out = x;
+  return true;
+}
+
+std::string range(double lo, double hi, const char* unit) {
+  std::ostringstream s;
+  s << lo << " .. " << hi << (unit[0] != '\0' ? " " : "") << unit;
+  return s.str();
+}
+
+/// One accepted key: how to apply its value (false with `why` when the value is refused).
+struct KeySpec {
+  bool required;
+  std::function<bool(const std::string&, std::string&)> apply;
+};
+
+using Specs = std::map<std::string, KeySpec>;
+
+/// A number in [lo, hi] -> `apply(value)`.
+KeySpec number(bool required, double lo, double hi, const char* unit, std::function<void(double)> apply) {
+  return KeySpec{required, [=](const std::string& v, std::string& why) {
+                   double d = 0.0;
+                   if (!parseDouble(v, d) || d < lo || d > hi) {
+                     why = "expected a number in " + range(lo, hi, unit) + ", got '" + v + "'";
+                     return false;
+                   }
+                   apply(d);
+                   return true;
+                 }};
+}
+
+KeySpec seconds(bool required, double lo, double hi, Duration& target) {
+  return number(required, lo, hi, "s", [&target](double d) { target = Duration::fromSeconds(d); });
+}
+
+KeySpec integer(bool required, long long lo, long long hi, std::function<void(long long)> apply) {
+  return KeySpec{required, [=](const std::string& v, std::string& why) {
+                   long long x = 0;
+                   if (!parseInteger(v, lo, hi, x)) {
+                     why = "expected an integer in " + std::to_string(lo) + " .. " + std::to_string(hi) + ", got '" +
+                           v + "'";
+                     return false;
+                   }
+                   apply(x);
+                   return true;
+                 }};
+}
+
+/// One of `names` -> `apply(index)`.
+KeySpec choice(bool required, std::vector<std::string> names, std::function<void(std::size_t)> apply) {
+  return KeySpec{required, [=](const std::string& v, std::string& why) {
+                   for (std::size_t i = 0; i < names.size(); ++i) {
+                     if (v == names[i]) {
+                       apply(i);
+                       return true;
+                     }
+                   }
+                   why = "expected one of";
+                   for (const std::string& n : names) {
+                     why += " " + n;
+                   }
+                   why += ", got '" + v + "'";
+                   return false;
+                 }};
+}
+
+KeySpec direction(std::int8_t& target) {
+  return KeySpec{false, [&target](const std::string& v, std::string& why) {
+                   if (v == "1" || v == "+1") {
+                     target = 1;
+                   } else if (v == "-1") {
+                     target = -1;
+                   } else {
+                     why = "expected 1 or -1, got '" + v + "'";
+                     return false;
+                   }
+                   return true;
+                 }};
+}
+
+KeySpec ipv4(bool required, char (&target)[64]) {
+  return KeySpec{required, [&target](const std::string& v, std::string& why) {
+                   in_addr a{};
+                   if (v.size() >= sizeof(target) || inet_pton(AF_INET, v.c_str(), &a) != 1) {
+                     why = "expected a numeric IPv4 address (e.g. 192.168.0.10), got '" + v + "'";
+                     return false;
+                   }
+                   std::memcpy(target, v.c_str(), v.size() + 1);
+                   return true;
+                 }};
+}
+
+KeySpec filePath(std::string& target) {
+  return KeySpec{true, [&target](const std::string& v, std::string& why) {
+                   if (v.empty()) {
+                     why = "expected a file path";
+                     return false;
+                   }
+                   target = v;
+                   return true;
+                 }};
+}
+
+std::string directoryOf(const std::string& file) {
+  const std::size_t slash = file.rfind('/');
+  return slash == std::string::npos ? std::string() : file.substr(0, slash + 1);
+}
+
+std::string resolve(const std::string& base, const std::string& p) {
+  return (p.empty() || p[0] == '/') ? p : directoryOf(base) + p;
+}
+
+}  // namespace
+
+std::string ConfigError::text() const {
+  std::string t = where + ": ";
+  if (!key.empty()) {
+    t += key + ": ";
+  }
+  return t + message;
+}
+
+bool readTextFile(const std::string& path, std::string& out) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) {
+    return false;
+  }
+  std::ostringstream s;
+  s << f.rdbuf();
+  if (f.bad()) {
+    return false;
+  }
+  out = s.str();
+  return true;
+}
+
+bool parseVehicleConfig(const std::string& text, const std::string& path, VehicleConfig& out, ConfigError& error) {
+  VehicleConfig c;
+  drivers::canopen::CanopenEncodersConfig& co = c.can.canopen;
+  bool driveCob = false;
+  bool steerCob = false;
+  bool laserPort = false;
+  bool modbusAddress = false;
+  long long driveOffset = 0;
+  long long driveSize = 4;
+  long long steerOffset = 0;
+  long long steerSize = 4;
+  std::string angleOffsetText;
+
+  Specs specs;
+  specs["can.interface"] =
+      KeySpec{true, [&](const std::string& v, std::string& why) {
+                if (v.empty() || v.size() > 15 || v.find_first_of(" \t/") != std::string::npos) {
+                  why = "expected an interface name of 1..15 characters (e.g. can0), got '" + v + "'";
+                  return false;
+                }
+                c.canInterface = v;
+                return true;
+              }};
+  specs["can.drive.node"] =
+      integer(false, 1, 127, [&](long long x) { co.drive.nodeId = static_cast<std::uint8_t>(x); });
+  specs["can.drive.pdo_cob_id"] = integer(false, 0x181, 0x57F, [&](long long x) {
+    co.drive.pdo.cobId = static_cast<std::uint16_t>(x);
+    driveCob = true;
+  });
+  specs["can.drive.pdo_offset"] = integer(false, 0, 7, [&](long long x) { driveOffset = x; });
+  specs["can.drive.pdo_size"] = integer(false, 1, 4, [&](long long x) { driveSize = x; });
+  specs["can.drive.direction"] = direction(co.drive.direction);
+  specs["can.steering.node"] =
+      integer(false, 1, 127, [&](long long x) { co.steering.nodeId = static_cast<std::uint8_t>(x); });
+  specs["can.steering.pdo_cob_id"] = integer(false, 0x181, 0x57F, [&](long long x) {
+    co.steering.pdo.cobId = static_cast<std::uint16_t>(x);
+    steerCob = true;
+  });
+  specs["can.steering.pdo_offset"] = integer(false, 0, 7, [&](long long x) { steerOffset = x; });
+  specs["can.steering.pdo_size"] = integer(false, 1, 4, [&](long long x) { steerSize = x; });
+  specs["can.steering.direction"] = direction(co.steering.direction);
+  specs["can.steering.rad_per_count"] =
+      number(true, 1e-9, 1.0, "rad/count", [&](double d) { co.steering.radiansPerCount = d; });
+  specs["can.steering.zero_count"] =
+      integer(false, 0, 0xFFFFFFFFLL, [&](long long x) { co.steering.zeroCount = static_cast<std::uint32_t>(x); });
+  specs["can.steering.counts_per_revolution"] = integer(
+      false, 0, 0xFFFFFFFFLL, [&](long long x) { co.steering.countsPerRevolution = static_cast<std::uint32_t>(x); });
+  specs["can.heartbeat_timeout"] = seconds(false, 0.0, 10.0, co.heartbeatTimeout);
+  specs["can.sync_period"] = seconds(false, 0.0, 1.0, co.syncPeriod);
+  specs["can.trigger"] = choice(false, {"both", "drive"}, [&](std::size_t i) {
+    co.trigger = i == 0 ? drivers::canopen::SampleTrigger::BothUpdated : drivers::canopen::SampleTrigger::DriveUpdated;
+  });
+
+  specs["laser.model"] = choice(true, {"lms1xx", "lms5xx", "tim", "nav350"}, [&](std::size_t i) {
+    const drivers::SickLaserModel models[] = {drivers::SickLaserModel::Lms1xx, drivers::SickLaserModel::Lms5xx,
+                                              drivers::SickLaserModel::Tim, drivers::SickLaserModel::Nav350};
+    c.laser.model = models[i];
+  });
+  specs["laser.address"] = ipv4(true, c.laser.tcp.host);
+  specs["laser.port"] = integer(false, 1, 65535, [&](long long x) {
+    c.laser.tcp.port = static_cast<std::uint16_t>(x);
+    laserPort = true;
+  });
+  specs["laser.scan_timeout"] = seconds(false, 0.05, 60.0, c.laser.scanTimeout);
+  specs["laser.connect_timeout"] = seconds(false, 0.001, 10.0, c.laser.connectBudget);
+  specs["laser.reconnect_interval"] = seconds(false, 0.01, 60.0, c.laser.tcp.reconnectInterval);
+  specs["laser.angle_offset"] =
+      KeySpec{false, [&](const std::string& v, std::string& why) {
+                double d = 0.0;
+                if (!parseDouble(v, d) || std::fabs(d) > kTwoPi) {
+                  why = "expected a number in " + range(-kTwoPi, kTwoPi, "rad") + ", got '" + v + "'";
+                  return false;
+                }
+                angleOffsetText = v;
+                c.laser.scan.angleOffset = d;
+                c.laser.nav.angleOffset = d;
+                return true;
+              }};
+
+  specs["modbus.role"] = choice(true, {"server", "client"}, [&](std::size_t i) {
+    c.modbus.role = i == 0 ? drivers::PlcLinkRole::Server : drivers::PlcLinkRole::Client;
+  });
+  specs["modbus.address"] = ipv4(false, c.modbus.address);
+  specs["modbus.port"] = integer(false, 1, 65535, [&](long long x) { c.modbus.port = static_cast<std::uint16_t>(x); });
+  specs["modbus.word_order"] = choice(false, {"abcd", "cdab", "badc", "dcba"}, [&](std::size_t i) {
+    const drivers::plc::WordOrder orders[] = {drivers::plc::WordOrder::ABCD, drivers::plc::WordOrder::CDAB, drivers::plc::WordOrder::BADC,
+                                     drivers::plc::WordOrder::DCBA};
+    c.modbus.map.wordOrder = orders[i];
+  });
+  specs["modbus.remote_status_base"] =
+      integer(false, 0, 65535 - 40, [&](long long x) { c.modbus.remoteStatusBase = static_cast<std::uint16_t>(x); });
+  specs["modbus.remote_command_base"] =
+      integer(false, 0, 65535 - 9, [&](long long x) { c.modbus.remoteCommandBase = static_cast<std::uint16_t>(x); });
+  specs["modbus.max_abs_position"] = number(false, 1.0, 1e6, "m", [&](double d) { c.modbus.map.maxAbsPosition = d; });
+  specs["modbus.response_timeout"] = seconds(false, 0.001, 10.0, c.modbus.responseTimeout);
+  specs["modbus.reconnect_interval"] = seconds(false, 0.01, 60.0, c.modbus.reconnectInterval);
+  specs["modbus.plc_heartbeat_timeout"] = seconds(false, 0.01, 60.0, c.modbus.plcHeartbeatTimeout);
+  specs["modbus.max_connections"] =
+      integer(false, 1, 8, [&](long long x) { c.modbus.maxConnections = static_cast<int>(x); });
+
+  specs["calibration.file"] = filePath(c.calibrationFile);
+  specs["map.file"] = filePath(c.mapFile);
+  specs["map.mode"] = choice(false, {"static", "dynamic"},
+                             [&](std::size_t i) { c.mapMode = i == 0 ? MapMode::Static : MapMode::Dynamic; });
+  specs["localization.corners"] = choice(false, {"false", "true"}, [&](std::size_t i) { c.useCorners = i == 1; });
+  specs["localization.initial_pose"] =
+      KeySpec{false, [&](const std::string& v, std::string& why) {
+                std::istringstream s(v);
+                std::string a, b, t, extra;
+                double x = 0, y = 0, th = 0;
+                if (!(s >> a >> b >> t) || (s >> extra) || !parseDouble(a, x) || !parseDouble(b, y) ||
+                    !parseDouble(t, th) || std::fabs(x) > 1e6 || std::fabs(y) > 1e6 || std::fabs(th) > kTwoPi) {
+                  why =
+                      "expected 'x y theta' in m, m, rad (|x|,|y| <= 1e6, |theta| "
+                      "<= 2 pi), got '" +
+                      v + "'";
+                  return false;
+                }
+                c.initialPose = Pose2d(x, y, th);
+                c.haveInitialPose = true;
+                return true;
+              }};
+  specs["loop.period"] = seconds(false, 0.0002, 0.1, c.cyclePeriod);
+  specs["loop.publish_period"] = seconds(false, 0.001, 1.0, c.publishPeriod);
+
+  std::map<std::string, std::size_t> lineOf;
+  std::istringstream in(text);
+  std::string raw;
+  std::size_t lineNo = 0;
+  auto fail = [&](std::size_t line, const std::string& key, const std::string& message) {
+    error.where = line > 0 ? path + ":" + std::to_string(line) : path;
+    error.key = key;
+    error.message = message;
+    return false;
+  };
+  while (std::getline(in, raw)) {
+    ++lineNo;
+    const std::size_t hash = raw.find('#');
+    const std::string line = trim(hash == std::string::npos ? raw : raw.substr(0, hash));
+    if (line.empty()) {
+      continue;
+    }
+    const std::size_t eq = line.find('=');
+    if (eq == std::string::npos) {
+      return fail(lineNo, "", "expected 'key = value', got '" + line + "'");
+    }
+    const std::string key = trim(line.substr(0, eq));
+    const std::string value = trim(line.substr(eq + 1));
+    const auto spec = specs.find(key);
+    if (spec == specs.end()) {
+      return fail(lineNo, key, "unknown key");
+    }
+    if (lineOf.count(key) != 0U) {
+      return fail(lineNo, key, "given twice (first on line " + std::to_string(lineOf[key]) + ")");
+    }
+    lineOf[key] = lineNo;
+    std::string why;
+    if (!spec->second.apply(value, why)) {
+      return fail(lineNo, key, why);
+    }
+  }
+  for (const auto& [key, spec] : specs) {
+    if (spec.required && lineOf.count(key) == 0U) {
+      return fail(0, key, "missing (required key)");
+    }
+  }
+
+  // Checks across keys, reported at the later of the lines involved.
+  co.drive.pdo.byteOffset = static_cast<std::uint8_t>(driveOffset);
+  co.drive.pdo.size = static_cast<std::uint8_t>(driveSize);
+  co.steering.pdo.byteOffset = static_cast<std::uint8_t>(steerOffset);
+  co.steering.pdo.size = static_cast<std::uint8_t>(steerSize);
+  if (!driveCob) {
+    co.drive.pdo.cobId = static_cast<std::uint16_t>(0x180U + co.drive.nodeId);
+  }
+  if (!steerCob) {
+    co.steering.pdo.cobId = static_cast<std::uint16_t>(0x180U + co.steering.nodeId);
+  }
+  auto lineOfKey = [&](const char* k) { return lineOf.count(k) != 0U ? lineOf[k] : std::size_t{0}; };
+  if (co.drive.nodeId == co.steering.nodeId) {
+    return fail(lineOfKey("can.steering.node"), "can.steering.node", "same node id as can.drive.node");
+  }
+  if (driveOffset + driveSize > 8) {
+    return fail(lineOfKey("can.drive.pdo_size"), "can.drive.pdo_size", "pdo_offset + pdo_size exceeds 8 bytes");
+  }
+  if (steerOffset + steerSize > 8) {
+    return fail(lineOfKey("can.steering.pdo_size"), "can.steering.pdo_size", "pdo_offset + pdo_size exceeds 8 bytes");
+  }
+  if (co.drive.pdo.cobId == co.steering.pdo.cobId) {
+    return fail(lineOfKey("can.steering.pdo_cob_id"), "can.steering.pdo_cob_id", "same COB-ID as the drive's TPDO");
+  }
+  if (co.steering.countsPerRevolution != 0U && co.steering.zeroCount >= co.steering.countsPerRevolution) {
+    return fail(lineOfKey("can.steering.zero_count"), "can.steering.zero_count",
+                "must be below can.steering.counts_per_revolution");
+  }
+  if (c.modbus.role == drivers::PlcLinkRole::Client && lineOf.count("modbus.address") == 0U) {
+    return fail(0, "modbus.address", "missing (required with modbus.role = client: the PLC's address)");
+  }
+  (void)modbusAddress;
+  if (!laserPort) {
+    c.laser.tcp.port = drivers::defaultPort(c.laser.model);
+  }
+  // Range limits of the model; an explicit angle offset survives.
+  drivers::applyModelRanges(c.laser.model, c.laser.scan, c.laser.nav);
+  if (angleOffsetText.empty()) {
+    c.laser.nav.angleOffset = 0.0;  // the NAV350 reports in its own frame
+  }
+  c.laser.tcp.connectTimeout = c.laser.connectBudget;
+  c.calibrationFile = resolve(path, c.calibrationFile);
+  c.mapFile = resolve(path, c.mapFile);
+  out = c;
+  out.can.interfaceName = nullptr;  // set by the user of the config from canInterface (stable storage)
+  return true;
+}
+
+bool loadVehicleConfig(const std::string& path, VehicleConfig& out, ConfigError& error) {
+  std::string text;
+  if (!readTextFile(path, text)) {
+    error.where = path;
+    error.key.clear();
+    error.message = std::string("cannot read the configuration file (") + std::strerror(errno) + ")";
+    return false;
+  }
+  return parseVehicleConfig(text, path, out, error);
+}
+
+}  // namespace agv::vehicle

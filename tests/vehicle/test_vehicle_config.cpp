@@ -1,0 +1,286 @@
+// The agvnav-vehicle configuration file: a good file and what it sets, every key with a bad value
+// (refused with the file, line and key named), unknown, repeated and missing keys, checks across
+// keys, a missing file, and the calibration and map files it names.
+#include <cmath>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "agv_test.hpp"
+#include "vehicle_config.hpp"
+#include "vehicle_files.hpp"
+#include "vehicle_runtime.hpp"
+
+using agv::vehicle::ConfigError;
+using agv::vehicle::parseVehicleConfig;
+using agv::vehicle::VehicleConfig;
+
+namespace {
+
+/// `text` with the line of `key` replaced by `key = value` (appended when the key is absent).
+/// `line` receives its 1-based line number.
+std::string withValue(const std::string& text, const std::string& key, const std::string& value, std::size_t& line) {
+  std::istringstream in(text);
+  std::string out;
+  std::string l;
+  std::size_t n = 0;
+  line = 0;
+  while (std::getline(in, l)) {
+    ++n;
+    if (l.rfind(key + " ", 0) == 0 || l.rfind(key + "=", 0) == 0) {
+      l = key + " = " + value;
+      line = n;
+    }
+    out += l + "\n";
+  }
+  if (line == 0) {
+    out += key + " = " + value + "\n";
+    line = n + 1;
+  }
+  return out;
+}
+
+std::string withoutKey(const std::string& text, const std::string& key) {
+  std::istringstream in(text);
+  std::string out;
+  std::string l;
+  while (std::getline(in, l)) {
+    if (l.rfind(key + " ", 0) != 0) {
+      out += l + "\n";
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("a good configuration sets every value it names and the defaults of the rest", "[vehicle]") {
+  VehicleConfig c;
+  ConfigError e;
+  REQUIRE(parseVehicleConfig(agv::test::goodVehicleConfig(), "/etc/agvnav/vehicle.conf", c, e));
+  CHECK(c.canInterface == "can0");
+  const auto& co = c.can.canopen;
+  CHECK(co.drive.nodeId == 1);
+  CHECK(co.drive.direction == -1);
+  CHECK(co.drive.pdo.cobId == 0x181);  // default TPDO1 of the node
+  CHECK(co.drive.pdo.size == 4);
+  CHECK(co.steering.nodeId == 2);
+  CHECK(co.steering.pdo.cobId == 0x182);
+  CHECK(co.steering.pdo.byteOffset == 2);
+  CHECK(co.steering.pdo.size == 2);
+  CHECK(co.steering.radiansPerCount == Approx(2.0 * 3.14159265358979323846 / 8192.0).epsilon(1e-12));
+  CHECK(co.steering.zeroCount == 4096U);
+  CHECK(co.steering.countsPerRevolution == 8192U);
+  CHECK(co.heartbeatTimeout == agv::Duration::fromMilliseconds(300));
+  CHECK(co.syncPeriod == agv::Duration::fromMilliseconds(10));
+  CHECK(co.trigger == agv::drivers::canopen::SampleTrigger::BothUpdated);
+  CHECK(c.laser.model == agv::drivers::SickLaserModel::Lms1xx);
+  CHECK(std::string(c.laser.tcp.host) == "192.168.0.10");
+  CHECK(c.laser.tcp.port == 2111);
+  CHECK(c.laser.scanTimeout == agv::Duration::fromMilliseconds(500));
+  CHECK(c.laser.scan.rangeMax == Approx(20.0));  // LMS1xx range
+  CHECK(c.modbus.role == agv::drivers::PlcLinkRole::Server);
+  CHECK(std::string(c.modbus.address) == "127.0.0.1");
+  CHECK(c.modbus.port == 1502);
+  CHECK(c.modbus.map.wordOrder == agv::drivers::plc::WordOrder::ABCD);
+  CHECK(c.calibrationFile == "/etc/agvnav/calibration.txt");  // relative to the configuration's folder
+  CHECK(c.mapFile == "/etc/agvnav/landmarks.txt");
+  CHECK(c.mapMode == agv::MapMode::Static);
+  REQUIRE(c.haveInitialPose);
+  CHECK(c.initialPose.x == Approx(1.0));
+  CHECK(c.initialPose.y == Approx(2.0));
+  CHECK(c.initialPose.theta == Approx(0.5));
+  CHECK(c.cyclePeriod == agv::Duration::fromMilliseconds(1));
+  // The decoder accepts what the file describes.
+  agv::drivers::canopen::CanopenEncoders decoder(co);
+  CHECK(decoder.validate() == agv::Status::Ok);
+}
+
+TEST_CASE("defaults follow the laser model and the node ids", "[vehicle]") {
+  std::size_t line = 0;
+  std::string text = withoutKey(agv::test::goodVehicleConfig(), "laser.port");
+  text = withValue(text, "laser.model", "nav350", line);
+  text = withValue(text, "can.drive.node", "0x10", line);
+  VehicleConfig c;
+  ConfigError e;
+  REQUIRE(parseVehicleConfig(text, "vehicle.conf", c, e));
+  CHECK(c.laser.tcp.port == 2112);
+  CHECK(c.laser.nav.rangeMax == Approx(250.0));
+  CHECK(c.can.canopen.drive.pdo.cobId == 0x190);
+  CHECK(c.calibrationFile == "calibration.txt");  // no folder in the configuration's path
+}
+
+TEST_CASE("every key with a bad value is refused, naming the file, line and key", "[vehicle]") {
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"can.interface", ""},
+      {"can.interface", "a-name-longer-than-15"},
+      {"can.drive.node", "0"},
+      {"can.drive.node", "128"},
+      {"can.drive.node", "one"},
+      {"can.drive.pdo_cob_id", "0x100"},
+      {"can.drive.pdo_offset", "8"},
+      {"can.drive.pdo_size", "5"},
+      {"can.drive.direction", "2"},
+      {"can.steering.node", "-1"},
+      {"can.steering.pdo_cob_id", "0x800"},
+      {"can.steering.pdo_offset", "-1"},
+      {"can.steering.pdo_size", "0"},
+      {"can.steering.direction", "0"},
+      {"can.steering.rad_per_count", "0"},
+      {"can.steering.rad_per_count", "nan"},
+      {"can.steering.zero_count", "4294967296"},
+      {"can.steering.counts_per_revolution", "-5"},
+      {"can.heartbeat_timeout", "-0.1"},
+      {"can.heartbeat_timeout", "11"},
+      {"can.sync_period", "2"},
+      {"can.trigger", "sometimes"},
+      {"laser.model", "lms200"},
+      {"laser.address", "laser.local"},
+      {"laser.address", "300.1.1.1"},
+      {"laser.port", "0"},
+      {"laser.port", "65536"},
+      {"laser.scan_timeout", "0"},
+      {"laser.connect_timeout", "100"},
+      {"laser.reconnect_interval", "0"},
+      {"laser.angle_offset", "7"},
+      {"modbus.role", "master"},
+      {"modbus.address", "localhost"},
+      {"modbus.port", "0"},
+      {"modbus.word_order", "abdc"},
+      {"modbus.remote_status_base", "65500"},
+      {"modbus.remote_command_base", "65530"},
+      {"modbus.max_abs_position", "0"},
+      {"modbus.response_timeout", "0"},
+      {"modbus.reconnect_interval", "1e9"},
+      {"modbus.plc_heartbeat_timeout", "inf"},
+      {"modbus.max_connections", "9"},
+      {"calibration.file", ""},
+      {"map.file", ""},
+      {"map.mode", "frozen"},
+      {"localization.corners", "yes"},
+      {"localization.initial_pose", "1 2"},
+      {"localization.initial_pose", "1 2 3 4"},
+      {"localization.initial_pose", "1 2 x"},
+      {"loop.period", "0"},
+      {"loop.publish_period", "5"},
+  };
+  for (const auto& [key, value] : bad) {
+    std::size_t line = 0;
+    const std::string text = withValue(agv::test::goodVehicleConfig(), key, value, line);
+    VehicleConfig c;
+    ConfigError e;
+    INFO(key << " = '" << value << "'");
+    CHECK_FALSE(parseVehicleConfig(text, "vehicle.conf", c, e));
+    CHECK(e.key == key);
+    CHECK(e.where == "vehicle.conf:" + std::to_string(line));
+    CHECK_FALSE(e.message.empty());
+    const std::string t = e.text();
+    CHECK(t.find("vehicle.conf:" + std::to_string(line) + ": " + key + ": ") == 0U);
+  }
+}
+
+TEST_CASE("unknown, repeated, malformed and missing keys are refused", "[vehicle]") {
+  VehicleConfig c;
+  ConfigError e;
+  const std::string good = agv::test::goodVehicleConfig();
+  CHECK_FALSE(parseVehicleConfig(good + "can.bitrate = 500000\n", "v.conf", c, e));
+  CHECK(e.key == "can.bitrate");
+  CHECK(e.where == "v.conf:27");
+  CHECK(e.message == "unknown key");
+
+  CHECK_FALSE(parseVehicleConfig(good + "laser.model = tim\n", "v.conf", c, e));
+  CHECK(e.key == "laser.model");
+  CHECK(e.where == "v.conf:27");
+  CHECK(e.message.find("line 14") != std::string::npos);
+
+  CHECK_FALSE(parseVehicleConfig(good + "laser.model tim\n", "v.conf", c, e));
+  CHECK(e.where == "v.conf:27");
+  CHECK(e.key.empty());
+
+  for (const char* key : {"can.interface", "can.steering.rad_per_count", "laser.model", "laser.address", "modbus.role",
+                          "calibration.file", "map.file"}) {
+    INFO(key);
+    CHECK_FALSE(parseVehicleConfig(withoutKey(good, key), "v.conf", c, e));
+    CHECK(e.key == key);
+    CHECK(e.where == "v.conf");
+    CHECK(e.message.find("missing") != std::string::npos);
+  }
+  CHECK_FALSE(parseVehicleConfig("", "v.conf", c, e));
+  CHECK(e.message.find("missing") != std::string::npos);
+}
+
+TEST_CASE("checks across keys name the later key and its line", "[vehicle]") {
+  const std::string good = agv::test::goodVehicleConfig();
+  std::size_t line = 0;
+  VehicleConfig c;
+  ConfigError e;
+  CHECK_FALSE(parseVehicleConfig(withValue(good, "can.steering.node", "1", line), "v.conf", c, e));
+  CHECK(e.key == "can.steering.node");
+  CHECK(e.where == "v.conf:" + std::to_string(line));
+  const std::string sizes =
+      withValue(withValue(good, "can.steering.pdo_offset", "6", line), "can.steering.pdo_size", "4", line);
+  CHECK_FALSE(parseVehicleConfig(sizes, "v.conf", c, e));
+  CHECK(e.key == "can.steering.pdo_size");
+  CHECK(e.where == "v.conf:" + std::to_string(line));
+  CHECK_FALSE(parseVehicleConfig(withValue(good, "can.steering.pdo_cob_id", "0x181", line), "v.conf", c, e));
+  CHECK(e.key == "can.steering.pdo_cob_id");
+  CHECK_FALSE(parseVehicleConfig(withValue(good, "can.steering.zero_count", "8192", line), "v.conf", c, e));
+  CHECK(e.key == "can.steering.zero_count");
+  CHECK(e.where == "v.conf:" + std::to_string(line));
+  std::string client = withValue(withoutKey(good, "modbus.address"), "modbus.role", "client", line);
+  CHECK_FALSE(parseVehicleConfig(client, "v.conf", c, e));
+  CHECK(e.key == "modbus.address");
+}
+
+TEST_CASE("a missing configuration file is refused", "[vehicle]") {
+  VehicleConfig c;
+  ConfigError e;
+  CHECK_FALSE(agv::vehicle::loadVehicleConfig("/nonexistent/agvnav/vehicle.conf", c, e));
+  CHECK(e.where == "/nonexistent/agvnav/vehicle.conf");
+  CHECK(e.message.find("cannot read") != std::string::npos);
+}
+
+TEST_CASE("the calibration and map files are loaded, a bad one is refused by file, line and key", "[vehicle]") {
+  agv::test::TempFolder dir;
+  REQUIRE(dir.ok());
+  const std::string conf = dir.write("vehicle.conf", agv::test::goodVehicleConfig());
+  dir.write("calibration.txt", agv::test::goodCalibration());
+  dir.write("landmarks.txt", agv::test::goodMap());
+  VehicleConfig c;
+  ConfigError e;
+  REQUIRE(agv::vehicle::loadVehicleConfig(conf, c, e));
+  {
+    agv::vehicle::VehicleFiles files;
+    REQUIRE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(files.map->size() == 3U);
+    CHECK(files.calibration.params.wheelbase == Approx(1.5));
+    CHECK(files.calibration.laserPose.x == Approx(1.6));
+  }
+  {
+    // A calibration without laser_theta: the file and the missing key are named.
+    std::string cal = agv::test::goodCalibration();
+    cal = cal.substr(0, cal.find("laser_theta"));
+    dir.write("calibration.txt", cal);
+    agv::vehicle::VehicleFiles files;
+    CHECK_FALSE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(e.key == "calibration.file");
+    CHECK(e.where == dir.path() + "/calibration.txt");
+    CHECK(e.message.find("laser_theta") != std::string::npos);
+    dir.write("calibration.txt", agv::test::goodCalibration());
+  }
+  {
+    dir.write("landmarks.txt", std::string(agv::test::goodMap()) + "pole 4 1 1 0.01\n");
+    agv::vehicle::VehicleFiles files;
+    CHECK_FALSE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(e.key == "map.file");
+    CHECK(e.where == dir.path() + "/landmarks.txt:5");
+  }
+  {
+    c.mapFile = dir.path() + "/absent.txt";
+    agv::vehicle::VehicleFiles files;
+    CHECK_FALSE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(e.key == "map.file");
+    CHECK(e.message.find("cannot read") != std::string::npos);
+  }
+}
