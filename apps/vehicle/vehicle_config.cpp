@@ -271,8 +271,8 @@ bool parseVehicleConfig(const std::string& text, const std::string& path, Vehicl
   specs["modbus.address"] = ipv4(false, c.modbus.address);
   specs["modbus.port"] = integer(false, 1, 65535, [&](long long x) { c.modbus.port = static_cast<std::uint16_t>(x); });
   specs["modbus.word_order"] = choice(false, {"abcd", "cdab", "badc", "dcba"}, [&](std::size_t i) {
-    const drivers::plc::WordOrder orders[] = {drivers::plc::WordOrder::ABCD, drivers::plc::WordOrder::CDAB, drivers::plc::WordOrder::BADC,
-                                     drivers::plc::WordOrder::DCBA};
+    const drivers::plc::WordOrder orders[] = {drivers::plc::WordOrder::ABCD, drivers::plc::WordOrder::CDAB,
+                                              drivers::plc::WordOrder::BADC, drivers::plc::WordOrder::DCBA};
     c.modbus.map.wordOrder = orders[i];
   });
   specs["modbus.remote_status_base"] =

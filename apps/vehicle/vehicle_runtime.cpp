@@ -292,7 +292,8 @@ void VehicleRuntime::cycle() {
   set(drivers::plc::PlcHealthBit::LaserTimeout, laserHealth == Status::Timeout);
   set(drivers::plc::PlcHealthBit::EncodersOk, encHealth == Status::Ok);
   set(drivers::plc::PlcHealthBit::EncoderTimeout, encHealth == Status::Timeout);
-  set(drivers::plc::PlcHealthBit::DeviceFault, encHealth == Status::DeviceFault || m.laserStatus == Status::DeviceFault);
+  set(drivers::plc::PlcHealthBit::DeviceFault,
+      encHealth == Status::DeviceFault || m.laserStatus == Status::DeviceFault);
   set(drivers::plc::PlcHealthBit::MapLoaded, m.map->size() > 0U);
   set(drivers::plc::PlcHealthBit::CalibrationValid, true);  // the program refuses to start without one
   healthBits_ = bits;
