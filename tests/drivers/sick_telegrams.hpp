@@ -216,4 +216,21 @@ inline std::vector<std::uint8_t> buildNavReply(const NavReplyFields& f) {
   return w.b;
 }
 
+/// A complete `sSN LMDscandata` telegram (STX .. ETX) with scan counter `scanCounter` and one DIST1
+/// channel from -45 deg in 0.5 deg steps whose `count` ranges are `baseMm + i` millimetres
+/// (`baseMm` for every beam when `increasing` is false).
+inline std::vector<std::uint8_t> colaScanTelegram(std::uint32_t scanCounter, std::uint32_t baseMm,
+                                                  std::uint32_t count = 10, bool increasing = true) {
+  ColaScanFields f;
+  f.scanCounter = scanCounter;
+  ColaChannel c;
+  c.startAngle = -450000;
+  c.step = 5000;
+  for (std::uint32_t i = 0; i < count; ++i) {
+    c.values.push_back(increasing ? baseMm + i : baseMm);
+  }
+  f.channels16.push_back(c);
+  return stxEtx(buildColaScan(f));
+}
+
 }  // namespace agv::test

@@ -24,20 +24,6 @@ using agv::hal::LaserMeasurement;
 
 namespace {
 
-/// A telegram whose 10 ranges are `base + i` millimetres.
-std::vector<std::uint8_t> scanTelegram(std::uint32_t scanCounter, std::uint32_t baseMm) {
-  agv::test::ColaScanFields f;
-  f.scanCounter = scanCounter;
-  agv::test::ColaChannel c;
-  c.startAngle = -450000;
-  c.step = 5000;
-  for (std::uint32_t i = 0; i < 10; ++i) {
-    c.values.push_back(baseMm + i);
-  }
-  f.channels16.push_back(c);
-  return agv::test::stxEtx(agv::test::buildColaScan(f));
-}
-
 SickLaserSourceConfig loopbackConfig(SickLaserModel model, std::uint16_t port) {
   SickLaserSourceConfig c;
   c.model = model;
@@ -106,12 +92,12 @@ TEST_CASE("SICK laser source: polled stream, noise, drop and reconnection", "[dr
   std::atomic<int> subscriptions{0};
   std::atomic<bool> done{false};
   std::vector<std::uint8_t> first = {'n', 'o', 'i', 's', 'e'};
-  const auto a = scanTelegram(1, 1000);
+  const auto a = agv::test::colaScanTelegram(1, 1000);
   first.insert(first.end(), a.begin(), a.end());
-  const auto b = scanTelegram(2, 2000);
-  const auto c = scanTelegram(3, 3000);
+  const auto b = agv::test::colaScanTelegram(2, 2000);
+  const auto c = agv::test::colaScanTelegram(3, 3000);
   const std::vector<std::uint8_t> halfC(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(c.size() / 2));
-  const auto d = scanTelegram(4, 4000);
+  const auto d = agv::test::colaScanTelegram(4, 4000);
   server.start([&](agv::test::LoopbackServer& s) {
     int fd = s.accept();
     if (fd < 0)
@@ -165,7 +151,7 @@ TEST_CASE("SICK laser source: a silent laser is a timeout and is reconnected", "
   agv::test::LoopbackServer server;
   REQUIRE(server.ok());
   std::atomic<int> subscriptions{0};
-  const auto e = scanTelegram(7, 1500);
+  const auto e = agv::test::colaScanTelegram(7, 1500);
   server.start([&](agv::test::LoopbackServer& s) {
     int fd = s.accept();
     if (fd < 0)
@@ -213,7 +199,7 @@ TEST_CASE("SICK laser source: a malformed scan telegram is reported", "[drivers]
   agv::test::LoopbackServer server;
   REQUIRE(server.ok());
   const auto bad = agv::test::stxEtx("sSN LMDscandata 1 zz");
-  const auto good = scanTelegram(1, 900);
+  const auto good = agv::test::colaScanTelegram(1, 900);
   server.start([&](agv::test::LoopbackServer& s) {
     const int fd = s.accept();
     if (fd < 0)

@@ -22,20 +22,6 @@ std::vector<std::uint8_t> bytes(const std::string& s) {
   return std::vector<std::uint8_t>(s.begin(), s.end());
 }
 
-/// A telegram whose 10 ranges are `base + i` millimetres.
-std::vector<std::uint8_t> scanTelegram(std::uint32_t scanCounter, std::uint32_t baseMm) {
-  agv::test::ColaScanFields f;
-  f.scanCounter = scanCounter;
-  agv::test::ColaChannel c;
-  c.startAngle = -450000;
-  c.step = 5000;
-  for (std::uint32_t i = 0; i < 10; ++i) {
-    c.values.push_back(baseMm + i);
-  }
-  f.channels16.push_back(c);
-  return agv::test::stxEtx(agv::test::buildColaScan(f));
-}
-
 void setLoopback(TcpStreamConfig& tcp, std::uint16_t port) {
   std::strcpy(tcp.host, "127.0.0.1");
   tcp.port = port;
@@ -56,12 +42,12 @@ TEST_CASE("CoLa A client: subscription, split and noisy stream, reconnection aft
     if (s.read(fd, subscribe.size()) == subscribe)
       ++subscriptions;
     std::vector<std::uint8_t> first = bytes("garbage");
-    const auto a = scanTelegram(1, 1000);
+    const auto a = agv::test::colaScanTelegram(1, 1000);
     first.insert(first.end(), a.begin(), a.end());
     s.send(fd, first, 37);                               // telegram A in 37-byte pieces after noise
     s.send(fd, agv::test::stxEtx("sEA LMDscandata 1"));  // acknowledgement: ignored
-    s.send(fd, scanTelegram(2, 2000));                   // B in one piece
-    const auto c = scanTelegram(3, 3000);
+    s.send(fd, agv::test::colaScanTelegram(2, 2000));    // B in one piece
+    const auto c = agv::test::colaScanTelegram(3, 3000);
     s.send(fd, std::vector<std::uint8_t>(c.begin(), c.begin() + static_cast<std::ptrdiff_t>(c.size() / 2)));
     ::usleep(20000);
     ::close(fd);  // dropped in the middle of C
@@ -70,7 +56,7 @@ TEST_CASE("CoLa A client: subscription, split and noisy stream, reconnection aft
       return;
     if (s.read(fd, subscribe.size()) == subscribe)
       ++subscriptions;
-    s.send(fd, scanTelegram(4, 4000));
+    s.send(fd, agv::test::colaScanTelegram(4, 4000));
     agv::test::LoopbackServer::drainAndClose(fd, 3000);
   });
 

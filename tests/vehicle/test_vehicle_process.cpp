@@ -88,17 +88,6 @@ int runVehicle(const std::vector<std::string>& args, agv::test::TempFolder& dir,
   return rc;
 }
 
-std::vector<std::uint8_t> scanTelegram(std::uint32_t counter) {
-  agv::test::ColaScanFields f;
-  f.scanCounter = counter;
-  agv::test::ColaChannel c;
-  c.startAngle = -450000;
-  c.step = 5000;
-  c.values.assign(541, 4000U);
-  f.channels16.push_back(c);
-  return agv::test::stxEtx(agv::test::buildColaScan(f));
-}
-
 }  // namespace
 
 TEST_CASE("agvnav-vehicle runs without its CAN interface, reports the encoder fault and stops on SIGTERM",
@@ -118,7 +107,7 @@ TEST_CASE("agvnav-vehicle runs without its CAN interface, reports the encoder fa
     if (s.read(fd, subscribe.size()) == subscribe)
       ++subscriptions;
     for (std::uint32_t i = 1; i < 1000 && !stopLaser.load(); ++i) {
-      const auto t = scanTelegram(i);
+      const auto t = agv::test::colaScanTelegram(i, 4000, 541, false);
       if (::send(fd, t.data(), t.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(t.size()))
         break;  // the vehicle went away
       std::this_thread::sleep_for(std::chrono::milliseconds(40));

@@ -57,6 +57,29 @@ bool pump(TcpStream& tcp, sick::TelegramFramer& framer, Duration wait) noexcept 
   return true;
 }
 
+/// Takes the telegrams the framer holds: those `wanted` accepts are decoded by `decode` until one
+/// succeeds (true, its status Ok or CapacityExceeded in `result`); failures and other telegrams
+/// are counted.
+template <typename Wanted, typename Decode>
+bool decodeFirst(sick::TelegramFramer& framer, LaserClientCounters& counters, Wanted wanted, Decode decode,
+                 Status& result) noexcept {
+  Span<const std::uint8_t> t;
+  while (framer.next(t)) {
+    if (!wanted(t)) {
+      ++counters.otherTelegrams;
+      continue;
+    }
+    const Status s = decode(t);
+    if (s == Status::Ok || s == Status::CapacityExceeded) {
+      ++counters.decoded;
+      result = s;
+      return true;
+    }
+    ++counters.decodeErrors;
+  }
+  return false;
+}
+
 // Reads one poll() call makes from a socket that keeps having data.
 constexpr int kMaxPollReads = 16;
 
@@ -101,21 +124,15 @@ Status ColaAScanClient::sendCommand(const char* command, Duration timeout) noexc
 }
 
 bool ColaAScanClient::decodeBuffered(LaserScan& scan, Status& result) noexcept {
-  Span<const std::uint8_t> t;
-  while (framer_.next(t)) {
-    if (startsWith(t, "sSN LMDscandata ") || startsWith(t, "sRA LMDscandata ")) {
-      const Status s = sick::parseColaAScan(t, config_.scan, monotonicNow(), scan, &info_);
-      if (s == Status::Ok || s == Status::CapacityExceeded) {
-        ++counters_.decoded;
-        result = s;
-        return true;
-      }
-      ++counters_.decodeErrors;
-    } else {
-      ++counters_.otherTelegrams;
-    }
-  }
-  return false;
+  return decodeFirst(
+      framer_, counters_,
+      [](Span<const std::uint8_t> t) noexcept {
+        return startsWith(t, "sSN LMDscandata ") || startsWith(t, "sRA LMDscandata ");
+      },
+      [&](Span<const std::uint8_t> t) noexcept {
+        return sick::parseColaAScan(t, config_.scan, monotonicNow(), scan, &info_);
+      },
+      result);
 }
 
 void ColaAScanClient::disconnect() noexcept {
@@ -196,22 +213,14 @@ Status ColaAScanClient::receive(LaserScan& scan, Duration timeout) noexcept {
 Nav350Client::Nav350Client(const Nav350ClientConfig& config) noexcept : config_(config), tcp_(config.tcp) {}
 
 bool Nav350Client::decodeBuffered(sick::Nav350PoseReply& reply, Status& result) noexcept {
-  Span<const std::uint8_t> t;
-  while (framer_.next(t)) {
-    if (pollRequested_ && startsWith(t, "sAN mNPOSGetData ")) {
-      const Status s = sick::parseNav350PoseReply(t, config_.nav, monotonicNow(), reply);
-      pollRequested_ = false;  // answered, well-formed or not
-      if (s == Status::Ok || s == Status::CapacityExceeded) {
-        ++counters_.decoded;
-        result = s;
-        return true;
-      }
-      ++counters_.decodeErrors;
-    } else {
-      ++counters_.otherTelegrams;
-    }
-  }
-  return false;
+  return decodeFirst(
+      framer_, counters_,
+      [&](Span<const std::uint8_t> t) noexcept { return pollRequested_ && startsWith(t, "sAN mNPOSGetData "); },
+      [&](Span<const std::uint8_t> t) noexcept {
+        pollRequested_ = false;  // answered, well-formed or not
+        return sick::parseNav350PoseReply(t, config_.nav, monotonicNow(), reply);
+      },
+      result);
 }
 
 void Nav350Client::disconnect() noexcept {
