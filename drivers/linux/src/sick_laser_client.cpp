@@ -80,6 +80,21 @@ bool decodeFirst(sick::TelegramFramer& framer, LaserClientCounters& counters, Wa
   return false;
 }
 
+/// poll(): connected, or connects when an attempt is due (at most `budget`; a new connection
+/// resets the framer and sets `fresh`). Lost when not connected after this.
+Status connectForPoll(TcpStream& tcp, sick::TelegramFramer& framer, Duration budget, bool& fresh) noexcept {
+  fresh = false;
+  if (tcp.connected()) {
+    return Status::Ok;
+  }
+  if (monotonicNow() < tcp.nextAttempt() || tcp.ensureConnected(budget) != Status::Ok) {
+    return Status::Lost;
+  }
+  framer.reset();
+  fresh = true;
+  return Status::Ok;
+}
+
 // Reads one poll() call makes from a socket that keeps having data.
 constexpr int kMaxPollReads = 16;
 
@@ -147,11 +162,11 @@ Status ColaAScanClient::poll(LaserScan& scan, Duration connectBudget) noexcept {
     pollRequested_ = false;
     return decoded;
   }
-  if (!tcp_.connected()) {
-    if (monotonicNow() < tcp_.nextAttempt() || tcp_.ensureConnected(connectBudget) != Status::Ok) {
-      return Status::Lost;
-    }
-    framer_.reset();
+  bool fresh = false;
+  if (connectForPoll(tcp_, framer_, connectBudget, fresh) != Status::Ok) {
+    return Status::Lost;
+  }
+  if (fresh) {
     pollRequested_ = false;
     if (config_.subscribe && sendCommand("sEN LMDscandata 1", connectBudget) != Status::Ok) {
       disconnect();
@@ -235,11 +250,11 @@ Status Nav350Client::poll(bool waitForNextScan, sick::Nav350Mask mask, sick::Nav
   if (decodeBuffered(reply, decoded)) {
     return decoded;
   }
-  if (!tcp_.connected()) {
-    if (monotonicNow() < tcp_.nextAttempt() || tcp_.ensureConnected(connectBudget) != Status::Ok) {
-      return Status::Lost;
-    }
-    framer_.reset();
+  bool fresh = false;
+  if (connectForPoll(tcp_, framer_, connectBudget, fresh) != Status::Ok) {
+    return Status::Lost;
+  }
+  if (fresh) {
     pollRequested_ = false;
   }
   if (!pollRequested_) {
