@@ -31,11 +31,44 @@ double fieldOfView(drivers::SickLaserModel m) {
 }
 
 std::string calibrationErrorText(Status s, const CalibrationFileReport& r) {
-  std::string t = toString(s);
-  if (r.key != nullptr) {
-    t = std::string(r.key) + ": " + t;
+  const char* why = toString(s);
+  switch (s) {
+    case Status::EmptyInput:
+      why = "no 'agvnav-calibration 1' header";
+      break;
+    case Status::Malformed:
+      why = "malformed line (header, unknown key, bad number or field count)";
+      break;
+    case Status::InvalidArgument:
+      why = "given twice";
+      break;
+    case Status::OutOfRange:
+      why = "value or sigma out of range";
+      break;
+    case Status::NotFound:
+      why = "missing";
+      break;
+    default:
+      break;
   }
-  return t;
+  return r.key != nullptr ? std::string(r.key) + ": " + why : std::string(why);
+}
+
+std::string mapErrorText(Status s) {
+  switch (s) {
+    case Status::EmptyInput:
+      return "no 'agvnav-landmarks 1' header";
+    case Status::Malformed:
+      return "malformed line (header, kind, number or field count)";
+    case Status::OutOfRange:
+      return "coordinate beyond 1e6 m, negative sigma or id 0";
+    case Status::InvalidArgument:
+      return "duplicate landmark id";
+    case Status::CapacityExceeded:
+      return "more landmarks than the map holds (kMaxLandmarks)";
+    default:
+      return toString(s);
+  }
 }
 
 void sleepFor(Duration d) {
@@ -74,7 +107,7 @@ bool loadVehicleFiles(const VehicleConfig& config, VehicleFiles& files, ConfigEr
   const Status ms = parseLandmarkMap(Span<const char>(text.data(), text.size()), *files.map, &mrep);
   if (ms != Status::Ok) {
     error = ConfigError{config.mapFile + (mrep.errorLine > 0 ? ":" + std::to_string(mrep.errorLine) : ""), "map.file",
-                        std::string("refused: ") + toString(ms)};
+                        "refused: " + mapErrorText(ms)};
     return false;
   }
   return true;
