@@ -166,7 +166,7 @@ TEST_CASE("SICK laser source: a silent laser is a timeout and is reconnected", "
     if (receiveExactly(fd2, kSubscribe))
       ++subscriptions;
     s.send(fd2, e);
-    agv::test::LoopbackServer::drainAndClose(fd2, 3000);
+    agv::test::LoopbackServer::drainAndClose(fd2, 300);
   });
   SickLaserSource src(loopbackConfig(SickLaserModel::Lms5xx, server.port()));
   static LaserMeasurement m;
@@ -208,7 +208,7 @@ TEST_CASE("SICK laser source: a malformed scan telegram is reported", "[drivers]
     s.send(fd, bad);
     sleepMs(100);  // read on its own, not in the same call as the good one
     s.send(fd, good);
-    agv::test::LoopbackServer::drainAndClose(fd, 3000);
+    agv::test::LoopbackServer::drainAndClose(fd, 300);
   });
   SickLaserSource src(loopbackConfig(SickLaserModel::Lms1xx, server.port()));
   static LaserMeasurement m;
@@ -255,7 +255,7 @@ TEST_CASE("SICK laser source: NAV350 replies give scan and reflectors in the sen
       ++requests;
       s.send(fd, i == 1 ? failed : reply, 300);
     }
-    agv::test::LoopbackServer::drainAndClose(fd, 3000);
+    agv::test::LoopbackServer::drainAndClose(fd, 300);
   });
   SickLaserSourceConfig cfg = loopbackConfig(SickLaserModel::Nav350, server.port());
   SickLaserSource src(cfg);
