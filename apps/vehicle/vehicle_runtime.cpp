@@ -344,7 +344,12 @@ void VehicleRuntime::cycle() {
   r.stamp = m.active ? m.localizer->stamp() : now;
   r.pose = m.localizer->pose();
   r.covariance = m.localizer->covariance();
-  r.health.mode = !m.active ? hal::NavMode::Idle : m.localizer->lost() ? hal::NavMode::Lost : hal::NavMode::Localizing;
+  // Without encoder samples the pose cannot follow the vehicle: it is published as lost (the PLC
+  // must stop) until the encoders are back.
+  const bool encodersFailed = encHealth == Status::Timeout || encHealth == Status::DeviceFault;
+  r.health.mode = !m.active                                 ? hal::NavMode::Idle
+                  : (m.localizer->lost() || encodersFailed) ? hal::NavMode::Lost
+                                                            : hal::NavMode::Localizing;
   r.health.lastStatus = last;
   r.health.matchedLandmarks = m.localizer->health().used;
   r.health.visibleReflectors = m.visibleReflectors;

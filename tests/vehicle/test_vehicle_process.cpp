@@ -152,7 +152,7 @@ TEST_CASE("agvnav-vehicle runs without its CAN interface, reports the encoder fa
   CHECK((health & static_cast<std::uint16_t>(PlcHealthBit::CalibrationValid)) != 0U);
   CHECK((health & static_cast<std::uint16_t>(PlcHealthBit::LaserTimeout)) == 0U);
   CHECK(regs[3] == static_cast<std::uint16_t>(agv::Status::DeviceFault));  // last status code
-  CHECK(regs[1] == 1U);  // localizing from the configured initial pose
+  CHECK(regs[1] == 3U);  // lost: localizing from the configured initial pose, but without encoders
   // Calibration published from the file: wheelbase 1.5 m (registers 38-39, ABCD).
   CHECK(modbus_get_float_abcd(regs + 38) == Approx(1.5f));
   CHECK(modbus_get_float_abcd(regs + 26) == Approx(0.0005f));
