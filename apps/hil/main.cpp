@@ -11,12 +11,14 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <cinttypes>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "agv/core/angle.hpp"
@@ -124,20 +126,25 @@ agv::sim::CanBusCounters canTotals(const agv::hil::CalibrationOutcome& calib,
 }
 
 void writeCanJson(std::FILE* f, const agv::hil::ScenarioConfig& cfg, const agv::sim::CanBusCounters& c) {
-  std::fprintf(f,
-               "  \"can_encoders\": {\"drive_node\": %u, \"steering_node\": %u, \"sync\": %s, "
-               "\"frames_decoded\": %llu, \"drive_pdos\": %llu, \"steering_pdos\": %llu, \"heartbeats\": %llu, "
-               "\"frames_to_nodes\": %llu, \"frames_dropped\": %llu, \"malformed\": %llu, \"measurements\": %llu, "
-               "\"samples_decoded\": %llu, \"sample_mismatches\": %llu, \"samples_withheld\": %llu, "
-               "\"drive_counter_wraps\": %llu},\n",
-               static_cast<unsigned>(cfg.can.bus.drive.nodeId), static_cast<unsigned>(cfg.can.bus.steering.nodeId),
-               cfg.can.bus.syncPeriod.ns > 0 ? "true" : "false", static_cast<unsigned long long>(c.framesDecoded()),
-               static_cast<unsigned long long>(c.drivePositions), static_cast<unsigned long long>(c.steeringPositions),
-               static_cast<unsigned long long>(c.heartbeats), static_cast<unsigned long long>(c.framesToNodes),
-               static_cast<unsigned long long>(c.framesDropped), static_cast<unsigned long long>(c.malformed),
-               static_cast<unsigned long long>(c.measurements), static_cast<unsigned long long>(c.samples),
-               static_cast<unsigned long long>(c.sampleMismatches), static_cast<unsigned long long>(c.samplesWithheld),
-               static_cast<unsigned long long>(c.driveCounterWraps));
+  std::fprintf(f, "  \"can_encoders\": {\"drive_node\": %u, \"steering_node\": %u, \"sync\": %s",
+               unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
+               cfg.can.bus.syncPeriod.ns > 0 ? "true" : "false");
+  const std::pair<const char*, std::uint64_t> fields[] = {{"frames_decoded", c.framesDecoded()},
+                                                          {"drive_pdos", c.drivePositions},
+                                                          {"steering_pdos", c.steeringPositions},
+                                                          {"heartbeats", c.heartbeats},
+                                                          {"frames_to_nodes", c.framesToNodes},
+                                                          {"frames_dropped", c.framesDropped},
+                                                          {"malformed", c.malformed},
+                                                          {"measurements", c.measurements},
+                                                          {"samples_decoded", c.samples},
+                                                          {"sample_mismatches", c.sampleMismatches},
+                                                          {"samples_withheld", c.samplesWithheld},
+                                                          {"drive_counter_wraps", c.driveCounterWraps}};
+  for (const auto& [key, value] : fields) {
+    std::fprintf(f, ", \"%s\": %" PRIu64, key, value);
+  }
+  std::fprintf(f, "},\n");
 }
 
 bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, const agv::hil::CalibrationOutcome& calib,
@@ -490,15 +497,13 @@ int main(int argc, char** argv) {
       "estimated parameters in %d\n",
       kPositionRequirement * 100.0, kHeadingRequirementDeg, truthMeetCount, drRuns, estimateMeetCount);
   const agv::sim::CanBusCounters can = canTotals(calib, results, mappingResults);
-  std::printf(
-      "encoders over CAN (CiA 402 drive node %u, CiA 406 steering node %u%s): %llu frames decoded (%llu drive "
-      "positions, %llu steering positions, %llu heartbeats), %llu samples, %llu drive counter wraps, %llu samples "
-      "differing from the measurement sent\n",
-      static_cast<unsigned>(cfg.can.bus.drive.nodeId), static_cast<unsigned>(cfg.can.bus.steering.nodeId),
-      cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", static_cast<unsigned long long>(can.framesDecoded()),
-      static_cast<unsigned long long>(can.drivePositions), static_cast<unsigned long long>(can.steeringPositions),
-      static_cast<unsigned long long>(can.heartbeats), static_cast<unsigned long long>(can.samples),
-      static_cast<unsigned long long>(can.driveCounterWraps), static_cast<unsigned long long>(can.sampleMismatches));
+  std::printf("encoders over CAN (CiA 402 drive node %u, CiA 406 steering node %u%s): %" PRIu64
+              " frames decoded (%" PRIu64 " drive positions, %" PRIu64 " steering positions, %" PRIu64
+              " heartbeats), %" PRIu64 " samples, %" PRIu64 " drive counter wraps, %" PRIu64
+              " samples differing from the measurement sent\n",
+              unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
+              cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", can.framesDecoded(), can.drivePositions,
+              can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
   std::printf("requirement (pose sent to the PLC by the localizer, every run of every mode): %s (%d of %d runs)\n",
               requirementMet ? "MET" : "NOT MET", localizerMeetCount, localizerRuns);
 
