@@ -235,6 +235,7 @@ bool parseVehicleConfig(const std::string& text, const std::string& path, Vehicl
       false, 0, 0xFFFFFFFFLL, [&](long long x) { co.steering.countsPerRevolution = static_cast<std::uint32_t>(x); });
   specs["can.heartbeat_timeout"] = seconds(false, 0.0, 10.0, co.heartbeatTimeout);
   specs["can.sync_period"] = seconds(false, 0.0, 1.0, co.syncPeriod);
+  specs["can.pairing_window"] = seconds(false, 0.0, 1.0, co.pairingWindow);
   specs["can.trigger"] = choice(false, {"both", "drive"}, [&](std::size_t i) {
     co.trigger = i == 0 ? drivers::canopen::SampleTrigger::BothUpdated : drivers::canopen::SampleTrigger::DriveUpdated;
   });

@@ -74,6 +74,7 @@ TEST_CASE("a good configuration sets every value it names and the defaults of th
   CHECK(co.steering.countsPerRevolution == 8192U);
   CHECK(co.heartbeatTimeout == agv::Duration::fromMilliseconds(300));
   CHECK(co.syncPeriod == agv::Duration::fromMilliseconds(10));
+  CHECK(co.pairingWindow == agv::Duration::fromMilliseconds(3));  // the decoder's default
   CHECK(co.trigger == agv::drivers::canopen::SampleTrigger::BothUpdated);
   CHECK(c.laser.model == agv::drivers::SickLaserModel::Lms1xx);
   CHECK(std::string(c.laser.tcp.host) == "192.168.0.10");
@@ -134,6 +135,7 @@ TEST_CASE("every key with a bad value is refused, naming the file, line and key"
       {"can.heartbeat_timeout", "-0.1"},
       {"can.heartbeat_timeout", "11"},
       {"can.sync_period", "2"},
+      {"can.pairing_window", "-1"},
       {"can.trigger", "sometimes"},
       {"laser.model", "lms200"},
       {"laser.address", "laser.local"},
