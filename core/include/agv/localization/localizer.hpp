@@ -22,6 +22,7 @@
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/odometry.hpp"
 #include "agv/localization/pose_ekf.hpp"
+#include "agv/scan/laser_scan.hpp"
 
 namespace agv {
 
@@ -69,6 +70,24 @@ struct LocalizerParams {
   double viewRangeMargin = 0.5;
   /// ...and this far inside the angular limits [rad].
   double viewAngleMargin = 0.035;
+  /// Occlusion (only when `correct` is given the scan's ranges): a landmark inside the view limits
+  /// counts as in view only if a valid beam at its predicted bearing b measured at least
+  /// r - tolerance, r its predicted range from the laser (`farthestReturnNear`). Otherwise a nearer
+  /// object blocks the line of sight (or nothing returned there) and the landmark is neither
+  /// expected nor weakened. tolerance = occlusionSigmas * sigma + occlusionKindDepth[kind]
+  /// + r * angleIncrement, where sigma^2 = rangeSigma^2 + kindSigma^2 + landmark variance + the
+  /// pose covariance projected on the ray (the standard deviation of measured minus predicted
+  /// range when the landmark is visible), and r * angleIncrement allows for the beam nearest to the
+  /// landmark hitting a surface that ends at it (a corner's side seen at >= 27 deg incidence).
+  /// false: range and angle limits only (as without a scan).
+  bool modelOcclusion = true;
+  /// Sigma multiple of the occlusion tolerance (3: a visible landmark is taken for occluded with
+  /// probability 0.13 % from noise alone).
+  double occlusionSigmas = 3.0;
+  /// How far in front of its point a landmark's own surface returns the beam [m], per kind: a
+  /// reflector pole's radius (poles are 40..50 mm in radius; a flat reflector needs 0), a corner
+  /// apex lies on the surface (0).
+  double occlusionKindDepth[kLandmarkKindCount] = {0.05, 0.0};
   /// An observation whose second-best candidate is also inside the gate and within this much
   /// squared Mahalanobis distance of the best (a likelihood ratio below exp(margin/2) = 7.4) is
   /// ambiguous and not used. 0 disables the test.
@@ -108,6 +127,7 @@ enum class LocalizerFlag : std::uint32_t {
   MapInsertRefused = 1U << 13,     ///< the map was full; new landmarks were refused (counted)
   Lost = 1U << 14,                 ///< the pose is not trusted (latched until reset): stop the vehicle
   AmbiguityRejected = 1U << 15,    ///< an observation had two landmarks inside the gate, too close to tell
+  OcclusionUnchecked = 1U << 16,   ///< ranges were given but unusable (`checkBeamGeometry`): no occlusion test
 };
 
 /// True when `flag` is set in `flags`.
@@ -131,7 +151,9 @@ struct LocalizerHealth {
   std::uint16_t rejectedUpdate = 0;
   std::uint16_t rejectedAmbiguous = 0;
   std::uint16_t unmatched = 0;       ///< no map candidate at all (new landmark candidates)
-  std::uint16_t expectedInView = 0;  ///< map landmarks of the detected kinds inside the view
+  std::uint16_t expectedInView = 0;  ///< map landmarks of the detected kinds inside the view and not occluded
+  std::uint16_t occluded = 0;        ///< inside the view limits, but a nearer return blocks the line of sight
+  std::uint16_t noReturn = 0;        ///< inside the view limits, but no valid beam at the bearing (or not covered)
   std::uint16_t inserted = 0;        ///< landmarks added to the map this cycle
   std::uint16_t insertRefused = 0;   ///< inserts the full map refused this cycle
   std::uint16_t deleted = 0;         ///< landmarks that died this cycle
@@ -161,7 +183,15 @@ class Localizer {
   /// One laser cycle: rewinds to the scan's stamp through the history, associates the
   /// observations with `map`, corrects, maintains the map (Dynamic mode, good cycles only),
   /// re-applies the newer odometry and reports. Scans must come in stamp order.
+  /// Without the scan's ranges a landmark is "in view" when inside the range and angle limits.
   const LocalizerHealth& correct(const ScanObservations& scan, LandmarkMap& map) noexcept;
+
+  /// The same, with the ranges of the scan the observations came from (`beams`, in the same laser
+  /// frame as the observations, i.e. at `scan.stamp`) for the occlusion test of "in view" (see
+  /// `LocalizerParams::modelOcclusion`): a landmark hidden behind a nearer object is neither
+  /// expected by the matched/expected check nor weakened by the map lifecycle. An unusable `beams`
+  /// (`checkBeamGeometry`) falls back to the limits and sets `OcclusionUnchecked`.
+  const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map) noexcept;
 
   /// Newest pose estimate (at `stamp()`), its covariance and time.
   const Pose2d& pose() const noexcept { return ekf_.pose(); }
@@ -201,10 +231,19 @@ class Localizer {
   HistoryEntry& entry(std::size_t k) noexcept { return history_[(historyStart_ + k) % kMaxOdometryHistory]; }
   void associate(const ScanObservations& scan, const LandmarkMap& map) noexcept;
   void orderMatches(const ScanObservations& scan) noexcept;  // sorts the matches into order_
-  void maintainMap(const ScanObservations& scan, LandmarkMap& map) noexcept;
-  std::uint16_t countExpectedInView(std::uint8_t kinds, const LandmarkMap& map, bool weakenUnmatched,
-                                    LandmarkMap* mutableMap) noexcept;
-  bool inView(const Pose2d& laserWorld, double x, double y) const noexcept;
+  enum class Visibility : std::uint8_t { OutOfLimits, Occluded, NoReturn, InView };
+  struct ViewCount {
+    std::size_t inView = 0;
+    std::size_t occluded = 0;
+    std::size_t noReturn = 0;
+  };
+  const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
+  void maintainMap(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
+  /// Counts the landmarks of `kinds` in view from the current state; with `mutableMap`, weakens
+  /// those in view and not matched this cycle.
+  ViewCount countInView(std::uint8_t kinds, const LandmarkMap& map, const LaserScan* beams,
+                        LandmarkMap* mutableMap) const noexcept;
+  Visibility visibility(const Pose2d& laserWorld, const Landmark& lm, const LaserScan* beams) const noexcept;
   void finishHealth() noexcept;
 
   LocalizerParams params_{};
