@@ -25,7 +25,16 @@ Status checkBeamGeometry(const LaserScan& scan) noexcept {
   return Status::Ok;
 }
 
-Result<double> farthestReturnNear(const LaserScan& scan, double bearing) noexcept {
+namespace {
+
+/// The beams bracketing a bearing: i0 at or before it, i1 at or after it (equal at a scan end).
+struct Bracket {
+  std::size_t i0 = 0;
+  std::size_t i1 = 0;
+  bool fullRevolution = false;
+};
+
+Result<Bracket> bracket(const LaserScan& scan, double bearing) noexcept {
   const Status geometry = checkBeamGeometry(scan);
   if (geometry != Status::Ok) {
     return geometry;
@@ -35,33 +44,42 @@ Result<double> farthestReturnNear(const LaserScan& scan, double bearing) noexcep
   }
   const std::size_t n = scan.size();
   const double inc = static_cast<double>(scan.angleIncrement);
-  const double span = static_cast<double>(n) * inc;
+  Bracket b;
+  b.fullRevolution = static_cast<double>(n) * inc >= kTwoPi<double> - 0.5 * inc;
   // Offset from beam 0, wrapped into [0, 2 pi).
   double u = normalizeAngle(bearing - static_cast<double>(scan.angleMin));
   if (u < 0.0) {
     u += kTwoPi<double>;
   }
-  const double f = u / inc;  // fractional beam index, < 2 pi / inc <= 2^k * n-ish (finite, bounded)
+  const double f = u / inc;  // fractional beam index, finite (inc >= pi/8 bounds it by 16 n)
   const double last = static_cast<double>(n - 1U);
-  std::size_t i0 = 0;
-  std::size_t i1 = 0;
   if (f <= last) {
-    i0 = static_cast<std::size_t>(f);  // floor: f >= 0 and <= n - 1
-    i1 = i0 + 1U < n ? i0 + 1U : i0;
-  } else if (span >= kTwoPi<double> - 0.5 * inc) {
-    i0 = n - 1U;  // full revolution: between the last beam and the first
-    i1 = 0;
+    b.i0 = static_cast<std::size_t>(f);  // floor: 0 <= f <= n - 1
+    b.i1 = b.i0 + 1U < n ? b.i0 + 1U : b.i0;
+  } else if (b.fullRevolution) {
+    b.i0 = n - 1U;  // between the last beam and the first
+    b.i1 = 0;
   } else if (f <= last + 0.5) {
-    i0 = n - 1U;  // just past the last beam
-    i1 = i0;
+    b.i0 = n - 1U;  // just past the last beam
+    b.i1 = b.i0;
   } else if (u >= kTwoPi<double> - 0.5 * inc) {
-    i0 = 0;  // just before the first beam
-    i1 = 0;
+    b.i0 = 0;  // just before the first beam
+    b.i1 = 0;
   } else {
     return Status::OutOfRange;
   }
+  return b;
+}
+
+}  // namespace
+
+Result<double> farthestReturnNear(const LaserScan& scan, double bearing) noexcept {
+  const Result<Bracket> br = bracket(scan, bearing);
+  if (!br.ok()) {
+    return br.status();
+  }
   double best = -1.0;
-  const std::size_t idx[2] = {i0, i1};
+  const std::size_t idx[2] = {br.value().i0, br.value().i1};
   for (const std::size_t i : idx) {
     if (scan.isValid(i)) {
       const double r = static_cast<double>(scan.ranges[i]);
@@ -72,6 +90,52 @@ Result<double> farthestReturnNear(const LaserScan& scan, double bearing) noexcep
     return Status::NotFound;
   }
   return best;
+}
+
+Result<SideSupport> sideSupport(const LaserScan& scan, double range, double bearing, double radius,
+                                std::size_t maxPerSide) noexcept {
+  if (!(range > 0.0) || !(radius > 0.0) || !std::isfinite(range) || !std::isfinite(radius)) {
+    return Status::InvalidArgument;
+  }
+  const Result<Bracket> br = bracket(scan, bearing);
+  if (!br.ok()) {
+    return br.status();
+  }
+  const std::size_t n = scan.size();
+  const double inc = static_cast<double>(scan.angleIncrement);
+  const double qx = range * std::cos(bearing);
+  const double qy = range * std::sin(bearing);
+  const double r2 = radius * radius;
+  // Beams farther than asin(radius / range) from the bearing cannot reach the disc.
+  const double window = (radius >= range ? kPi<double> : std::asin(radius / range)) + inc;
+  std::size_t steps = static_cast<std::size_t>(window / inc) + 1U;
+  steps = steps < n ? steps : n;
+  SideSupport out;
+  for (int side = 0; side < 2; ++side) {
+    std::size_t i = side == 0 ? br.value().i0 : br.value().i1;
+    std::size_t& count = side == 0 ? out.before : out.after;
+    for (std::size_t k = 0; k < steps && count < maxPerSide; ++k) {
+      if (scan.isValid(i)) {
+        const double r = static_cast<double>(scan.ranges[i]);
+        const double a = static_cast<double>(scan.angle(i));
+        const double dx = r * std::cos(a) - qx;
+        const double dy = r * std::sin(a) - qy;
+        count += dx * dx + dy * dy <= r2 ? 1U : 0U;
+      }
+      if (side == 0) {
+        if (i == 0U && !br.value().fullRevolution) {
+          break;
+        }
+        i = i == 0U ? n - 1U : i - 1U;
+      } else {
+        if (i + 1U == n && !br.value().fullRevolution) {
+          break;
+        }
+        i = i + 1U == n ? 0U : i + 1U;
+      }
+    }
+  }
+  return out;
 }
 
 }  // namespace agv

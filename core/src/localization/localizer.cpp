@@ -118,7 +118,19 @@ Localizer::Visibility Localizer::visibility(const Pose2d& laserWorld, const Land
   const double var = L.rangeSigma * L.rangeSigma + ks * ks + lm.variance + g.dot(P * g);
   const double tolerance = params_.occlusionSigmas * std::sqrt(var > 0.0 ? var : 0.0) +
                            params_.occlusionKindDepth[kind] + r * static_cast<double>(beams->angleIncrement);
-  return measured.value() >= r - tolerance ? Visibility::InView : Visibility::Occluded;
+  if (measured.value() < r - tolerance) {
+    return Visibility::Occluded;
+  }
+  const double support = params_.occlusionSupportRadius[kind];
+  if (support > 0.0 && params_.occlusionSupportPoints > 0U) {
+    const Result<SideSupport> sides = sideSupport(*beams, r, b, support, params_.occlusionSupportPoints);
+    if (!sides.ok() || sides.value().before < params_.occlusionSupportPoints ||
+        sides.value().after < params_.occlusionSupportPoints) {
+      // The beams pass beyond the point with no surface around it: nothing is there.
+      return measured.value() > r + tolerance ? Visibility::SeenThrough : Visibility::Unsupported;
+    }
+  }
+  return Visibility::InView;
 }
 
 Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMap& map, const LaserScan* beams,
@@ -138,10 +150,18 @@ Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMa
       case Visibility::NoReturn:
         ++count.noReturn;
         return;
+      case Visibility::Unsupported:
+        ++count.unsupported;
+        return;
+      case Visibility::SeenThrough:
+        ++count.seenThrough;
+        break;
       case Visibility::InView:
+        if (lm.surveyed || lm.hits >= params_.minHitsToExpect) {
+          ++count.inView;
+        }
         break;
     }
-    ++count.inView;
     if (mutableMap != nullptr && !lm.surveyed && lm.lastMatchedCycle != cycle_) {
       (void)mutableMap->weaken(idx);
     }
@@ -415,6 +435,8 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   health_.expectedInView = sat16(view.inView);
   health_.occluded = sat16(view.occluded);
   health_.noReturn = sat16(view.noReturn);
+  health_.unsupported = sat16(view.unsupported);
+  health_.seenThrough = sat16(view.seenThrough);
 
   // --- Sequential gated updates, most certain first.
   orderMatches(scan);

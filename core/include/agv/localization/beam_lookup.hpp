@@ -31,4 +31,20 @@ Status checkBeamGeometry(const LaserScan& scan) noexcept;
 /// the errors of `checkBeamGeometry` for an unusable scan.
 Result<double> farthestReturnNear(const LaserScan& scan, double bearing) noexcept;
 
+/// Valid scan points near a point on each side of its bearing (see `sideSupport`).
+struct SideSupport {
+  std::size_t before = 0;  ///< among the beams at smaller angles (clockwise of the bearing)
+  std::size_t after = 0;   ///< among the beams at larger angles
+};
+
+/// Counts the valid scan points lying within `radius` [m] of the laser-frame point at (`range`,
+/// `bearing`), separately on each side of the bearing, up to `maxPerSide` each: whether the
+/// surfaces that form a corner at that point are seen on both sides (a corner whose one face is
+/// turned away or hidden shows points on one side only). Walks outward from the bracketing beams
+/// over at most asin(radius / range) + one beam per side (across the seam of a full revolution),
+/// so the work is bounded by the beams in that angle and by the scan size.
+/// Errors as `farthestReturnNear`; `InvalidArgument` for a non-positive or non-finite range or radius.
+Result<SideSupport> sideSupport(const LaserScan& scan, double range, double bearing, double radius,
+                                std::size_t maxPerSide) noexcept;
+
 }  // namespace agv

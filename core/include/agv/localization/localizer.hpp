@@ -88,6 +88,15 @@ struct LocalizerParams {
   /// reflector pole's radius (poles are 40..50 mm in radius; a flat reflector needs 0), a corner
   /// apex lies on the surface (0).
   double occlusionKindDepth[kLandmarkKindCount] = {0.05, 0.0};
+  /// A landmark formed by two surfaces (a corner) is detectable only where both are seen: with the
+  /// scan's ranges, a landmark of a kind with a support radius > 0 counts as in view only if at
+  /// least `occlusionSupportPoints` valid scan points lie within that radius of its predicted
+  /// position on each side of its bearing (`sideSupport`). A corner whose one face is turned away
+  /// (seen from outside its outer quadrant) or hidden is not expected. Per kind [m]: reflectors 0
+  /// (off); corners 0.2 = FALKO's smallest neighbourhood radius (a = 0.2 m), whose sides need
+  /// 2 points each.
+  double occlusionSupportRadius[kLandmarkKindCount] = {0.0, 0.2};
+  std::size_t occlusionSupportPoints = 2;
   /// An observation whose second-best candidate is also inside the gate and within this much
   /// squared Mahalanobis distance of the best (a likelihood ratio below exp(margin/2) = 7.4) is
   /// ambiguous and not used. 0 disables the test.
@@ -98,6 +107,10 @@ struct LocalizerParams {
   std::uint16_t minMatchesForFix = 2;
   /// The matched/expected check runs when at least this many landmarks are expected in view.
   std::uint16_t minExpectedForCheck = 3;
+  /// A dynamic landmark counts as expected by the check only once it has this many hits (surveyed
+  /// landmarks always): a corner seen once or twice may be a transient or a viewpoint artefact, and
+  /// its absence says nothing about the pose. It is still weakened when in view and not matched.
+  std::int16_t minHitsToExpect = 3;
   /// A checked cycle is bad when fewer than this fraction of the expected landmarks matched.
   double minMatchedFraction = 0.3;
   /// Consecutive bad cycles that make the localizer lost (latched until `reset`).
@@ -154,6 +167,8 @@ struct LocalizerHealth {
   std::uint16_t expectedInView = 0;  ///< map landmarks of the detected kinds inside the view and not occluded
   std::uint16_t occluded = 0;        ///< inside the view limits, but a nearer return blocks the line of sight
   std::uint16_t noReturn = 0;        ///< inside the view limits, but no valid beam at the bearing (or not covered)
+  std::uint16_t unsupported = 0;     ///< at a seen surface, but not seen on both sides (corners): not expected
+  std::uint16_t seenThrough = 0;     ///< no surface there, the beams pass beyond it: weakened, not expected
   std::uint16_t inserted = 0;        ///< landmarks added to the map this cycle
   std::uint16_t insertRefused = 0;   ///< inserts the full map refused this cycle
   std::uint16_t deleted = 0;         ///< landmarks that died this cycle
@@ -231,11 +246,13 @@ class Localizer {
   HistoryEntry& entry(std::size_t k) noexcept { return history_[(historyStart_ + k) % kMaxOdometryHistory]; }
   void associate(const ScanObservations& scan, const LandmarkMap& map) noexcept;
   void orderMatches(const ScanObservations& scan) noexcept;  // sorts the matches into order_
-  enum class Visibility : std::uint8_t { OutOfLimits, Occluded, NoReturn, InView };
+  enum class Visibility : std::uint8_t { OutOfLimits, Occluded, NoReturn, Unsupported, SeenThrough, InView };
   struct ViewCount {
     std::size_t inView = 0;
     std::size_t occluded = 0;
     std::size_t noReturn = 0;
+    std::size_t unsupported = 0;
+    std::size_t seenThrough = 0;
   };
   const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
   void maintainMap(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
