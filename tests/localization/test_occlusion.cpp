@@ -426,3 +426,79 @@ TEST_CASE("occlusion: the steady-state cycle with the scan's ranges allocates no
     CHECK(s.loc->health().occluded == 2U);
   }
 }
+
+TEST_CASE("side support: points of the surfaces on each side of a bearing", "[localization][occlusion]") {
+  // a round wall at 5 m around the laser (270 deg, 0.25 deg)
+  auto s = uniformScan(1081, -0.75 * kPi<double>, kInc, 5.0F);
+  const double b = static_cast<double>(s->angle(540)) + 0.3 * kInc;
+  Result<SideSupport> r = sideSupport(*s, 5.0, b, 0.2, 1000);
+  REQUIRE(r.ok());
+  // 0.2 m at 5 m spans 0.04 rad = 9.2 beams on each side
+  CHECK(r.value().before >= 9U);
+  CHECK(r.value().before <= 10U);
+  CHECK(r.value().after >= 9U);
+  CHECK(r.value().after <= 10U);
+  CHECK(sideSupport(*s, 5.0, b, 0.2, 2).value().before == 2U);  // capped
+  // a jump edge: beyond the bearing the beams reach a wall at 10 m (one face only)
+  for (std::size_t i = 541; i < s->size(); ++i) {
+    s->ranges[i] = 10.0F;
+  }
+  r = sideSupport(*s, 5.0, b, 0.2, 1000);
+  CHECK(r.value().before >= 9U);
+  CHECK(r.value().after == 0U);
+  // a point in free space, 2 m in front of the wall: nothing near it
+  r = sideSupport(*s, 3.0, b - 0.5, 0.2, 1000);
+  CHECK(r.value().before == 0U);
+  CHECK(r.value().after == 0U);
+  // invalid beams do not count
+  for (std::size_t i = 0; i <= 540; ++i) {
+    s->ranges[i] = std::numeric_limits<float>::quiet_NaN();
+  }
+  CHECK(sideSupport(*s, 5.0, b, 0.2, 1000).value().before == 0U);
+  // across the seam of a full revolution
+  auto z = uniformScan(1440, -kPi<double>, kInc, 5.0F);
+  r = sideSupport(*z, 5.0, kPi<double> - 0.1 * kInc, 0.2, 1000);
+  CHECK(r.value().before >= 9U);
+  CHECK(r.value().after >= 9U);
+  // at the end of a 270 deg scan, nothing beyond it
+  auto e = uniformScan(1081, -0.75 * kPi<double>, kInc, 5.0F);
+  CHECK(sideSupport(*e, 5.0, static_cast<double>(e->angle(1080)), 0.2, 1000).value().after <= 1U);
+  // bad arguments
+  CHECK(sideSupport(*e, 0.0, 0.0, 0.2, 2).status() == Status::InvalidArgument);
+  CHECK(sideSupport(*e, 5.0, 0.0, -1.0, 2).status() == Status::InvalidArgument);
+  CHECK(sideSupport(*e, std::nan(""), 0.0, 0.2, 2).status() == Status::InvalidArgument);
+  CHECK(sideSupport(*e, 5.0, kPi<double>, 0.2, 2).status() == Status::OutOfRange);
+}
+
+TEST_CASE("occlusion: corners need both faces seen to be expected; a point the beams pass through is weakened",
+          "[localization][occlusion]") {
+  LocalizerParams p;  // laser at the logical point
+  Localizer loc(p);
+  LandmarkMapParams mp;
+  mp.initialHits = 5;
+  auto map = std::make_unique<LandmarkMap>(mp);
+  // round wall at 10 m; beyond bearing 1.0 rad the wall steps back to 20 m
+  auto beams = uniformScan(1081, -0.75 * kPi<double>, kInc, 10.0F);
+  for (std::size_t i = 0; i < beams->size(); ++i) {
+    if (static_cast<double>(beams->angle(i)) > 1.0) {
+      beams->ranges[i] = 20.0F;
+    }
+  }
+  const LandmarkIndex onWall = map->insert(LandmarkKind::Corner, 10.0, 0.0, 1e-6).value();
+  const LandmarkIndex freeSpace =
+      map->insert(LandmarkKind::Corner, 5.0 * std::cos(0.5), 5.0 * std::sin(0.5), 1e-6).value();
+  const double a = 1.0 - 0.5 * kInc;  // the last beam of the near wall, its face turned away beyond
+  const LandmarkIndex edge = map->insert(LandmarkKind::Corner, 10.0 * std::cos(a), 10.0 * std::sin(a), 1e-6).value();
+  Eigen::Matrix3d P0 = Eigen::Matrix3d::Identity() * 1e-6;
+  REQUIRE(loc.reset(Timestamp::fromSeconds(1.0), Pose2d{}, P0) == Status::Ok);
+  auto obs = std::make_unique<ScanObservations>();
+  obs->stamp = Timestamp::fromSeconds(1.0);
+  obs->kindsDetected = landmarkKindBit(LandmarkKind::Corner);
+  const LocalizerHealth& h = loc.correct(*obs, *beams, *map);
+  CHECK(h.expectedInView == 1U);  // on the wall, both faces seen
+  CHECK(h.seenThrough == 1U);
+  CHECK(h.unsupported == 1U);
+  CHECK(map->at(onWall)->hits == mp.initialHits - 1);
+  CHECK(map->at(freeSpace)->hits == mp.initialHits - 1);  // nothing there
+  CHECK(map->at(edge)->hits == mp.initialHits);           // seen from its wrong side: kept
+}
