@@ -3,6 +3,7 @@
 // simulated scene with a wall between the laser and some landmarks (host only).
 #include <Eigen/Core>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <memory>
 #include <random>
@@ -501,4 +502,42 @@ TEST_CASE("occlusion: corners need both faces seen to be expected; a point the b
   CHECK(map->at(onWall)->hits == mp.initialHits - 1);
   CHECK(map->at(freeSpace)->hits == mp.initialHits - 1);  // nothing there
   CHECK(map->at(edge)->hits == mp.initialHits);           // seen from its wrong side: kept
+}
+
+TEST_CASE("occlusion: a kidnapped vehicle is still flagged lost within 5 cycles when the scan's ranges are used",
+          "[localization][occlusion]") {
+  const Pose2d offsets[] = {{0.5, 0.0, 0.0}, {0.0, 0.0, 0.2}, {-1.0, 0.5, -0.3}, {2.0, 1.0, 0.5}};
+  for (const Pose2d& off : offsets) {
+    OcclusionScene s(MapMode::Static, 2, 3);
+    const std::vector<std::size_t> seen{0, 1, 4, 5, 6, 7};
+    for (int c = 0; c < 5; ++c) {
+      s.stand(10);
+      s.castScan();
+      s.observe(seen);
+      REQUIRE_FALSE(s.loc->correct(*s.obs, *s.beams, *s.map).lost);
+    }
+    // teleport: the scan and the detections now come from elsewhere; the filter does not know
+    s.truth = s.truth.compose(off);
+    std::vector<std::size_t> visibleNow;
+    for (std::size_t i = 0; i < s.poles.size(); ++i) {
+      const Eigen::Vector2d z = s.laserWorld().inverseTransformPoint(s.poles[i]);
+      const double b = std::atan2(z.y(), z.x());
+      if (s.visible(i) && std::fabs(b) < 2.3 && z.norm() > 1.0) {
+        visibleNow.push_back(i);
+      }
+    }
+    int lostAfter = -1;
+    for (int c = 1; c <= 10 && lostAfter < 0; ++c) {
+      s.stand(10);
+      s.castScan();
+      s.observe(visibleNow);
+      if (s.loc->correct(*s.obs, *s.beams, *s.map).lost) {
+        lostAfter = c;
+      }
+    }
+    std::printf("kidnap by (%.1f m, %.1f m, %.2f rad) with scan ranges: lost %d cycles after\n", off.x, off.y,
+                off.theta, lostAfter);
+    CHECK(lostAfter > 0);
+    CHECK(lostAfter <= 5);
+  }
 }

@@ -159,6 +159,7 @@ Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMa
       case Visibility::InView:
         if (lm.surveyed || lm.hits >= params_.minHitsToExpect) {
           ++count.inView;
+          count.detections += params_.detectionRate[static_cast<std::size_t>(lm.kind) % kLandmarkKindCount];
         }
         break;
     }
@@ -433,6 +434,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   }
   const ViewCount view = countInView(scan.kindsDetected, map, beams, nullptr);
   health_.expectedInView = sat16(view.inView);
+  health_.expectedDetections = view.detections;
   health_.occluded = sat16(view.occluded);
   health_.noReturn = sat16(view.noReturn);
   health_.unsupported = sat16(view.unsupported);
@@ -520,8 +522,8 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
 
   // --- Health: matched vs expected, covariance limits, lost.
   bool bad = false;
-  if (health_.expectedInView >= params_.minExpectedForCheck) {
-    double need = std::ceil(params_.minMatchedFraction * static_cast<double>(health_.expectedInView));
+  if (health_.expectedDetections >= static_cast<double>(params_.minExpectedForCheck)) {
+    double need = std::ceil(params_.minMatchedFraction * health_.expectedDetections);
     if (need < static_cast<double>(params_.minMatchesForFix)) {
       need = static_cast<double>(params_.minMatchesForFix);
     }

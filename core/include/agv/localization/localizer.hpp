@@ -105,13 +105,20 @@ struct LocalizerParams {
   double insertSeparation = 0.3;
   /// Fewer landmarks used than this: the cycle has no fix (flag NoFix).
   std::uint16_t minMatchesForFix = 2;
-  /// The matched/expected check runs when at least this many landmarks are expected in view.
+  /// Probability that the detector reports a landmark of each kind that is in view (and, for
+  /// corners, seen on both sides): the matched/expected check counts expected *detections*, the sum
+  /// of these over the expected landmarks. Reflectors 1 (a pole in the line of sight returns); FALKO
+  /// corners 0.5 (re-detection rate from a moved viewpoint: 0.49 on fr079, docs/falko.md; the
+  /// simulated warehouse gives 0.8), so a cycle with few corners in view is not judged on them.
+  double detectionRate[kLandmarkKindCount] = {1.0, 0.5};
+  /// The matched/expected check runs when at least this many detections are expected.
   std::uint16_t minExpectedForCheck = 3;
   /// A dynamic landmark counts as expected by the check only once it has this many hits (surveyed
   /// landmarks always): a corner seen once or twice may be a transient or a viewpoint artefact, and
   /// its absence says nothing about the pose. It is still weakened when in view and not matched.
   std::int16_t minHitsToExpect = 3;
-  /// A checked cycle is bad when fewer than this fraction of the expected landmarks matched.
+  /// A checked cycle is bad when fewer than max(minMatchesForFix, this fraction of the expected
+  /// detections) landmarks were used.
   double minMatchedFraction = 0.3;
   /// Consecutive bad cycles that make the localizer lost (latched until `reset`).
   std::uint8_t lostAfterBadCycles = 3;
@@ -165,6 +172,7 @@ struct LocalizerHealth {
   std::uint16_t rejectedAmbiguous = 0;
   std::uint16_t unmatched = 0;       ///< no map candidate at all (new landmark candidates)
   std::uint16_t expectedInView = 0;  ///< map landmarks of the detected kinds inside the view and not occluded
+  double expectedDetections = 0.0;   ///< sum of detectionRate over the expected landmarks (what the check uses)
   std::uint16_t occluded = 0;        ///< inside the view limits, but a nearer return blocks the line of sight
   std::uint16_t noReturn = 0;        ///< inside the view limits, but no valid beam at the bearing (or not covered)
   std::uint16_t unsupported = 0;     ///< at a seen surface, but not seen on both sides (corners): not expected
@@ -253,6 +261,7 @@ class Localizer {
     std::size_t noReturn = 0;
     std::size_t unsupported = 0;
     std::size_t seenThrough = 0;
+    double detections = 0.0;
   };
   const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
   void maintainMap(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
