@@ -126,8 +126,7 @@ Localizer::Visibility Localizer::visibility(const Pose2d& laserWorld, const Land
     const Result<SideSupport> sides = sideSupport(*beams, r, b, support, params_.occlusionSupportPoints);
     if (!sides.ok() || sides.value().before < params_.occlusionSupportPoints ||
         sides.value().after < params_.occlusionSupportPoints) {
-      // The beams pass beyond the point with no surface around it: nothing is there.
-      return measured.value() > r + tolerance ? Visibility::SeenThrough : Visibility::Unsupported;
+      return Visibility::InViewUnsupported;
     }
   }
   return Visibility::InView;
@@ -150,11 +149,8 @@ Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMa
       case Visibility::NoReturn:
         ++count.noReturn;
         return;
-      case Visibility::Unsupported:
+      case Visibility::InViewUnsupported:
         ++count.unsupported;
-        return;
-      case Visibility::SeenThrough:
-        ++count.seenThrough;
         break;
       case Visibility::InView:
         if (lm.surveyed || lm.hits >= params_.minHitsToExpect) {
@@ -438,7 +434,6 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   health_.occluded = sat16(view.occluded);
   health_.noReturn = sat16(view.noReturn);
   health_.unsupported = sat16(view.unsupported);
-  health_.seenThrough = sat16(view.seenThrough);
 
   // --- Sequential gated updates, most certain first.
   orderMatches(scan);

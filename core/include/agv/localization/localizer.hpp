@@ -89,12 +89,13 @@ struct LocalizerParams {
   /// apex lies on the surface (0).
   double occlusionKindDepth[kLandmarkKindCount] = {0.05, 0.0};
   /// A landmark formed by two surfaces (a corner) is detectable only where both are seen: with the
-  /// scan's ranges, a landmark of a kind with a support radius > 0 counts as in view only if at
-  /// least `occlusionSupportPoints` valid scan points lie within that radius of its predicted
-  /// position on each side of its bearing (`sideSupport`). A corner whose one face is turned away
-  /// (seen from outside its outer quadrant) or hidden is not expected. Per kind [m]: reflectors 0
-  /// (off); corners 0.2 = FALKO's smallest neighbourhood radius (a = 0.2 m), whose sides need
-  /// 2 points each.
+  /// scan's ranges, a landmark of a kind with a support radius > 0 is *expected* by the
+  /// matched/expected check only if at least `occlusionSupportPoints` valid scan points lie within
+  /// that radius of its predicted position on each side of its bearing (`sideSupport`). A corner
+  /// in the line of sight whose one face is turned away (seen from outside its outer quadrant), or
+  /// a point where the beams find no surface at all, is still weakened (it is in view and cannot be
+  /// matched from here) but not expected. Per kind [m]: reflectors 0 (off); corners 0.2 = FALKO's
+  /// smallest neighbourhood radius (a = 0.2 m), whose sides need 2 points each.
   double occlusionSupportRadius[kLandmarkKindCount] = {0.0, 0.2};
   std::size_t occlusionSupportPoints = 2;
   /// An observation whose second-best candidate is also inside the gate and within this much
@@ -175,15 +176,15 @@ struct LocalizerHealth {
   double expectedDetections = 0.0;   ///< sum of detectionRate over the expected landmarks (what the check uses)
   std::uint16_t occluded = 0;        ///< inside the view limits, but a nearer return blocks the line of sight
   std::uint16_t noReturn = 0;        ///< inside the view limits, but no valid beam at the bearing (or not covered)
-  std::uint16_t unsupported = 0;     ///< at a seen surface, but not seen on both sides (corners): not expected
-  std::uint16_t seenThrough = 0;     ///< no surface there, the beams pass beyond it: weakened, not expected
-  std::uint16_t inserted = 0;        ///< landmarks added to the map this cycle
-  std::uint16_t insertRefused = 0;   ///< inserts the full map refused this cycle
-  std::uint16_t deleted = 0;         ///< landmarks that died this cycle
-  double maxTestRatio = 0.0;         ///< max d^2/gate over used observations (< 1)
-  double meanTestRatio = 0.0;        ///< mean d^2/gate over used observations (~2/gate if consistent)
-  double positionSigma = 0.0;        ///< [m] largest axis of the position covariance
-  double headingSigma = 0.0;         ///< [rad]
+  std::uint16_t unsupported =
+      0;                       ///< in the line of sight, but not seen on both sides (corners): weakened, not expected
+  std::uint16_t inserted = 0;  ///< landmarks added to the map this cycle
+  std::uint16_t insertRefused = 0;  ///< inserts the full map refused this cycle
+  std::uint16_t deleted = 0;        ///< landmarks that died this cycle
+  double maxTestRatio = 0.0;        ///< max d^2/gate over used observations (< 1)
+  double meanTestRatio = 0.0;       ///< mean d^2/gate over used observations (~2/gate if consistent)
+  double positionSigma = 0.0;       ///< [m] largest axis of the position covariance
+  double headingSigma = 0.0;        ///< [rad]
   std::uint8_t consecutiveBadCycles = 0;
   bool lost = false;
 };
@@ -254,13 +255,12 @@ class Localizer {
   HistoryEntry& entry(std::size_t k) noexcept { return history_[(historyStart_ + k) % kMaxOdometryHistory]; }
   void associate(const ScanObservations& scan, const LandmarkMap& map) noexcept;
   void orderMatches(const ScanObservations& scan) noexcept;  // sorts the matches into order_
-  enum class Visibility : std::uint8_t { OutOfLimits, Occluded, NoReturn, Unsupported, SeenThrough, InView };
+  enum class Visibility : std::uint8_t { OutOfLimits, Occluded, NoReturn, InViewUnsupported, InView };
   struct ViewCount {
     std::size_t inView = 0;
     std::size_t occluded = 0;
     std::size_t noReturn = 0;
     std::size_t unsupported = 0;
-    std::size_t seenThrough = 0;
     double detections = 0.0;
   };
   const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
