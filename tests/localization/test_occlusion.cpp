@@ -307,6 +307,17 @@ TEST_CASE(
       CHECK(s.hits(i) == h0 + 1);
     }
   }
+  SECTION("a young landmark (fewer than minHitsConfirmed hits) hidden behind the wall is still decremented") {
+    while (s.hits(2) >= s.params.minHitsConfirmed) {
+      (void)s.map->weaken(s.index[2]);
+    }
+    const std::int16_t young = s.hits(2);
+    REQUIRE(young > 1);
+    const LocalizerHealth& h = s.loc->correct(*s.obs, *s.beams, *s.map);
+    CHECK(h.occluded == hidden.size());
+    CHECK(s.hits(2) == young - 1);
+    CHECK(s.hits(3) == h0);  // confirmed: kept
+  }
   SECTION("without a scan (reflector list only): every landmark inside the limits is in view") {
     const LocalizerHealth& h = s.loc->correct(*s.obs, *s.map);
     CHECK(h.expectedInView == s.poles.size());

@@ -140,12 +140,16 @@ Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMa
     if ((landmarkKindBit(lm.kind) & kinds) == 0U) {
       return;
     }
+    const bool confirmed = lm.surveyed || lm.hits >= params_.minHitsConfirmed;
     switch (visibility(laserWorld, lm, beams)) {
       case Visibility::OutOfLimits:
         return;
       case Visibility::Occluded:
         ++count.occluded;
-        return;
+        if (confirmed) {
+          return;  // hidden: no evidence either way
+        }
+        break;  // a young landmark that disappears behind something is more likely a transient
       case Visibility::NoReturn:
         ++count.noReturn;
         return;
@@ -153,7 +157,7 @@ Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMa
         ++count.unsupported;
         break;
       case Visibility::InView:
-        if (lm.surveyed || lm.hits >= params_.minHitsToExpect) {
+        if (confirmed) {
           ++count.inView;
           count.detections += params_.detectionRate[static_cast<std::size_t>(lm.kind) % kLandmarkKindCount];
         }

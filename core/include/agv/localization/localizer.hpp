@@ -114,10 +114,12 @@ struct LocalizerParams {
   double detectionRate[kLandmarkKindCount] = {1.0, 0.5};
   /// The matched/expected check runs when at least this many detections are expected.
   std::uint16_t minExpectedForCheck = 3;
-  /// A dynamic landmark counts as expected by the check only once it has this many hits (surveyed
-  /// landmarks always): a corner seen once or twice may be a transient or a viewpoint artefact, and
-  /// its absence says nothing about the pose. It is still weakened when in view and not matched.
-  std::int16_t minHitsToExpect = 3;
+  /// A dynamic landmark is *confirmed* once it has this many hits (surveyed landmarks always
+  /// are). Only confirmed landmarks are expected by the matched/expected check and kept from the
+  /// decrement while occluded: a corner seen once or twice may be a transient or a viewpoint
+  /// artefact (an occlusion edge), its absence says nothing about the pose, and when it disappears
+  /// behind something it is decremented as if in view.
+  std::int16_t minHitsConfirmed = 3;
   /// A checked cycle is bad when fewer than max(minMatchesForFix, this fraction of the expected
   /// detections) landmarks were used.
   double minMatchedFraction = 0.3;
