@@ -13,6 +13,7 @@
 #include "agv/localization/beam_lookup.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv_test.hpp"
+#include "stand_still.hpp"
 
 using namespace agv;
 
@@ -213,15 +214,7 @@ struct OcclusionScene {
     }
     return true;
   }
-  void stand(int steps) {
-    for (int i = 0; i < steps; ++i) {
-      t = t + Duration::fromMilliseconds(10);
-      OdometryIncrement inc;
-      inc.stamp = t;
-      inc.covariance = Eigen::Matrix3d::Identity() * 1e-9;
-      REQUIRE(loc->predict(inc) == Status::Ok);
-    }
-  }
+  void stand(int steps) { test::standStill(*loc, t, steps); }
   /// 270 deg, 0.25 deg scan ray-cast from the true laser pose, with the laser model's range noise.
   void castScan() {
     std::normal_distribution<double> n(0.0, params.laser.rangeSigma);
