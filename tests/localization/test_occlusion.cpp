@@ -544,3 +544,13 @@ TEST_CASE("occlusion: a kidnapped vehicle is still flagged lost within 5 cycles 
     CHECK(lostAfter <= 5);
   }
 }
+
+TEST_CASE("beam lookup: a tiny increment (a few beams covering a sliver) stays bounded", "[localization][occlusion]") {
+  auto s = uniformScan(4, 0.0, 1e-30, 5.0F);
+  REQUIRE(checkBeamGeometry(*s) == Status::Ok);
+  CHECK(farthestReturnNear(*s, 0.0).value() == Approx(5.0));
+  CHECK(farthestReturnNear(*s, 1.0).status() == Status::OutOfRange);
+  const Result<SideSupport> r = sideSupport(*s, 5.0, 0.0, 0.2, 1000);
+  REQUIRE(r.ok());
+  CHECK(r.value().before + r.value().after <= 8U);
+}

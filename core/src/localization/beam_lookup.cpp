@@ -51,7 +51,7 @@ Result<Bracket> bracket(const LaserScan& scan, double bearing) noexcept {
   if (u < 0.0) {
     u += kTwoPi<double>;
   }
-  const double f = u / inc;  // fractional beam index, finite (inc >= pi/8 bounds it by 16 n)
+  const double f = u / inc;  // fractional beam index (huge for a tiny increment: cast only when <= n - 1)
   const double last = static_cast<double>(n - 1U);
   if (f <= last) {
     b.i0 = static_cast<std::size_t>(f);  // floor: 0 <= f <= n - 1
@@ -108,8 +108,8 @@ Result<SideSupport> sideSupport(const LaserScan& scan, double range, double bear
   const double r2 = radius * radius;
   // Beams farther than asin(radius / range) from the bearing cannot reach the disc.
   const double window = (radius >= range ? kPi<double> : std::asin(radius / range)) + inc;
-  std::size_t steps = static_cast<std::size_t>(window / inc) + 1U;
-  steps = steps < n ? steps : n;
+  const double stepsWanted = window / inc + 1.0;  // compared as double: a tiny increment gives a huge count
+  const std::size_t steps = stepsWanted < static_cast<double>(n) ? static_cast<std::size_t>(stepsWanted) : n;
   SideSupport out;
   for (int side = 0; side < 2; ++side) {
     std::size_t i = side == 0 ? br.value().i0 : br.value().i1;
