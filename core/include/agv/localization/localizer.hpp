@@ -73,8 +73,8 @@ struct LocalizerParams {
   /// Occlusion (only when `correct` is given the scan's ranges): a landmark inside the view limits
   /// counts as in view only if a valid beam at its predicted bearing b measured at least
   /// r - tolerance, r its predicted range from the laser (`farthestReturnNear`). Otherwise a nearer
-  /// object blocks the line of sight (or nothing returned there) and the landmark is neither
-  /// expected nor weakened. tolerance = occlusionSigmas * sigma + occlusionKindDepth[kind]
+  /// object blocks the line of sight (or nothing returned there): the landmark is not expected, and
+  /// not weakened once confirmed (`minHitsConfirmed`). tolerance = occlusionSigmas * sigma + occlusionKindDepth[kind]
   /// + r * angleIncrement, where sigma^2 = rangeSigma^2 + kindSigma^2 + landmark variance + the
   /// pose covariance projected on the ray (the standard deviation of measured minus predicted
   /// range when the landmark is visible), and r * angleIncrement allows for the beam nearest to the
@@ -174,19 +174,18 @@ struct LocalizerHealth {
   std::uint16_t rejectedUpdate = 0;
   std::uint16_t rejectedAmbiguous = 0;
   std::uint16_t unmatched = 0;       ///< no map candidate at all (new landmark candidates)
-  std::uint16_t expectedInView = 0;  ///< map landmarks of the detected kinds inside the view and not occluded
-  double expectedDetections = 0.0;   ///< sum of detectionRate over the expected landmarks (what the check uses)
-  std::uint16_t occluded = 0;        ///< inside the view limits, but a nearer return blocks the line of sight
-  std::uint16_t noReturn = 0;        ///< inside the view limits, but no valid beam at the bearing (or not covered)
-  std::uint16_t unsupported =
-      0;                       ///< in the line of sight, but not seen on both sides (corners): weakened, not expected
-  std::uint16_t inserted = 0;  ///< landmarks added to the map this cycle
-  std::uint16_t insertRefused = 0;  ///< inserts the full map refused this cycle
-  std::uint16_t deleted = 0;        ///< landmarks that died this cycle
-  double maxTestRatio = 0.0;        ///< max d^2/gate over used observations (< 1)
-  double meanTestRatio = 0.0;       ///< mean d^2/gate over used observations (~2/gate if consistent)
-  double positionSigma = 0.0;       ///< [m] largest axis of the position covariance
-  double headingSigma = 0.0;        ///< [rad]
+  std::uint16_t expectedInView = 0;  ///< landmarks the check expects (see "Occlusion" in the docs)
+  double expectedDetections = 0.0;   ///< their detectionRate summed: what the check compares with
+  std::uint16_t occluded = 0;        ///< inside the limits, a nearer return blocks the line of sight
+  std::uint16_t noReturn = 0;        ///< inside the limits, no valid beam at the bearing
+  std::uint16_t unsupported = 0;     ///< in the line of sight, a corner not seen on both sides
+  std::uint16_t inserted = 0;        ///< landmarks added to the map this cycle
+  std::uint16_t insertRefused = 0;   ///< inserts the full map refused this cycle
+  std::uint16_t deleted = 0;         ///< landmarks that died this cycle
+  double maxTestRatio = 0.0;         ///< max d^2/gate over used observations (< 1)
+  double meanTestRatio = 0.0;        ///< mean d^2/gate over used observations (~2/gate if consistent)
+  double positionSigma = 0.0;        ///< [m] largest axis of the position covariance
+  double headingSigma = 0.0;         ///< [rad]
   std::uint8_t consecutiveBadCycles = 0;
   bool lost = false;
 };
@@ -214,9 +213,9 @@ class Localizer {
 
   /// The same, with the ranges of the scan the observations came from (`beams`, in the same laser
   /// frame as the observations, i.e. at `scan.stamp`) for the occlusion test of "in view" (see
-  /// `LocalizerParams::modelOcclusion`): a landmark hidden behind a nearer object is neither
-  /// expected by the matched/expected check nor weakened by the map lifecycle. An unusable `beams`
-  /// (`checkBeamGeometry`) falls back to the limits and sets `OcclusionUnchecked`.
+  /// `LocalizerParams::modelOcclusion`): a landmark hidden behind a nearer object is not expected
+  /// by the matched/expected check, and a confirmed one is not weakened by the map lifecycle. An
+  /// unusable `beams` (`checkBeamGeometry`) falls back to the limits and sets `OcclusionUnchecked`.
   const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map) noexcept;
 
   /// Newest pose estimate (at `stamp()`), its covariance and time.
