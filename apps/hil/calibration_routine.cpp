@@ -26,7 +26,8 @@ CalibrationOutcome runCalibration(const sim::RayCaster& caster, const ScenarioCo
   sim::SimVehicle vehicle(config.vehicle, config.seed * 7919U + 17U);
   sim::SimLaser laser(caster, config.laser, config.seed * 104729U + 3U);
   hal::DriveControl& drive = vehicle;
-  hal::EncoderSource& encoders = vehicle;
+  sim::CanEncoderSource canEncoders(vehicle, config.can);  // encoder samples only through CAN frames
+  hal::EncoderSource& encoders = canEncoders;
   const TricycleParams& nominal = config.nominal.kinematics;
 
   Timestamp t{};
@@ -113,6 +114,7 @@ CalibrationOutcome runCalibration(const sim::RayCaster& caster, const ScenarioCo
     }
   }
   out.simSeconds = t.seconds();
+  out.can = canEncoders.counters();
 
   // Egomotion of every closed segment by reflector alignment, the guess predicted by `params`
   // and `laserPose`; segments whose alignment fails stay out. Two passes: the nominal guess can be

@@ -35,6 +35,7 @@ struct CalibrationOutcome {
   int segmentsRejected = 0;  ///< rejected by the segment builder or without a reflector alignment
   double simSeconds = 0.0;
   double meanAlignmentRms = 0.0;  ///< [m] reflector alignment residual
+  sim::CanBusCounters can;        ///< the encoder frames of the routine
 };
 
 /// Runs the routine in `world` (through `caster`) with the vehicle and laser of `config`; the

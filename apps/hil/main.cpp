@@ -11,12 +11,14 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <cinttypes>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "agv/core/angle.hpp"
@@ -109,6 +111,42 @@ bool runMeets(const agv::hil::RunResult& r) {
   return r.finished && !r.localizerLost && meets(r.finalLocalized, r.finalTruth);
 }
 
+// The encoder frames of the whole session (calibration routine and every run), decoded by the
+// vehicle's CANopen decoder: the only way the encoder samples reach the navigation.
+agv::sim::CanBusCounters canTotals(const agv::hil::CalibrationOutcome& calib,
+                                   const std::vector<agv::hil::RunResult>& runs,
+                                   const std::vector<agv::hil::RunResult>& mappingRuns) {
+  agv::sim::CanBusCounters c = calib.can;
+  for (const std::vector<agv::hil::RunResult>* set : {&runs, &mappingRuns}) {
+    for (const agv::hil::RunResult& r : *set) {
+      c += r.can;
+    }
+  }
+  return c;
+}
+
+void writeCanJson(std::FILE* f, const agv::hil::ScenarioConfig& cfg, const agv::sim::CanBusCounters& c) {
+  std::fprintf(f, "  \"can_encoders\": {\"drive_node\": %u, \"steering_node\": %u, \"sync\": %s",
+               unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
+               cfg.can.bus.syncPeriod.ns > 0 ? "true" : "false");
+  const std::pair<const char*, std::uint64_t> fields[] = {{"frames_decoded", c.framesDecoded()},
+                                                          {"drive_pdos", c.drivePositions},
+                                                          {"steering_pdos", c.steeringPositions},
+                                                          {"heartbeats", c.heartbeats},
+                                                          {"frames_to_nodes", c.framesToNodes},
+                                                          {"frames_dropped", c.framesDropped},
+                                                          {"malformed", c.malformed},
+                                                          {"measurements", c.measurements},
+                                                          {"samples_decoded", c.samples},
+                                                          {"sample_mismatches", c.sampleMismatches},
+                                                          {"samples_withheld", c.samplesWithheld},
+                                                          {"drive_counter_wraps", c.driveCounterWraps}};
+  for (const auto& [key, value] : fields) {
+    std::fprintf(f, ", \"%s\": %" PRIu64, key, value);
+  }
+  std::fprintf(f, "},\n");
+}
+
 bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, const agv::hil::CalibrationOutcome& calib,
                const std::string& calibStatus, const std::vector<agv::hil::RunResult>& runs,
                const std::vector<agv::hil::RunResult>& mappingRuns, std::size_t mapCorners, bool requirementMet) {
@@ -131,6 +169,7 @@ bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, con
                calib.segmentsUsed);
   std::fprintf(f, "  \"requirement\": {\"position_m\": %.3f, \"heading_deg\": %.3f},\n", kPositionRequirement,
                kHeadingRequirementDeg);
+  writeCanJson(f, cfg, canTotals(calib, runs, mappingRuns));
   std::fprintf(f, "  \"stages\": {");
   bool firstStage = true;
   for (const Stage& s : kStages) {
@@ -198,6 +237,9 @@ int main(int argc, char** argv) {
   app.add_flag("--short", shortScenario,
                "test-size scenario: 1 run per path, 1 deg laser resolution, 3 calibration steering angles");
   app.add_flag("--print-world", printWorld, "print the built-in world file and exit");
+  bool canSync = false;
+  app.add_flag("--can-sync", canSync,
+               "encoders send synchronous TPDOs on the vehicle's SYNC (every encoder period) instead of cyclic ones");
   CLI11_PARSE(app, argc, argv);
 
   if (printWorld) {
@@ -220,6 +262,9 @@ int main(int argc, char** argv) {
   agv::hil::ScenarioConfig cfg;
   cfg.runsPerPath = shortScenario && app.count("--runs") == 0 ? 1 : runs;
   cfg.seed = seed;
+  if (canSync) {
+    cfg.can.bus.syncPeriod = cfg.vehicle.encoderPeriod;
+  }
   if (shortScenario) {
     cfg.laser.angularResolution = agv::deg2rad(1.0);
   }
@@ -451,6 +496,14 @@ int main(int argc, char** argv) {
       "%.0f cm / %.1f deg met by dead reckoning with the true parameters in %d of %d runs, with the "
       "estimated parameters in %d\n",
       kPositionRequirement * 100.0, kHeadingRequirementDeg, truthMeetCount, drRuns, estimateMeetCount);
+  const agv::sim::CanBusCounters can = canTotals(calib, results, mappingResults);
+  std::printf("encoders over CAN (CiA 402 drive node %u, CiA 406 steering node %u%s): %" PRIu64
+              " frames decoded (%" PRIu64 " drive positions, %" PRIu64 " steering positions, %" PRIu64
+              " heartbeats), %" PRIu64 " samples, %" PRIu64 " drive counter wraps, %" PRIu64
+              " samples differing from the measurement sent\n",
+              unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
+              cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", can.framesDecoded(), can.drivePositions,
+              can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
   std::printf("requirement (pose sent to the PLC by the localizer, every run of every mode): %s (%d of %d runs)\n",
               requirementMet ? "MET" : "NOT MET", localizerMeetCount, localizerRuns);
 
