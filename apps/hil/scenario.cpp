@@ -158,7 +158,7 @@ class Navigation {
   Navigation(const ScenarioConfig& cfg, LocalizationMode mode)
       : mode_(mode),
         odometry_(cfg.estimate.kinematics, noiseParams(cfg)),
-        localizer_(std::make_unique<Localizer>(localizerParams(cfg, mode))),
+        localizer_(std::make_unique<Localizer>(localizerParams(cfg))),
         detector_(std::make_unique<FalkoDetector>()),
         keypoints_(std::make_unique<FalkoKeypoints>()),
         observations_(std::make_unique<ScanObservations>()),
@@ -240,7 +240,7 @@ class Navigation {
         }
       }
     }
-    const LocalizerHealth& h = localizer_->correct(obs, map);
+    const LocalizerHealth& h = localizer_->correct(obs, m.scan, map);
     if (mode_ == LocalizationMode::Mapping && cornerMap != nullptr && !localizer_->lost() &&
         !hasFlag(h.flags, LocalizerFlag::NoFix)) {
       // The corrected pose at the end of the sweep, from the newest one and the odometry between.
@@ -264,7 +264,7 @@ class Navigation {
     n.samplesPerCorrection = std::max(1.0, cfg.laser.scanRate > 0.0 ? 100.0 / cfg.laser.scanRate : 1.0);
     return n;
   }
-  static LocalizerParams localizerParams(const ScenarioConfig& cfg, LocalizationMode mode) {
+  static LocalizerParams localizerParams(const ScenarioConfig& cfg) {
     LocalizerParams p;
     p.laser.mounting = cfg.estimate.laserMount;  // calibrated, never the true mount
     p.laser.rangeMin = std::max(0.3, cfg.laser.rangeMin);
@@ -275,18 +275,8 @@ class Navigation {
     // mostly a per-kind term on top of the default range/bearing model.
     p.laser.kindSigma[static_cast<std::size_t>(LandmarkKind::Reflector)] =
         std::sqrt(std::max(0.0, cfg.laser.reflectorNoiseStdDev * cfg.laser.reflectorNoiseStdDev - 0.005 * 0.005));
-    // The in-view check counts every landmark inside range and field of view: occlusion is not
-    // modelled, and between the pallet blocks most poles are hidden (as few as 3 of the 18 seen at
-    // the end of the lane). The default 30 % matched fraction then declares the vehicle lost on
-    // a correct pose; 15 % still trips when the associations stop (a wrong pose matches nothing).
-    p.minMatchedFraction = 0.15;
-    if (mode != LocalizationMode::Reflectors && mode != LocalizationMode::Mapping) {
-      // A corner is visible only from its outer quadrant and FALKO finds it only from some
-      // viewpoints: the matched/expected check, which knows neither, latches "lost" on a correct
-      // pose within a few cycles. Corner modes rely on the covariance limit (10 cm / 2 deg)
-      // and report scans without a fix instead.
-      p.minExpectedForCheck = 0xFFFF;
-    }
+    // The matched/expected check runs with the library defaults in every mode: `correct` gets the
+    // sweep's ranges, so landmarks hidden behind pallets and racks are not expected.
     return p;
   }
 

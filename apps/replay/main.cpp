@@ -49,6 +49,13 @@ int main(int argc, char** argv) {
   app.add_option("--min-matched-fraction", options.localizer.minMatchedFraction, "of the landmarks expected in view");
   app.add_option("--min-expected", options.localizer.minExpectedForCheck,
                  "landmarks expected before the match check runs");
+  app.add_flag(
+      "--no-occlusion", [&options](std::int64_t) { options.localizer.modelOcclusion = false; },
+      "count every landmark inside the range and angle limits as in view (no occlusion test)");
+  app.add_option("--corner-detection-rate", options.localizer.detectionRate[1],
+                 "probability that an expected corner is detected (the check counts expected detections)");
+  app.add_option("--min-hits-confirmed", options.localizer.minHitsConfirmed,
+                 "hits from which a dynamic landmark is expected and kept while occluded");
   app.add_option("--lost-after", options.localizer.lostAfterBadCycles, "consecutive bad cycles that make it lost");
   app.add_option("--initial-hits", options.map.initialHits, "hit count of a new landmark");
   app.add_option("--max-hits", options.map.maxHits, "landmark hit-count cap");

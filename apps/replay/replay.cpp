@@ -156,11 +156,8 @@ ReplayOptions fr079Defaults() {
   // and the dynamic map can never catch up. Relaxed to 1 m / 0.5 rad for the replay.
   o.localizer.maxPositionSigma = 1.0;
   o.localizer.maxHeadingSigma = 0.5;
-  // The matched/expected check assumes a repeatable detector: FALKO gives ~4 corners per scan
-  // here and re-detects about half of them, so "fewer than 2 of >= 3 expected matched" happens in
-  // a third of the cycles and the check would declare the localizer lost every few metres.
-  // Disabled (never enough expected landmarks) for the replay; the statistics are still reported.
-  o.localizer.minExpectedForCheck = 60000;
+  // The matched/expected check runs with the library defaults; each scan's ranges go to
+  // `correct`, so corners hidden behind walls, doors and people are not expected.
   o.map.initialHits = 3;  // a corner seen once survives two missed re-detections
   return o;
 }
@@ -314,7 +311,7 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, Rep
       }
     }
     r.keypoints += obs->points.size();
-    const LocalizerHealth& h = localizer->correct(*obs, *map);
+    const LocalizerHealth& h = localizer->correct(*obs, *scan, *map);
     r.used += h.used;
     r.fixCycles += h.used >= lp.minMatchesForFix ? 1U : 0U;
     r.rejectedGate += h.rejectedGate;
@@ -322,6 +319,8 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, Rep
     r.rejectedDuplicate += h.rejectedDuplicate;
     r.rejectedUpdate += h.rejectedUpdate;
     r.badCycles += hasFlag(h.flags, LocalizerFlag::BadCycle) ? 1U : 0U;
+    r.expected += h.expectedInView;
+    r.occluded += h.occluded + h.noReturn;
     if (h.used > 0) {
       ratioSum += h.meanTestRatio;
       ++ratioCount;
@@ -385,6 +384,8 @@ std::string resultText(const ReplayResult& r) {
     << r.badCycles << " bad cycles, " << r.lostEvents << " lost events; rejected gate " << r.rejectedGate
     << ", ambiguous " << r.rejectedAmbiguous << ", duplicate " << r.rejectedDuplicate << ", update " << r.rejectedUpdate
     << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
+  o << "in view: " << r.expected << " landmark-cycles expected, " << r.occluded
+    << " inside the view limits but hidden or without a return\n";
   o << (r.staticMap ? "static map (built from the corrected poses): " : "dynamic map: ") << r.mapSize
     << " landmarks at the end, " << r.mapInserted << " inserted, " << r.mapDeleted << " deleted; replay "
     << fmt("%.1f s\n", r.seconds);
@@ -413,7 +414,8 @@ std::string resultJson(const ReplayResult& r) {
     << ", \"rejected_ambiguous\": " << r.rejectedAmbiguous << ", \"rejected_duplicate\": " << r.rejectedDuplicate
     << ", \"rejected_update\": " << r.rejectedUpdate << ", \"mean_test_ratio\": " << r.meanTestRatio
     << ", \"map_size\": " << r.mapSize << ", \"map_inserted\": " << r.mapInserted
-    << ", \"map_deleted\": " << r.mapDeleted << "},\n  \"replay_seconds\": " << r.seconds << "\n}\n";
+    << ", \"map_deleted\": " << r.mapDeleted << ", \"expected_in_view\": " << r.expected
+    << ", \"occluded_or_no_return\": " << r.occluded << "},\n  \"replay_seconds\": " << r.seconds << "\n}\n";
   return o.str();
 }
 

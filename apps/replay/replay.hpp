@@ -101,6 +101,8 @@ struct ReplayResult {
   std::size_t rejectedUpdate = 0;
   std::size_t badCycles = 0;
   std::size_t lostEvents = 0;  ///< times the localizer declared itself lost
+  std::size_t expected = 0;    ///< landmarks expected in view, summed over the cycles
+  std::size_t occluded = 0;    ///< inside the view limits but hidden (or no valid return), summed over the cycles
   std::size_t mapSize = 0;     ///< landmarks at the end
   std::size_t mapInserted = 0;
   std::size_t mapDeleted = 0;

@@ -3,7 +3,9 @@
 // associate (grid query + gate), sequential updates, map maintenance (reinforce, in-view decrement),
 // re-prediction. The maps have the same landmark density (one per 9 m^2, a 3 m grid with jitter)
 // and grow in area, as a larger warehouse does: 256 landmarks on 48 m x 48 m, 4096 on 192 m x 192 m;
-// laser range 14 m (~45 landmarks in view). A third case measures the worst case of the docs.
+// laser range 14 m (~45 landmarks in view). A third case measures the worst case of the docs. The
+// `_scan` cases also pass the sweep's ranges (270 deg at 0.25 deg, nothing nearer than the landmarks)
+// so that every landmark inside the limits goes through the occlusion test.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -28,7 +30,9 @@ struct EkfBenchWorld {
 
   std::size_t wanted = 40;
 
-  EkfBenchWorld(int side, double rangeMax, std::size_t observations) : wanted(observations) {
+  std::unique_ptr<LaserScan> beams;
+
+  EkfBenchWorld(int side, double rangeMax, std::size_t observations, bool withScan) : wanted(observations) {
     params.laser.mounting = Pose2d{1.0, 0.0, 0.0};
     params.laser.rangeMax = rangeMax;
     loc = std::make_unique<Localizer>(params);
@@ -39,6 +43,16 @@ struct EkfBenchWorld {
     observed = test::buildEkfCycleScene(params, pose, side, wanted, *map, *scan);
     Eigen::Matrix3d P0 = Eigen::Matrix3d::Identity() * 1e-4;
     (void)loc->reset(t, pose, P0);
+    if (withScan) {
+      beams = std::make_unique<LaserScan>();
+      beams->angleMin = -2.35619449F;
+      beams->angleIncrement = 0.0043633231F;  // 0.25 deg
+      beams->rangeMin = 0.05F;
+      beams->rangeMax = 80.0F;
+      for (int i = 0; i < 1081; ++i) {
+        (void)beams->ranges.push_back(static_cast<float>(rangeMax) + 10.0F);
+      }
+    }
   }
 
   void cycle() {
@@ -50,13 +64,13 @@ struct EkfBenchWorld {
       (void)loc->predict(inc);
     }
     scan->stamp = t - Duration::fromMilliseconds(50);
-    const LocalizerHealth& h = loc->correct(*scan, *map);
+    const LocalizerHealth& h = beams ? loc->correct(*scan, *beams, *map) : loc->correct(*scan, *map);
     benchmark::DoNotOptimize(&h);
   }
 };
 
-void BM_EkfCycle(benchmark::State& state, int side, double rangeMax, std::size_t observations) {
-  EkfBenchWorld w(side, rangeMax, observations);
+void BM_EkfCycle(benchmark::State& state, int side, double rangeMax, std::size_t observations, bool withScan) {
+  EkfBenchWorld w(side, rangeMax, observations, withScan);
   w.cycle();
   for (auto _ : state) {
     w.cycle();
@@ -70,8 +84,10 @@ void BM_EkfCycle(benchmark::State& state, int side, double rangeMax, std::size_t
     state.SkipWithError("the benchmark scene did not associate all its observations");
   }
 }
-BENCHMARK_CAPTURE(BM_EkfCycle, map256, 16, 14.0, 40)->Name("BM_EkfCycle/map256");
-BENCHMARK_CAPTURE(BM_EkfCycle, map4096, 64, 14.0, 40)->Name("BM_EkfCycle/map4096");
+BENCHMARK_CAPTURE(BM_EkfCycle, map256, 16, 14.0, 40, false)->Name("BM_EkfCycle/map256");
+BENCHMARK_CAPTURE(BM_EkfCycle, map4096, 64, 14.0, 40, false)->Name("BM_EkfCycle/map4096");
+BENCHMARK_CAPTURE(BM_EkfCycle, map256s, 16, 14.0, 40, true)->Name("BM_EkfCycle/map256_scan");
+BENCHMARK_CAPTURE(BM_EkfCycle, map4096s, 64, 14.0, 40, true)->Name("BM_EkfCycle/map4096_scan");
 // Worst case for the docs: kMaxObservations observations, 30 m range (~235 landmarks in view).
-BENCHMARK_CAPTURE(BM_EkfCycle, worst, 64, 30.0, kMaxObservations)->Name("BM_EkfCycle/map4096_obs128_range30");
+BENCHMARK_CAPTURE(BM_EkfCycle, worst, 64, 30.0, kMaxObservations, false)->Name("BM_EkfCycle/map4096_obs128_range30");
 }  // namespace

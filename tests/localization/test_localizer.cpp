@@ -7,6 +7,7 @@
 
 #include "agv/localization/localizer.hpp"
 #include "agv_test.hpp"
+#include "stand_still.hpp"
 
 using namespace agv;
 
@@ -44,15 +45,7 @@ struct Scene {
     REQUIRE(loc->reset(t, truth, P0) == Status::Ok);
   }
   /// Standing still: one zero increment per 10 ms.
-  void stand(int steps) {
-    for (int i = 0; i < steps; ++i) {
-      t = t + Duration::fromMilliseconds(10);
-      OdometryIncrement inc;
-      inc.stamp = t;
-      inc.covariance = Eigen::Matrix3d::Identity() * 1e-9;
-      REQUIRE(loc->predict(inc) == Status::Ok);
-    }
-  }
+  void stand(int steps) { test::standStill(*loc, t, steps); }
   /// Noisy observations of `points` (world) from the true pose, stamped now.
   void observe(const std::vector<Eigen::Vector2d>& points, LandmarkKind kind = LandmarkKind::Reflector) {
     scan->stamp = t;

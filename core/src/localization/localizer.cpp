@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "agv/localization/beam_lookup.hpp"
+
 namespace agv {
 
 namespace {
@@ -81,31 +83,91 @@ Status Localizer::predict(const OdometryIncrement& inc) noexcept {
   return Status::Ok;
 }
 
-bool Localizer::inView(const Pose2d& laserWorld, double x, double y) const noexcept {
-  const Eigen::Vector2d p = laserWorld.inverseTransformPoint(Eigen::Vector2d(x, y));
+Localizer::Visibility Localizer::visibility(const Pose2d& laserWorld, const Landmark& lm,
+                                            const LaserScan* beams) const noexcept {
+  const Eigen::Vector2d p = laserWorld.inverseTransformPoint(Eigen::Vector2d(lm.x, lm.y));
   const LaserModel& L = params_.laser;
   const double r = p.norm();
   if (r < L.rangeMin + params_.viewRangeMargin || r > L.rangeMax - params_.viewRangeMargin) {
-    return false;
+    return Visibility::OutOfLimits;
   }
   const double b = std::atan2(p.y(), p.x());
-  return b >= L.angleMin + params_.viewAngleMargin && b <= L.angleMax - params_.viewAngleMargin;
+  if (b < L.angleMin + params_.viewAngleMargin || b > L.angleMax - params_.viewAngleMargin) {
+    return Visibility::OutOfLimits;
+  }
+  if (beams == nullptr) {
+    return Visibility::InView;
+  }
+  const Result<double> measured = farthestReturnNear(*beams, b);
+  if (!measured.ok()) {
+    return Visibility::NoReturn;
+  }
+  // Standard deviation of measured minus predicted range for a visible landmark: sensor, kind,
+  // landmark and the pose covariance projected on the ray. The range from the laser origin
+  // t_l = t + R(theta) l_t to m has gradient -u with respect to t and -u . R'(theta) l_t with
+  // respect to theta (u: unit ray in the world frame).
+  const Pose2d& x = ekf_.pose();
+  const Eigen::Matrix3d& P = ekf_.covariance();
+  const double ux = (lm.x - laserWorld.x) / r;
+  const double uy = (lm.y - laserWorld.y) / r;
+  const double lx = laserWorld.x - x.x;  // R(theta) l_t
+  const double ly = laserWorld.y - x.y;
+  const Eigen::Vector3d g(-ux, -uy, -(ux * -ly + uy * lx));
+  const std::size_t kind = static_cast<std::size_t>(lm.kind) % kLandmarkKindCount;
+  const double ks = L.kindSigma[kind];
+  const double var = L.rangeSigma * L.rangeSigma + ks * ks + lm.variance + g.dot(P * g);
+  const double tolerance = params_.occlusionSigmas * std::sqrt(var > 0.0 ? var : 0.0) +
+                           params_.occlusionKindDepth[kind] + r * static_cast<double>(beams->angleIncrement);
+  if (measured.value() < r - tolerance) {
+    return Visibility::Occluded;
+  }
+  const double support = params_.occlusionSupportRadius[kind];
+  if (support > 0.0 && params_.occlusionSupportPoints > 0U) {
+    const Result<SideSupport> sides = sideSupport(*beams, r, b, support, params_.occlusionSupportPoints);
+    if (!sides.ok() || sides.value().before < params_.occlusionSupportPoints ||
+        sides.value().after < params_.occlusionSupportPoints) {
+      return Visibility::InViewUnsupported;
+    }
+  }
+  return Visibility::InView;
 }
 
-std::uint16_t Localizer::countExpectedInView(std::uint8_t kinds, const LandmarkMap& map, bool weakenUnmatched,
-                                             LandmarkMap* mutableMap) noexcept {
+Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMap& map, const LaserScan* beams,
+                                            LandmarkMap* mutableMap) const noexcept {
   const Pose2d laserWorld = ekf_.pose().compose(params_.laser.mounting);
-  std::size_t count = 0;
+  ViewCount count;
   map.forEachNear(laserWorld.x, laserWorld.y, params_.laser.rangeMax, [&](LandmarkIndex idx, const Landmark& lm) {
-    if ((landmarkKindBit(lm.kind) & kinds) == 0U || !inView(laserWorld, lm.x, lm.y)) {
+    if ((landmarkKindBit(lm.kind) & kinds) == 0U) {
       return;
     }
-    ++count;
-    if (weakenUnmatched && mutableMap != nullptr && !lm.surveyed && lm.lastMatchedCycle != cycle_) {
+    const bool confirmed = lm.surveyed || lm.hits >= params_.minHitsConfirmed;
+    switch (visibility(laserWorld, lm, beams)) {
+      case Visibility::OutOfLimits:
+        return;
+      case Visibility::Occluded:
+        ++count.occluded;
+        if (confirmed) {
+          return;  // hidden: no evidence either way
+        }
+        break;  // a young landmark that disappears behind something is more likely a transient
+      case Visibility::NoReturn:
+        ++count.noReturn;
+        return;
+      case Visibility::InViewUnsupported:
+        ++count.unsupported;
+        break;
+      case Visibility::InView:
+        if (confirmed) {
+          ++count.inView;
+          count.detections += params_.detectionRate[static_cast<std::size_t>(lm.kind) % kLandmarkKindCount];
+        }
+        break;
+    }
+    if (mutableMap != nullptr && !lm.surveyed && lm.lastMatchedCycle != cycle_) {
       (void)mutableMap->weaken(idx);
     }
   });
-  return sat16(count);
+  return count;
 }
 
 void Localizer::associate(const ScanObservations& scan, const LandmarkMap& map) noexcept {
@@ -225,7 +287,7 @@ void Localizer::orderMatches(const ScanObservations& scan) noexcept {
   }
 }
 
-void Localizer::maintainMap(const ScanObservations& scan, LandmarkMap& map) noexcept {
+void Localizer::maintainMap(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept {
   const Pose2d& x = ekf_.pose();
   const Eigen::Matrix3d& P = ekf_.covariance();
   const Pose2d laserWorld = x.compose(params_.laser.mounting);
@@ -247,7 +309,7 @@ void Localizer::maintainMap(const ScanObservations& scan, LandmarkMap& map) noex
     }
   }
   // In view and not matched: -1 (deleted at 0).
-  (void)countExpectedInView(scan.kindsDetected, map, true, &map);
+  (void)countInView(scan.kindsDetected, map, beams, &map);
   health_.deleted = sat16(map.counters().deleted - deletedBefore);
   // Unmatched observations become landmarks, unless one of the same kind is already close.
   for (std::size_t i = 0; i < n; ++i) {
@@ -295,6 +357,16 @@ void Localizer::finishHealth() noexcept {
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, LandmarkMap& map) noexcept {
+  return correctWith(scan, nullptr, map);
+}
+
+const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams,
+                                          LandmarkMap& map) noexcept {
+  return correctWith(scan, &beams, map);
+}
+
+const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, const LaserScan* beams,
+                                              LandmarkMap& map) noexcept {
   ++cycle_;
   health_ = LocalizerHealth{};
   health_.cycle = cycle_;
@@ -354,7 +426,18 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
 
   // --- Association against the prior at the scan time.
   associate(scan, map);
-  health_.expectedInView = countExpectedInView(scan.kindsDetected, map, false, nullptr);
+  if (!params_.modelOcclusion) {
+    beams = nullptr;
+  } else if (beams != nullptr && checkBeamGeometry(*beams) != Status::Ok) {
+    health_.flags |= bit(LocalizerFlag::OcclusionUnchecked);
+    beams = nullptr;
+  }
+  const ViewCount view = countInView(scan.kindsDetected, map, beams, nullptr);
+  health_.expectedInView = sat16(view.inView);
+  health_.expectedDetections = view.detections;
+  health_.occluded = sat16(view.occluded);
+  health_.noReturn = sat16(view.noReturn);
+  health_.unsupported = sat16(view.unsupported);
 
   // --- Sequential gated updates, most certain first.
   orderMatches(scan);
@@ -438,8 +521,8 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
 
   // --- Health: matched vs expected, covariance limits, lost.
   bool bad = false;
-  if (health_.expectedInView >= params_.minExpectedForCheck) {
-    double need = std::ceil(params_.minMatchedFraction * static_cast<double>(health_.expectedInView));
+  if (health_.expectedDetections >= static_cast<double>(params_.minExpectedForCheck)) {
+    double need = std::ceil(params_.minMatchedFraction * health_.expectedDetections);
     if (need < static_cast<double>(params_.minMatchesForFix)) {
       need = static_cast<double>(params_.minMatchesForFix);
     }
@@ -469,7 +552,7 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, Landmark
 
   // --- Map lifecycle, on good cycles only (a suspect pose must not write the map).
   if (!bad && map.mode() == MapMode::Dynamic) {
-    maintainMap(scan, map);
+    maintainMap(scan, beams, map);
   }
 
   // --- Store the corrected state and re-apply the newer odometry.

@@ -22,6 +22,7 @@
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/odometry.hpp"
 #include "agv/localization/pose_ekf.hpp"
+#include "agv/scan/laser_scan.hpp"
 
 namespace agv {
 
@@ -69,6 +70,34 @@ struct LocalizerParams {
   double viewRangeMargin = 0.5;
   /// ...and this far inside the angular limits [rad].
   double viewAngleMargin = 0.035;
+  /// Occlusion (only when `correct` is given the scan's ranges): a landmark inside the view limits
+  /// counts as in view only if a valid beam at its predicted bearing b measured at least
+  /// r - tolerance, r its predicted range from the laser (`farthestReturnNear`). Otherwise a nearer
+  /// object blocks the line of sight (or nothing returned there): the landmark is not expected, and
+  /// not weakened once confirmed (`minHitsConfirmed`). tolerance = occlusionSigmas * sigma + occlusionKindDepth[kind]
+  /// + r * angleIncrement, where sigma^2 = rangeSigma^2 + kindSigma^2 + landmark variance + the
+  /// pose covariance projected on the ray (the standard deviation of measured minus predicted
+  /// range when the landmark is visible), and r * angleIncrement allows for the beam nearest to the
+  /// landmark hitting a surface that ends at it (a corner's side seen at >= 27 deg incidence).
+  /// false: range and angle limits only (as without a scan).
+  bool modelOcclusion = true;
+  /// Sigma multiple of the occlusion tolerance (3: a visible landmark is taken for occluded with
+  /// probability 0.13 % from noise alone).
+  double occlusionSigmas = 3.0;
+  /// How far in front of its point a landmark's own surface returns the beam [m], per kind: a
+  /// reflector pole's radius (poles are 40..50 mm in radius; a flat reflector needs 0), a corner
+  /// apex lies on the surface (0).
+  double occlusionKindDepth[kLandmarkKindCount] = {0.05, 0.0};
+  /// A landmark formed by two surfaces (a corner) is detectable only where both are seen: with the
+  /// scan's ranges, a landmark of a kind with a support radius > 0 is *expected* by the
+  /// matched/expected check only if at least `occlusionSupportPoints` valid scan points lie within
+  /// that radius of its predicted position on each side of its bearing (`sideSupport`). A corner
+  /// in the line of sight whose one face is turned away (seen from outside its outer quadrant), or
+  /// a point where the beams find no surface at all, is still weakened (it is in view and cannot be
+  /// matched from here) but not expected. Per kind [m]: reflectors 0 (off); corners 0.2 = FALKO's
+  /// smallest neighbourhood radius (a = 0.2 m), whose sides need 2 points each.
+  double occlusionSupportRadius[kLandmarkKindCount] = {0.0, 0.2};
+  std::size_t occlusionSupportPoints = 2;
   /// An observation whose second-best candidate is also inside the gate and within this much
   /// squared Mahalanobis distance of the best (a likelihood ratio below exp(margin/2) = 7.4) is
   /// ambiguous and not used. 0 disables the test.
@@ -77,9 +106,22 @@ struct LocalizerParams {
   double insertSeparation = 0.3;
   /// Fewer landmarks used than this: the cycle has no fix (flag NoFix).
   std::uint16_t minMatchesForFix = 2;
-  /// The matched/expected check runs when at least this many landmarks are expected in view.
+  /// Probability that the detector reports a landmark of each kind that is in view (and, for
+  /// corners, seen on both sides): the matched/expected check counts expected *detections*, the sum
+  /// of these over the expected landmarks. Reflectors 1 (a pole in the line of sight returns); FALKO
+  /// corners 0.5 (re-detection rate from a moved viewpoint: 0.49 on fr079, docs/falko.md; the
+  /// simulated warehouse gives 0.8), so a cycle with few corners in view is not judged on them.
+  double detectionRate[kLandmarkKindCount] = {1.0, 0.5};
+  /// The matched/expected check runs when at least this many detections are expected.
   std::uint16_t minExpectedForCheck = 3;
-  /// A checked cycle is bad when fewer than this fraction of the expected landmarks matched.
+  /// A dynamic landmark is *confirmed* once it has this many hits (surveyed landmarks always
+  /// are). Only confirmed landmarks are expected by the matched/expected check and kept from the
+  /// decrement while occluded: a corner seen once or twice may be a transient or a viewpoint
+  /// artefact (an occlusion edge), its absence says nothing about the pose, and when it disappears
+  /// behind something it is decremented as if in view.
+  std::int16_t minHitsConfirmed = 3;
+  /// A checked cycle is bad when fewer than max(minMatchesForFix, this fraction of the expected
+  /// detections) landmarks were used.
   double minMatchedFraction = 0.3;
   /// Consecutive bad cycles that make the localizer lost (latched until `reset`).
   std::uint8_t lostAfterBadCycles = 3;
@@ -108,6 +150,7 @@ enum class LocalizerFlag : std::uint32_t {
   MapInsertRefused = 1U << 13,     ///< the map was full; new landmarks were refused (counted)
   Lost = 1U << 14,                 ///< the pose is not trusted (latched until reset): stop the vehicle
   AmbiguityRejected = 1U << 15,    ///< an observation had two landmarks inside the gate, too close to tell
+  OcclusionUnchecked = 1U << 16,   ///< ranges were given but unusable (`checkBeamGeometry`): no occlusion test
 };
 
 /// True when `flag` is set in `flags`.
@@ -131,7 +174,11 @@ struct LocalizerHealth {
   std::uint16_t rejectedUpdate = 0;
   std::uint16_t rejectedAmbiguous = 0;
   std::uint16_t unmatched = 0;       ///< no map candidate at all (new landmark candidates)
-  std::uint16_t expectedInView = 0;  ///< map landmarks of the detected kinds inside the view
+  std::uint16_t expectedInView = 0;  ///< landmarks the check expects (see "Occlusion" in the docs)
+  double expectedDetections = 0.0;   ///< their detectionRate summed: what the check compares with
+  std::uint16_t occluded = 0;        ///< inside the limits, a nearer return blocks the line of sight
+  std::uint16_t noReturn = 0;        ///< inside the limits, no valid beam at the bearing
+  std::uint16_t unsupported = 0;     ///< in the line of sight, a corner not seen on both sides
   std::uint16_t inserted = 0;        ///< landmarks added to the map this cycle
   std::uint16_t insertRefused = 0;   ///< inserts the full map refused this cycle
   std::uint16_t deleted = 0;         ///< landmarks that died this cycle
@@ -161,7 +208,15 @@ class Localizer {
   /// One laser cycle: rewinds to the scan's stamp through the history, associates the
   /// observations with `map`, corrects, maintains the map (Dynamic mode, good cycles only),
   /// re-applies the newer odometry and reports. Scans must come in stamp order.
+  /// Without the scan's ranges a landmark is "in view" when inside the range and angle limits.
   const LocalizerHealth& correct(const ScanObservations& scan, LandmarkMap& map) noexcept;
+
+  /// The same, with the ranges of the scan the observations came from (`beams`, in the same laser
+  /// frame as the observations, i.e. at `scan.stamp`) for the occlusion test of "in view" (see
+  /// `LocalizerParams::modelOcclusion`): a landmark hidden behind a nearer object is not expected
+  /// by the matched/expected check, and a confirmed one is not weakened by the map lifecycle. An
+  /// unusable `beams` (`checkBeamGeometry`) falls back to the limits and sets `OcclusionUnchecked`.
+  const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map) noexcept;
 
   /// Newest pose estimate (at `stamp()`), its covariance and time.
   const Pose2d& pose() const noexcept { return ekf_.pose(); }
@@ -201,10 +256,21 @@ class Localizer {
   HistoryEntry& entry(std::size_t k) noexcept { return history_[(historyStart_ + k) % kMaxOdometryHistory]; }
   void associate(const ScanObservations& scan, const LandmarkMap& map) noexcept;
   void orderMatches(const ScanObservations& scan) noexcept;  // sorts the matches into order_
-  void maintainMap(const ScanObservations& scan, LandmarkMap& map) noexcept;
-  std::uint16_t countExpectedInView(std::uint8_t kinds, const LandmarkMap& map, bool weakenUnmatched,
-                                    LandmarkMap* mutableMap) noexcept;
-  bool inView(const Pose2d& laserWorld, double x, double y) const noexcept;
+  enum class Visibility : std::uint8_t { OutOfLimits, Occluded, NoReturn, InViewUnsupported, InView };
+  struct ViewCount {
+    std::size_t inView = 0;
+    std::size_t occluded = 0;
+    std::size_t noReturn = 0;
+    std::size_t unsupported = 0;
+    double detections = 0.0;
+  };
+  const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
+  void maintainMap(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
+  /// Counts the landmarks of `kinds` in view from the current state; with `mutableMap`, weakens
+  /// those in view and not matched this cycle.
+  ViewCount countInView(std::uint8_t kinds, const LandmarkMap& map, const LaserScan* beams,
+                        LandmarkMap* mutableMap) const noexcept;
+  Visibility visibility(const Pose2d& laserWorld, const Landmark& lm, const LaserScan* beams) const noexcept;
   void finishHealth() noexcept;
 
   LocalizerParams params_{};
