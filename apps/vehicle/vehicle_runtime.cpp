@@ -290,7 +290,8 @@ void VehicleRuntime::cycle() {
       }
     }
     if (m.active) {
-      (void)m.localizer->correct(obs, *m.map);
+      // The sweep's ranges let the localizer tell hidden landmarks from missed ones.
+      (void)m.localizer->correct(obs, meas.scan, *m.map);
       ++counters_.corrections;
     }
   }
