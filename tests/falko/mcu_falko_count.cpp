@@ -13,23 +13,9 @@
 namespace {
 
 void print(const char* label, std::uint32_t value) {
-  char buf[64];
-  int n = 0;
-  for (const char* p = label; *p != '\0' && n < 48; ++p) {
-    buf[n++] = *p;
-  }
-  char digits[12];
-  int d = 0;
-  do {
-    digits[d++] = static_cast<char>('0' + value % 10U);
-    value /= 10U;
-  } while (value != 0U && d < 11);
-  while (d > 0) {
-    buf[n++] = digits[--d];
-  }
-  buf[n++] = '\n';
-  buf[n] = '\0';
-  semihosting_write0(buf);
+  semihosting_write0(label);
+  semihosting_write_int(value);
+  semihosting_write0("\n");
 }
 
 agv::LaserScan g_scan;

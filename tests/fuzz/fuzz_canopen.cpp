@@ -8,16 +8,14 @@
 #include <cstdint>
 
 #include "agv/drivers/canopen/canopen_encoders.hpp"
+#include "fuzz_support.hpp"
 
 using namespace agv::drivers;
 using namespace agv::drivers::canopen;
 
 namespace {
-void check(bool ok) {
-  if (!ok) {
-    __builtin_trap();
-  }
-}
+using agv::fuzz::check;
+
 std::uint16_t u16(const std::uint8_t* p) {
   return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
 }

@@ -8,15 +8,12 @@
 
 #include "agv/drivers/sick/cola_a_scan.hpp"
 #include "agv/drivers/sick/telegram_framer.hpp"
+#include "fuzz_support.hpp"
 
 using namespace agv::drivers::sick;
 
 namespace {
-void check(bool ok) {
-  if (!ok) {
-    __builtin_trap();
-  }
-}
+using agv::fuzz::check;
 
 void decode(agv::Span<const std::uint8_t> t) {
   static agv::LaserScan scan;
@@ -34,23 +31,7 @@ void decode(agv::Span<const std::uint8_t> t) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   decode(agv::Span<const std::uint8_t>(data, size));
   static TelegramFramer framer(Framing::ColaA);
-  framer.reset();
   const std::size_t chunk = size > 0 ? static_cast<std::size_t>(data[0] % 64U) + 1U : 1U;
-  std::size_t pos = 0;
-  while (pos < size) {
-    const std::size_t n = size - pos < chunk ? size - pos : chunk;
-    std::size_t fed = 0;
-    while (fed < n) {
-      const std::size_t k = framer.feed(agv::Span<const std::uint8_t>(data + pos + fed, n - fed));
-      fed += k;
-      agv::Span<const std::uint8_t> t;
-      while (framer.next(t)) {
-        check(t.data() != nullptr && t.size() < TelegramFramer::kCapacity);
-        decode(t);
-      }
-      check(k > 0 || fed == n);  // the framer always makes room after next() returned false
-    }
-    pos += n;
-  }
+  agv::fuzz::feedInChunks(framer, data, size, chunk, [](agv::Span<const std::uint8_t> t) { decode(t); });
   return 0;
 }

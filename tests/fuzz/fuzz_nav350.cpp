@@ -7,15 +7,12 @@
 
 #include "agv/drivers/sick/nav350.hpp"
 #include "agv/drivers/sick/telegram_framer.hpp"
+#include "fuzz_support.hpp"
 
 using namespace agv::drivers::sick;
 
 namespace {
-void check(bool ok) {
-  if (!ok) {
-    __builtin_trap();
-  }
-}
+using agv::fuzz::check;
 
 void decode(agv::Span<const std::uint8_t> t) {
   static Nav350PoseReply reply;
@@ -35,22 +32,7 @@ void decode(agv::Span<const std::uint8_t> t) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   decode(agv::Span<const std::uint8_t>(data, size));
   static TelegramFramer framer(Framing::ColaB);
-  framer.reset();
   const std::size_t chunk = size > 0 ? static_cast<std::size_t>(data[size - 1] % 97U) + 1U : 1U;
-  std::size_t pos = 0;
-  while (pos < size) {
-    const std::size_t n = size - pos < chunk ? size - pos : chunk;
-    std::size_t fed = 0;
-    while (fed < n) {
-      const std::size_t k = framer.feed(agv::Span<const std::uint8_t>(data + pos + fed, n - fed));
-      fed += k;
-      agv::Span<const std::uint8_t> t;
-      while (framer.next(t)) {
-        decode(t);
-      }
-      check(k > 0 || fed == n);
-    }
-    pos += n;
-  }
+  agv::fuzz::feedInChunks(framer, data, size, chunk, [](agv::Span<const std::uint8_t> t) { decode(t); });
   return 0;
 }

@@ -14,17 +14,6 @@
 namespace {
 using namespace agv;
 
-void printU64(std::uint64_t v) {
-  char buf[24];
-  int i = 23;
-  buf[i] = '\0';
-  do {
-    buf[--i] = static_cast<char>('0' + static_cast<int>(v % 10U));
-    v /= 10U;
-  } while (v != 0U && i > 0);
-  semihosting_write0(buf + i);
-}
-
 LandmarkMap map;
 ScanObservations scan;
 }  // namespace
@@ -69,9 +58,9 @@ int main() {
     }
   }
   semihosting_write0("EKF cycle on Cortex-M7 (map256 scene, 40 observations): 10 predictions ");
-  printU64(agv_icount_instructions(predictTicks) / cycles);
+  semihosting_write_int(static_cast<long long>(agv_icount_instructions(predictTicks) / cycles));
   semihosting_write0(" instructions, lagged correction + map maintenance ");
-  printU64(agv_icount_instructions(correctTicks) / cycles);
+  semihosting_write_int(static_cast<long long>(agv_icount_instructions(correctTicks) / cycles));
   semihosting_write0(" instructions\n");
   return failures == 0 ? 0 : 1;
 }

@@ -6,16 +6,6 @@
 #include "semihosting.h"
 
 namespace {
-void printU64(std::uint64_t v) {
-  char buf[24];
-  int i = 23;
-  buf[i] = '\0';
-  do {
-    buf[--i] = static_cast<char>('0' + static_cast<int>(v % 10U));
-    v /= 10U;
-  } while (v != 0U && i > 0);
-  semihosting_write0(buf + i);
-}
 
 __attribute__((noinline)) void loop(std::uint32_t n) {
   __asm__ volatile(
@@ -43,9 +33,9 @@ int main() {
     const std::uint64_t expected = 2ULL * n;
     const std::uint64_t diff = measured > expected ? measured - expected : expected - measured;
     semihosting_write0("loop of ");
-    printU64(expected);
+    semihosting_write_int(static_cast<long long>(expected));
     semihosting_write0(" instructions measured as ");
-    printU64(measured);
+    semihosting_write_int(static_cast<long long>(measured));
     semihosting_write0("\n");
     if (diff * 100U > expected) {  // within 1 %
       ++failures;

@@ -15,21 +15,6 @@ int g_testCount = 0;
 int g_overflow = 0;
 int g_failures = 0;
 
-void printInt(int v) noexcept {
-  char buf[12];
-  int i = 11;
-  buf[i] = '\0';
-  const bool neg = v < 0;
-  unsigned u = neg ? 0U - static_cast<unsigned>(v) : static_cast<unsigned>(v);
-  do {
-    buf[--i] = static_cast<char>('0' + static_cast<int>(u % 10U));
-    u /= 10U;
-  } while (u != 0U && i > 1);
-  if (neg) {
-    buf[--i] = '-';
-  }
-  semihosting_write0(buf + i);
-}
 }  // namespace
 
 Registrar::Registrar(const char* name, TestFn fn) noexcept {
@@ -45,7 +30,7 @@ void fail(const char* file, int line, const char* expr) noexcept {
   semihosting_write0("  FAILED ");
   semihosting_write0(file);
   semihosting_write0(":");
-  printInt(line);
+  semihosting_write_int(line);
   semihosting_write0(": ");
   semihosting_write0(expr);
   semihosting_write0("\n");
@@ -66,9 +51,9 @@ int runAll() noexcept {
     semihosting_write0("too many test cases for the MCU runner (kMaxTests)\n");
     ++failedCases;
   }
-  printInt(g_testCount - failedCases);
+  semihosting_write_int(g_testCount - failedCases);
   semihosting_write0(" passed, ");
-  printInt(failedCases);
+  semihosting_write_int(failedCases);
   semihosting_write0(" failed\n");
   return failedCases;
 }

@@ -17,6 +17,21 @@ void semihosting_write0(const char* text) {
   (void)semihosting_call(SYS_WRITE0, text);
 }
 
+void semihosting_write_int(long long value) {
+  char buf[24];
+  int i = 23;
+  unsigned long long u = value < 0 ? 0ULL - (unsigned long long)value : (unsigned long long)value;
+  buf[i] = '\0';
+  do {
+    buf[--i] = (char)('0' + (int)(u % 10U));
+    u /= 10U;
+  } while (u != 0U && i > 1);
+  if (value < 0) {
+    buf[--i] = '-';
+  }
+  semihosting_write0(buf + i);
+}
+
 int semihosting_clock_cs(void) {
   return semihosting_call(SYS_CLOCK, 0);
 }

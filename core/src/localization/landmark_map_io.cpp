@@ -2,157 +2,22 @@
 
 #include <cmath>
 
+#include "../text_format.hpp"
+
 namespace agv {
 
 namespace {
 
-struct Cursor {
-  const char* p;
-  const char* end;
-};
-
-bool isBlank(char c) noexcept {
-  return c == ' ' || c == '\t' || c == '\r';
-}
-bool isDigit(char c) noexcept {
-  return c >= '0' && c <= '9';
-}
-
-/// The next line without its end-of-line and comment; false at end of text.
-bool nextLine(Cursor& c, const char** begin, const char** lineEnd) noexcept {
-  if (c.p >= c.end) {
-    return false;
-  }
-  const char* b = c.p;
-  const char* e = b;
-  while (e < c.end && *e != '\n') {
-    ++e;
-  }
-  c.p = e < c.end ? e + 1 : e;
-  const char* stop = b;
-  while (stop < e && *stop != '#') {
-    ++stop;
-  }
-  *begin = b;
-  *lineEnd = stop;
-  return true;
-}
-
-/// Next whitespace-separated token of [p, end); false when none.
-bool nextToken(const char*& p, const char* end, const char** tb, const char** te) noexcept {
-  while (p < end && isBlank(*p)) {
-    ++p;
-  }
-  if (p >= end) {
-    return false;
-  }
-  *tb = p;
-  while (p < end && !isBlank(*p)) {
-    ++p;
-  }
-  *te = p;
-  return true;
-}
-
-bool tokenIs(const char* b, const char* e, const char* word) noexcept {
-  for (; b < e; ++b, ++word) {
-    if (*word == '\0' || *word != *b) {
-      return false;
-    }
-  }
-  return *word == '\0';
-}
-
-/// Decimal number with optional sign, fraction and exponent; the whole token must be consumed.
-bool parseNumber(const char* b, const char* e, double* out) noexcept {
-  bool negative = false;
-  if (b < e && (*b == '+' || *b == '-')) {
-    negative = *b == '-';
-    ++b;
-  }
-  std::uint64_t mantissa = 0;
-  int digits = 0;
-  int exponent = 0;
-  bool any = false;
-  for (; b < e && isDigit(*b); ++b) {
-    any = true;
-    if (digits < 18) {
-      mantissa = mantissa * 10U + static_cast<std::uint64_t>(*b - '0');
-      if (mantissa != 0U) {
-        ++digits;
-      }
-    } else {
-      ++exponent;
-    }
-  }
-  if (b < e && *b == '.') {
-    ++b;
-    for (; b < e && isDigit(*b); ++b) {
-      any = true;
-      if (digits < 18) {
-        mantissa = mantissa * 10U + static_cast<std::uint64_t>(*b - '0');
-        if (mantissa != 0U) {
-          ++digits;
-        }
-        --exponent;
-      }
-    }
-  }
-  if (!any) {
-    return false;
-  }
-  if (b < e && (*b == 'e' || *b == 'E')) {
-    ++b;
-    bool expNegative = false;
-    if (b < e && (*b == '+' || *b == '-')) {
-      expNegative = *b == '-';
-      ++b;
-    }
-    int ev = 0;
-    bool expAny = false;
-    for (; b < e && isDigit(*b); ++b) {
-      expAny = true;
-      if (ev < 1000) {
-        ev = ev * 10 + (*b - '0');
-      }
-    }
-    if (!expAny) {
-      return false;
-    }
-    exponent += expNegative ? -ev : ev;
-  }
-  if (b != e) {
-    return false;
-  }
-  double v = static_cast<double>(mantissa);
-  if (mantissa != 0U) {
-    if (exponent > 300 || exponent < -300) {
-      return false;
-    }
-    double scale = 1.0;
-    const int n = exponent < 0 ? -exponent : exponent;
-    for (int i = 0; i < n; ++i) {
-      scale *= 10.0;
-    }
-    v = exponent < 0 ? v / scale : v * scale;
-  }
-  *out = negative ? -v : v;
-  return std::isfinite(v);
-}
+using text::Cursor;
+using text::nextLine;
+using text::nextToken;
+using text::parseNumber;
+using text::tokenIs;
 
 bool parseId(const char* b, const char* e, std::uint32_t* out) noexcept {
-  if (b >= e) {
-    return false;
-  }
   std::uint64_t v = 0;
-  for (; b < e; ++b) {
-    if (!isDigit(*b)) {
-      return false;
-    }
-    v = v * 10U + static_cast<std::uint64_t>(*b - '0');
-    if (v > 0xFFFFFFFFULL) {
-      return false;
-    }
+  if (!text::parseUnsigned(b, e, 0xFFFFFFFFULL, &v)) {
+    return false;
   }
   *out = static_cast<std::uint32_t>(v);
   return true;
@@ -247,51 +112,6 @@ Status forEachRecord(Span<const char> text, std::size_t* errorLine, F&& f) noexc
   return Status::Ok;
 }
 
-// ---- formatting ----
-
-struct Writer {
-  char* p;
-  char* end;
-  bool overflow = false;
-  void put(char ch) noexcept {
-    if (p < end) {
-      *p++ = ch;
-    } else {
-      overflow = true;
-    }
-  }
-  void put(const char* s) noexcept {
-    while (*s != '\0') {
-      put(*s++);
-    }
-  }
-  void putUnsigned(std::uint64_t v, int minDigits) noexcept {
-    char buf[24];
-    int n = 0;
-    do {
-      buf[n++] = static_cast<char>('0' + static_cast<int>(v % 10U));
-      v /= 10U;
-    } while (v != 0U && n < 24);
-    while (n < minDigits && n < 24) {
-      buf[n++] = '0';
-    }
-    while (n > 0) {
-      put(buf[--n]);
-    }
-  }
-  /// Fixed point with 6 decimals.
-  void putFixed6(double v) noexcept {
-    const double scaled = std::round(v * 1e6);
-    if (scaled < 0.0) {
-      put('-');
-    }
-    const std::uint64_t m = static_cast<std::uint64_t>(std::fabs(scaled));
-    putUnsigned(m / 1000000U, 1);
-    put('.');
-    putUnsigned(m % 1000000U, 6);
-  }
-};
-
 }  // namespace
 
 Status parseLandmarkMap(Span<const char> text, LandmarkMap& map, LandmarkMapParseReport* report) noexcept {
@@ -342,7 +162,7 @@ Status parseLandmarkMap(Span<const char> text, LandmarkMap& map, LandmarkMapPars
 }
 
 Result<std::size_t> formatLandmarkMap(const LandmarkMap& map, Span<char> out, bool surveyedOnly) noexcept {
-  Writer w{out.data(), out.data() + out.size()};
+  text::Writer w{out.data(), out.data() + out.size()};
   w.put("agvnav-landmarks 1\n# kind id x[m] y[m] sigma[m]\n");
   map.forEach([&](LandmarkIndex, const Landmark& l) {
     if (surveyedOnly && !l.surveyed) {
@@ -351,11 +171,11 @@ Result<std::size_t> formatLandmarkMap(const LandmarkMap& map, Span<char> out, bo
     w.put(l.kind == LandmarkKind::Corner ? "corner " : "reflector ");
     w.putUnsigned(l.id, 1);
     w.put(' ');
-    w.putFixed6(l.x);
+    w.putFixed(l.x, 6);
     w.put(' ');
-    w.putFixed6(l.y);
+    w.putFixed(l.y, 6);
     w.put(' ');
-    w.putFixed6(std::sqrt(l.variance));
+    w.putFixed(std::sqrt(l.variance), 6);
     w.put('\n');
   });
   if (w.overflow) {
