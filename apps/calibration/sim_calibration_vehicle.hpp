@@ -1,0 +1,38 @@
+#pragma once
+/// @file sim_calibration_vehicle.hpp
+/// The simulated vehicle (drivers/sim) as a `CalibrationVehicle`: `wait` advances the simulation,
+/// and the laser takes a sweep every laser period while the vehicle stands still (the routine uses
+/// only standstill sweeps; sweeps while driving are not simulated to save time).
+
+#include <cstdint>
+
+#include "agv/sim/ray_caster.hpp"
+#include "agv/sim/sim_laser.hpp"
+#include "agv/sim/sim_vehicle.hpp"
+#include "calibration_routine.hpp"
+
+namespace agv::calibration {
+
+class SimCalibrationVehicle final : public CalibrationVehicle {
+ public:
+  /// The vehicle starts at rest at `start` (logical point, world frame) at time 0. `caster` must
+  /// outlive this object. Check `laserStatus()` for the laser parameters.
+  SimCalibrationVehicle(const sim::RayCaster& caster, const sim::SimVehicleParams& vehicle,
+                        const sim::SimLaserParams& laser, std::uint64_t seed, const Pose2d& start);
+
+  Status laserStatus() const noexcept { return laser_.status(); }
+  const sim::SimVehicle& vehicle() const noexcept { return vehicle_; }
+
+  hal::DriveControl& drive() override { return vehicle_; }
+  hal::EncoderSource& encoders() override { return vehicle_; }
+  hal::LaserSource& laser() override { return laser_; }
+  Timestamp now() override { return vehicle_.now(); }
+  void wait(Duration period) override;
+
+ private:
+  sim::SimVehicle vehicle_;
+  sim::SimLaser laser_;
+  Timestamp nextSweep_{};
+};
+
+}  // namespace agv::calibration
