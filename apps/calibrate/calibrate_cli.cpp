@@ -110,6 +110,17 @@ int calibrateMain(int argc, const char* const* argv, std::FILE* out, std::FILE* 
     return 2;
   }
 
+  const double numbers[] = {
+      wheelbase,          driveScale,  laserX,  laserY,        laserThetaDeg,     steeringLimitDeg,
+      steerMinDeg,        steerMaxDeg, betaDeg, options.speed, request.clearance, request.frontOverhang,
+      laserResolutionDeg, area[0],     area[1], area[2],       area[3],           start[0],
+      start[1],           start[2]};
+  for (const double v : numbers) {
+    if (!std::isfinite(v)) {
+      std::fprintf(err, "agvnav-calibrate: every numeric option must be a finite number\n");
+      return 2;
+    }
+  }
   options.nominal = TricycleParams{wheelbase, driveScale, 0.0, 0.0};
   options.nominalLaser = Pose2d{laserX, laserY, deg2rad(laserThetaDeg)};
   options.egomotion = egomotion == "keypoints" ? EgomotionSource::Keypoints : EgomotionSource::Reflectors;
