@@ -83,6 +83,14 @@ void scanAt(const agv::sim::RayCaster& caster, const Pose2d& laserPose, double s
   REQUIRE(describer.describe(detector.points(), out.keypoints, out.bsc, out.cgh) == Status::Ok);
 }
 
+/// Scans of room() from two laser poses (range noise 5 mm).
+void roomScans(const Pose2d& p1, const Pose2d& p2, std::uint64_t seed, KeypointScan& a, KeypointScan& b) {
+  static const agv::sim::World w = room();
+  static const agv::sim::RayCaster caster(w, 1.0);
+  scanAt(caster, p1, 0.005, seed, a);
+  scanAt(caster, p2, 0.005, seed + 1U, b);
+}
+
 /// Ground-truth correspondences: second keypoints that, mapped by the true motion, lie within
 /// `gate` of a first keypoint. Returns their count and the spread sum |q - q_mean|^2 and centroid.
 struct TruthPairs {
@@ -293,12 +301,9 @@ TEST_CASE("calib.keypoint_alignment: too few corners refused", "[calib]") {
 }
 
 TEST_CASE("calib.keypoint_alignment: bad inputs", "[calib]") {
-  const agv::sim::World w = room();
-  const agv::sim::RayCaster caster(w, 1.0);
   static KeypointScan a;
   static KeypointScan b;
-  scanAt(caster, Pose2d{4.0, 4.0, 0.0}, 0.005, 1U, a);
-  scanAt(caster, Pose2d{5.0, 4.5, 0.5}, 0.005, 2U, b);
+  roomScans(Pose2d{4.0, 4.0, 0.0}, Pose2d{5.0, 4.5, 0.5}, 1U, a, b);
   KeypointAlignment out;
   const KeypointAlignmentOptions opt;
   CHECK(agv::alignKeypoints(a.view(), agv::KeypointScanView{}, Pose2d{}, opt, out) == Status::EmptyInput);
@@ -327,12 +332,9 @@ TEST_CASE("calib.keypoint_alignment: bad inputs", "[calib]") {
 }
 
 TEST_CASE("calib.keypoint_alignment: deterministic and allocation-free", "[calib]") {
-  const agv::sim::World w = room();
-  const agv::sim::RayCaster caster(w, 1.0);
   static KeypointScan a;
   static KeypointScan b;
-  scanAt(caster, Pose2d{4.0, 3.0, 0.0}, 0.005, 11U, a);
-  scanAt(caster, Pose2d{6.5, 3.5, deg2rad(180.0)}, 0.005, 12U, b);
+  roomScans(Pose2d{4.0, 3.0, 0.0}, Pose2d{6.5, 3.5, deg2rad(180.0)}, 11U, a, b);
   KeypointAlignmentOptions opt;
   opt.maxDraws = 400;  // fewer than all pairs of candidates: the generator draws them
   opt.maxHypotheses = 50;
