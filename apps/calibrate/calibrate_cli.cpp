@@ -195,13 +195,19 @@ int calibrateMain(int argc, const char* const* argv, std::FILE* out, std::FILE* 
   VehicleCalibration cal;
   cal.params = best;
   cal.laserPose = bestLaser;
+  // A posteriori scale of the refinement's covariance: when the residuals are larger than its noise
+  // model says (cost per degree of freedom above 1: wheel slip, keypoint noise), the sigmas grow by
+  // sqrt(cost / dof); they never shrink below the model's.
+  const double dof = 3.0 * r.segmentsUsed - static_cast<double>(kCalibParamCount);
+  const double varianceFactor = dof > 0.0 ? std::fmax(1.0, r.refined.finalCost / dof) : 1.0;
   if (refined) {
-    const auto sd = [&](int i) { return std::sqrt(r.refined.covariance(i, i)); };
+    const auto sd = [&](int i) { return std::sqrt(varianceFactor * r.refined.covariance(i, i)); };
     cal.sigmas = CalibrationSigmas{sd(kParamDriveScale), sd(kParamOffsetForward), sd(kParamOffsetBackward),
                                    sd(kParamLaserX),     sd(kParamLaserY),        sd(kParamLaserTheta)};
   }
-  std::fprintf(out, "refinement: %s (%d iterations, cost %.1f -> %.1f)\n", toString(r.refinedStatus),
-               r.refined.iterations, r.refined.initialCost, r.refined.finalCost);
+  std::fprintf(out, "refinement: %s (%d iterations, cost %.1f -> %.1f, %.0f degrees of freedom, sigma scale %.2f)\n",
+               toString(r.refinedStatus), r.refined.iterations, r.refined.initialCost, r.refined.finalCost, dof,
+               std::sqrt(varianceFactor));
   std::fprintf(out, "  %-16s %13s %13s %13s %13s %11s %13s %11s\n", "", "nominal", "STC", "ATC", "refined", "1-sigma",
                "sim. truth", "error");
   const auto row = [&](const char* name, double scale, double nom, double stc, double atc, double ref, double sigma,
