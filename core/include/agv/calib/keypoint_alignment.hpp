@@ -10,7 +10,7 @@
 /// 10 m lever arms); the keypoints arrive as float (scan geometry) and are widened once.
 /// Work: O(M N) descriptor distances to form the candidates, maxDraws length tests, then
 /// O(maxHypotheses M K) for the consensus, M, N <= kMaxKeypoints, K <= kMaxKeypointCandidates.
-/// About 30 kB of stack, no heap.
+/// About 20 kB of stack, no heap.
 
 #include <cstddef>
 #include <cstdint>
