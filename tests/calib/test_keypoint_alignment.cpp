@@ -254,7 +254,7 @@ TEST_CASE("calib.keypoint_alignment: outlier keypoints", "[calib]") {
   CHECK(std::hypot(outCgh.motion.x - truth.x, outCgh.motion.y - truth.y) <= 4.0 * std::sqrt(2.0) * trStd);
 }
 
-TEST_CASE("calib.keypoint_alignment: the guess gate resolves what the corners alone cannot", "[calib]") {
+TEST_CASE("calib.keypoint_alignment: the guess gates keep only motions near the guess", "[calib]") {
   // With a gate around a guess far from the truth, no hypothesis survives: refused, not wrong.
   const agv::sim::World w = room();
   const agv::sim::RayCaster caster(w, 1.0);
