@@ -152,9 +152,11 @@ int calibrateMain(int argc, const char* const* argv, std::FILE* out, std::FILE* 
   const sim::SimVehicleParams truth;
   sim::SimLaserParams laserParams;
   laserParams.angularResolution = deg2rad(laserResolutionDeg);
-  SimCalibrationVehicle vehicle(caster, truth, laserParams, seed, request.start);
-  if (vehicle.laserStatus() != Status::Ok) {
-    std::fprintf(err, "agvnav-calibrate: laser parameters refused (%s)\n", toString(vehicle.laserStatus()));
+  // The encoders reach the routine as CAN frames through the vehicle's CANopen decoder.
+  const sim::SimCanEncodersParams can = sim::defaultSimCanEncoders(1U << 14U);
+  SimCalibrationVehicle vehicle(caster, truth, laserParams, seed, request.start, &can);
+  if (vehicle.status() != Status::Ok) {
+    std::fprintf(err, "agvnav-calibrate: simulated laser or CAN parameters refused (%s)\n", toString(vehicle.status()));
     return 2;
   }
   options.deceleration = truth.acceleration;
@@ -164,7 +166,7 @@ int calibrateMain(int argc, const char* const* argv, std::FILE* out, std::FILE* 
                "deg, start (%.2f, %.2f, %.1f deg), free area [%.2f, %.2f] x [%.2f, %.2f] m\n",
                plan.segments.size(), request.segmentsPerPhase, steerMinDeg, steerMaxDeg, betaDeg, request.start.x,
                request.start.y, start[2], request.area.xMin, request.area.xMax, request.area.yMin, request.area.yMax);
-  std::fprintf(out, "egomotion from %s; vehicle: simulated (world %s)\n", egomotion.c_str(),
+  std::fprintf(out, "egomotion from %s; vehicle: simulated (world %s, encoders over CANopen)\n", egomotion.c_str(),
                worldFile.empty() ? "built-in warehouse" : worldFile.c_str());
   std::fflush(out);
   const auto progress = [&](const RoutineProgress& p) {
@@ -183,6 +185,10 @@ int calibrateMain(int argc, const char* const* argv, std::FILE* out, std::FILE* 
                r.segmentsDriven, r.segmentsUsed, r.segmentsRejected, minutes(r.seconds).c_str(), r.meanMatches,
                options.egomotion == EgomotionSource::Keypoints ? "keypoint inliers" : "reflector pairs",
                1e3 * r.meanAlignmentRms);
+  const sim::CanBusCounters c = vehicle.canCounters();
+  std::fprintf(out, "encoders: %llu CAN frames decoded, %llu samples, %llu mismatches, %llu withheld\n",
+               static_cast<unsigned long long>(c.framesDecoded()), static_cast<unsigned long long>(c.samples),
+               static_cast<unsigned long long>(c.sampleMismatches), static_cast<unsigned long long>(c.samplesWithheld));
   printReport(out, "STC", r.stc.report);
   printReport(out, "ATC", r.result.report);
   if (r.status != Status::Ok) {

@@ -11,12 +11,14 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <cinttypes>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "agv/core/angle.hpp"
@@ -103,6 +105,11 @@ void writeLocalizerRun(std::FILE* f, const agv::hil::RunResult& r) {
                r.meanKeypointsPerScan);
 }
 
+// The calibration stage's outcome and the encoder frames its routine exchanged over CAN.
+struct HilCalibration : agv::calibration::CalibrationOutcome {
+  agv::sim::CanBusCounters can;
+};
+
 // A localizer run meets the requirement when it reached the operation point, the pose sent to
 // the PLC is within 2 cm / 0.1 deg and the localizer is not lost (a lost localizer stops the
 // vehicle through the PLC interlock, whatever its last pose).
@@ -110,10 +117,44 @@ bool runMeets(const agv::hil::RunResult& r) {
   return r.finished && !r.localizerLost && meets(r.finalLocalized, r.finalTruth);
 }
 
-bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg,
-               const agv::calibration::CalibrationOutcome& calib, const std::string& calibStatus,
-               const std::vector<agv::hil::RunResult>& runs, const std::vector<agv::hil::RunResult>& mappingRuns,
-               std::size_t mapCorners, bool requirementMet) {
+// The encoder frames of the whole session (calibration routine and every run), decoded by the
+// vehicle's CANopen decoder: the only way the encoder samples reach the navigation.
+agv::sim::CanBusCounters canTotals(const HilCalibration& calib, const std::vector<agv::hil::RunResult>& runs,
+                                   const std::vector<agv::hil::RunResult>& mappingRuns) {
+  agv::sim::CanBusCounters c = calib.can;
+  for (const std::vector<agv::hil::RunResult>* set : {&runs, &mappingRuns}) {
+    for (const agv::hil::RunResult& r : *set) {
+      c += r.can;
+    }
+  }
+  return c;
+}
+
+void writeCanJson(std::FILE* f, const agv::hil::ScenarioConfig& cfg, const agv::sim::CanBusCounters& c) {
+  std::fprintf(f, "  \"can_encoders\": {\"drive_node\": %u, \"steering_node\": %u, \"sync\": %s",
+               unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
+               cfg.can.bus.syncPeriod.ns > 0 ? "true" : "false");
+  const std::pair<const char*, std::uint64_t> fields[] = {{"frames_decoded", c.framesDecoded()},
+                                                          {"drive_pdos", c.drivePositions},
+                                                          {"steering_pdos", c.steeringPositions},
+                                                          {"heartbeats", c.heartbeats},
+                                                          {"frames_to_nodes", c.framesToNodes},
+                                                          {"frames_dropped", c.framesDropped},
+                                                          {"malformed", c.malformed},
+                                                          {"measurements", c.measurements},
+                                                          {"samples_decoded", c.samples},
+                                                          {"sample_mismatches", c.sampleMismatches},
+                                                          {"samples_withheld", c.samplesWithheld},
+                                                          {"drive_counter_wraps", c.driveCounterWraps}};
+  for (const auto& [key, value] : fields) {
+    std::fprintf(f, ", \"%s\": %" PRIu64, key, value);
+  }
+  std::fprintf(f, "},\n");
+}
+
+bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, const HilCalibration& calib,
+               const std::string& calibStatus, const std::vector<agv::hil::RunResult>& runs,
+               const std::vector<agv::hil::RunResult>& mappingRuns, std::size_t mapCorners, bool requirementMet) {
   std::FILE* f = std::fopen(file.c_str(), "w");
   if (f == nullptr) {
     return false;
@@ -133,6 +174,7 @@ bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg,
                calib.segmentsUsed);
   std::fprintf(f, "  \"requirement\": {\"position_m\": %.3f, \"heading_deg\": %.3f},\n", kPositionRequirement,
                kHeadingRequirementDeg);
+  writeCanJson(f, cfg, canTotals(calib, runs, mappingRuns));
   std::fprintf(f, "  \"stages\": {");
   bool firstStage = true;
   for (const Stage& s : kStages) {
@@ -200,6 +242,9 @@ int main(int argc, char** argv) {
   app.add_flag("--short", shortScenario,
                "test-size scenario: 1 run per path, 1 deg laser resolution, 3 calibration steering angles");
   app.add_flag("--print-world", printWorld, "print the built-in world file and exit");
+  bool canSync = false;
+  app.add_flag("--can-sync", canSync,
+               "encoders send synchronous TPDOs on the vehicle's SYNC (every encoder period) instead of cyclic ones");
   CLI11_PARSE(app, argc, argv);
 
   if (printWorld) {
@@ -222,6 +267,9 @@ int main(int argc, char** argv) {
   agv::hil::ScenarioConfig cfg;
   cfg.runsPerPath = shortScenario && app.count("--runs") == 0 ? 1 : runs;
   cfg.seed = seed;
+  if (canSync) {
+    cfg.can.bus.syncPeriod = cfg.vehicle.encoderPeriod;
+  }
   if (shortScenario) {
     cfg.laser.angularResolution = agv::deg2rad(1.0);
   }
@@ -240,7 +288,7 @@ int main(int argc, char** argv) {
   request.segmentsPerPhase = shortScenario ? 3 : 5;  // steering 18/34/50 or 18/26/34/42/50 deg
   agv::calibration::CalibrationPlan plan;
   std::string planError;
-  agv::calibration::CalibrationOutcome calib;
+  HilCalibration calib;
   if (agv::calibration::planCalibration(request, plan, planError) != agv::Status::Ok) {
     calib.status = agv::Status::OutOfRange;
     calib.message = planError;
@@ -251,13 +299,17 @@ int main(int argc, char** argv) {
     }
     std::printf(" deg, forward and backward) from (%.1f, %.1f)...\n", request.start.x, request.start.y);
     std::fflush(stdout);
-    agv::calibration::SimCalibrationVehicle simVehicle(caster, cfg.vehicle, cfg.laser, cfg.seed, request.start);
+    // Encoder samples only through CAN frames, as in the runs.
+    agv::calibration::SimCalibrationVehicle simVehicle(caster, cfg.vehicle, cfg.laser, cfg.seed, request.start,
+                                                       &cfg.can);
     agv::calibration::RoutineOptions routine;
     routine.nominal = cfg.nominal.kinematics;
     routine.nominalLaser = cfg.nominal.laserMount;
     routine.deceleration = cfg.vehicle.acceleration;
     routine.controlPeriod = cfg.controlPeriod;
-    calib = agv::calibration::runCalibrationRoutine(simVehicle, plan, routine, {});
+    static_cast<agv::calibration::CalibrationOutcome&>(calib) =
+        agv::calibration::runCalibrationRoutine(simVehicle, plan, routine, {});
+    calib.can = simVehicle.canCounters();
   }
   std::string calibStatus = agv::toString(calib.status);
   if (calib.status == agv::Status::Ok) {
@@ -467,6 +519,14 @@ int main(int argc, char** argv) {
       "%.0f cm / %.1f deg met by dead reckoning with the true parameters in %d of %d runs, with the "
       "estimated parameters in %d\n",
       kPositionRequirement * 100.0, kHeadingRequirementDeg, truthMeetCount, drRuns, estimateMeetCount);
+  const agv::sim::CanBusCounters can = canTotals(calib, results, mappingResults);
+  std::printf("encoders over CAN (CiA 402 drive node %u, CiA 406 steering node %u%s): %" PRIu64
+              " frames decoded (%" PRIu64 " drive positions, %" PRIu64 " steering positions, %" PRIu64
+              " heartbeats), %" PRIu64 " samples, %" PRIu64 " drive counter wraps, %" PRIu64
+              " samples differing from the measurement sent\n",
+              unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
+              cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", can.framesDecoded(), can.drivePositions,
+              can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
   std::printf("requirement (pose sent to the PLC by the localizer, every run of every mode): %s (%d of %d runs)\n",
               requirementMet ? "MET" : "NOT MET", localizerMeetCount, localizerRuns);
 

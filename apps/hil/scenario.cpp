@@ -336,7 +336,8 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   sim::SimLaser laser(caster, cfg.laser, seed ^ 0xC2B2AE3D27D4EB4FULL);
   sim::SimPlcPeer plc;
   sim::SimClock clock;
-  hal::EncoderSource& encoders = vehicle;
+  sim::CanEncoderSource canEncoders(vehicle, cfg.can);  // encoder samples only through CAN frames
+  hal::EncoderSource& encoders = canEncoders;
   hal::DriveControl& drive = vehicle;
   hal::LaserSource& laserSource = laser;
   hal::PlcLink& plcLink = plc;
@@ -440,6 +441,7 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   }
   r.simSeconds = (t - tStart).seconds();
   r.finalTruth = vehicle.truePose();
+  r.can = canEncoders.counters();
   r.finalWithTruth = withTruth.pose();
   r.finalWithNominal = withNominal.pose();
   r.plcReports = plc.reports().size();
@@ -470,6 +472,10 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
   const Status laserStatus = config.laser.validate();
   if (laserStatus != Status::Ok) {
     *error = std::string("laser parameters: ") + toString(laserStatus);
+    return false;
+  }
+  if (sim::validateSimCanEncoders(config.can) != Status::Ok) {
+    *error = "encoder CAN bus parameters refused by the decoder";
     return false;
   }
   if (runsPerPath < 1) {

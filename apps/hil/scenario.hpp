@@ -12,6 +12,7 @@
 #include "agv/core/pose2.hpp"
 #include "agv/kinematics/tricycle.hpp"
 #include "agv/localization/landmark_map.hpp"
+#include "agv/sim/can_encoder_source.hpp"
 #include "agv/sim/sim_laser.hpp"
 #include "agv/sim/sim_vehicle.hpp"
 #include "agv/sim/world.hpp"
@@ -63,6 +64,10 @@ struct ScenarioConfig {
   NominalVehicle nominal;         ///< what the estimators start from (drawing values)
   NominalVehicle estimate;        ///< what the navigation uses: the calibration result, else nominal
   sim::SimLaserParams laser;
+  /// The encoders' CAN bus (nodes, mapping, counter start): every encoder sample the navigation
+  /// and the calibration routine get is decoded from its frames. 14-bit steering encoder, as
+  /// `vehicle.steerEncoderBits`.
+  sim::SimCanEncodersParams can = sim::defaultSimCanEncoders(1U << 14U);
   double startPositionStdDev = 0.01;  ///< [m] how precisely the vehicle is placed at a path start
   double startHeadingStdDev = 0.002;  ///< [rad]
   Duration controlPeriod = Duration::fromMilliseconds(20);
@@ -101,6 +106,7 @@ struct RunResult {
   double meanReflectorsPerScan = 0.0;
   std::size_t minReflectorsPerScan = 0;
   double meanValidBeamFraction = 0.0;
+  sim::CanBusCounters can;  ///< the encoder frames of the run
   std::vector<TrajectorySample> history;
 };
 

@@ -1,10 +1,12 @@
 // Benchmarks of the simulation: one 1440-beam laser sweep of the built-in warehouse with the
-// grid-accelerated ray caster, and the same beams by brute force (the grid's gain).
+// grid-accelerated ray caster, and the same beams by brute force (the grid's gain); one encoder
+// measurement through the simulated CAN bus (nodes' frames, the vehicle's CANopen decoder).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 
 #include "agv/core/angle.hpp"
+#include "agv/sim/can_encoder_source.hpp"
 #include "agv/sim/sim_laser.hpp"
 #include "agv/sim/world.hpp"
 
@@ -51,5 +53,40 @@ void BM_SimRayCastBruteForce(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * state.range(0));
 }
 BENCHMARK(BM_SimRayCastBruteForce)->Arg(1440)->Unit(benchmark::kMicrosecond);
+
+/// A vehicle driving forward: one new encoder measurement (10 ms later) each time it is armed.
+class EncoderRamp final : public agv::hal::EncoderSource {
+ public:
+  void arm() noexcept { pending_ = true; }
+  agv::Status read(agv::hal::EncoderSample& out) noexcept override {
+    if (!pending_) {
+      return agv::Status::NotFound;
+    }
+    pending_ = false;
+    s_.stamp = s_.stamp + agv::Duration::fromMilliseconds(10);
+    s_.driveTicks += 99;  // 1 m/s at 1e-4 m/tick
+    s_.steeringAngle = s_.steeringAngle > 0.5 ? -0.5 : s_.steeringAngle + 0.001;
+    out = s_;
+    return agv::Status::Ok;
+  }
+
+ private:
+  bool pending_ = false;
+  agv::hal::EncoderSample s_{};
+};
+
+// One measurement: decoder service, the nodes' TPDOs (and a heartbeat pair every 10th), decoding,
+// the sample (the HIL's encoder path per 10 ms).
+void BM_SimCanEncoders(benchmark::State& state) {
+  EncoderRamp ramp;
+  agv::sim::CanEncoderSource bus(ramp, agv::sim::defaultSimCanEncoders(16384));
+  agv::hal::EncoderSample s;
+  for (auto _ : state) {
+    ramp.arm();
+    benchmark::DoNotOptimize(bus.read(s));
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_SimCanEncoders);
 
 }  // namespace

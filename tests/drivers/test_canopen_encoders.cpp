@@ -174,6 +174,41 @@ TEST_CASE("Samples pair SYNC-driven PDOs; SYNC is produced on its period", "[dri
   CHECK_FALSE(dec.takeSample(s));  // once
 }
 
+TEST_CASE("A lost TPDO drops its cycle: the next samples pair positions of the same cycle", "[drivers][canopen]") {
+  const double perCount = agv::kTwoPi<double> / 8192.0;
+  for (bool sync : {false, true}) {
+    auto cfg = baseConfig();
+    cfg.heartbeatTimeout = Duration{};
+    cfg.syncPeriod = sync ? Duration::fromMilliseconds(10) : Duration{};
+    CanopenEncoders dec(cfg);
+    CanFrame out[4];
+    int samples = 0;
+    // Cycle i (10 ms apart): drive = 100 i ticks, steering = zero + i counts; the drive TPDO of
+    // cycle 5 and the steering TPDO of cycle 9 are lost on the bus.
+    for (int i = 0; i < 15; ++i) {
+      dec.service(ms(10 * i), Span<CanFrame>(out));
+      if (i != 5) {
+        dec.onFrame(rawPdo(0x185, 0, 4, static_cast<std::uint32_t>(100 * i), ms(10 * i + 1)));
+      }
+      if (i != 9) {
+        dec.onFrame(rawPdo(0x186, 0, 4, static_cast<std::uint32_t>(8000 + i), ms(10 * i + 2)));
+      }
+      agv::hal::EncoderSample s;
+      const bool got = dec.takeSample(s);
+      INFO("sync " << sync << ", cycle " << i);
+      CHECK(got == (i != 5 && i != 9));
+      if (got) {
+        ++samples;
+        CHECK(s.driveTicks == 100 * i);  // drive and steering of the same cycle, never a stale angle
+        AGV_CHECK_NEAR(s.steeringAngle, i * perCount, 1e-12);
+        CHECK(s.stamp == ms(10 * i + 2));
+      }
+    }
+    CHECK(samples == 13);
+    CHECK(dec.incompleteCycles() == 2U);
+  }
+}
+
 TEST_CASE("Heartbeat supervision: timeout fault, recovery, boot-up restarts the node", "[drivers][canopen]") {
   auto cfg = baseConfig();
   cfg.heartbeatTimeout = Duration::fromMilliseconds(300);

@@ -6,7 +6,9 @@
 # PLC; dead-reckoning entries do not count) and is true, every localizer run being within
 # 2 cm / 0.1 deg, finished and not lost; dead reckoning with the true parameters beats the
 # nominal parameters; the calibration (when it ran) is closer to the truth than the nominal
-# values in every parameter.
+# values in every parameter; the encoder samples came through the CAN path (can_encoders: every
+# measurement decoded from its TPDOs, none differing from what the simulated nodes sent, the drive's
+# 32-bit position value wrapped on the bus).
 # Usage: cmake -DHIL=<agvnav-hil> -DWORK_DIR=<dir> -P check_hil_json.cmake
 cmake_minimum_required(VERSION 3.25)
 file(REMOVE_RECURSE "${WORK_DIR}")
@@ -159,5 +161,29 @@ if(source STREQUAL "calibration_atc")
   endforeach()
 elseif(NOT source STREQUAL "nominal")
   message(FATAL_ERROR "JSON: unknown calibration estimate_source '${source}'")
+endif()
+# The encoders went through CAN frames decoded by the vehicle's CANopen decoder.
+expect_type("${j}" OBJECT can_encoders)
+foreach(key frames_decoded drive_pdos steering_pdos heartbeats measurements samples_decoded sample_mismatches
+            samples_withheld drive_counter_wraps frames_dropped malformed)
+  expect_type("${j}" NUMBER can_encoders ${key})
+  string(JSON can_${key} GET "${j}" can_encoders ${key})
+endforeach()
+expect_type("${j}" BOOLEAN can_encoders sync)
+if(can_measurements LESS 1000 OR NOT can_samples_decoded EQUAL can_measurements)
+  message(FATAL_ERROR "JSON: can_encoders: ${can_samples_decoded} samples decoded from ${can_measurements} measurements")
+endif()
+math(EXPR can_pdos "${can_drive_pdos} + ${can_steering_pdos}")
+if(can_drive_pdos LESS can_samples_decoded OR can_steering_pdos LESS can_samples_decoded OR can_heartbeats LESS 1
+   OR can_frames_decoded LESS can_pdos)
+  message(FATAL_ERROR "JSON: can_encoders: ${can_frames_decoded} frames decoded, ${can_drive_pdos} drive and "
+                      "${can_steering_pdos} steering positions, ${can_heartbeats} heartbeats for ${can_samples_decoded} samples")
+endif()
+if(NOT can_sample_mismatches EQUAL 0 OR NOT can_malformed EQUAL 0 OR NOT can_frames_dropped EQUAL 0)
+  message(FATAL_ERROR "JSON: can_encoders: ${can_sample_mismatches} decoded samples differ from the measurement, "
+                      "${can_malformed} malformed, ${can_frames_dropped} dropped")
+endif()
+if(can_drive_counter_wraps LESS 1)
+  message(FATAL_ERROR "JSON: can_encoders: the drive's position value never wrapped on the bus")
 endif()
 message(STATUS "agvnav-hil JSON ok: ${n} entries, requirement_met=${met}")

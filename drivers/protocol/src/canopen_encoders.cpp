@@ -166,7 +166,7 @@ Status CanopenEncoders::validate() const noexcept {
       (s.zeroCount >= s.countsPerRevolution || s.countsPerRevolution - 1U > mask(s.pdo.size))) {
     return Status::InvalidArgument;
   }
-  if (config_.heartbeatTimeout.ns < 0 || config_.syncPeriod.ns < 0) {
+  if (config_.heartbeatTimeout.ns < 0 || config_.syncPeriod.ns < 0 || config_.pairingWindow.ns < 0) {
     return Status::InvalidArgument;
   }
   return Status::Ok;
@@ -189,6 +189,25 @@ void CanopenEncoders::emit(Timestamp stamp) noexcept {
   sampleReady_ = true;
   driveUpdated_ = false;
   steerUpdated_ = false;
+}
+
+void CanopenEncoders::pair(bool& ownUpdated, Timestamp& ownStamp, bool& otherUpdated, Timestamp otherStamp,
+                           Timestamp stamp) noexcept {
+  if (config_.trigger != SampleTrigger::BothUpdated) {
+    ownUpdated = true;
+    ownStamp = stamp;
+    return;
+  }
+  if (ownUpdated) {
+    ++incomplete_;  // our previous position never got its partner
+  }
+  ownUpdated = true;
+  ownStamp = stamp;
+  const Duration gap = stamp > otherStamp ? stamp - otherStamp : otherStamp - stamp;
+  if (otherUpdated && config_.pairingWindow.ns > 0 && gap > config_.pairingWindow) {
+    otherUpdated = false;  // the other position belongs to an earlier cycle whose partner was lost
+    ++incomplete_;
+  }
 }
 
 void CanopenEncoders::onHeartbeat(NodeHealth& h, const CanFrame& f, bool& needStart) noexcept {
@@ -244,7 +263,7 @@ FrameKind CanopenEncoders::onFrame(const CanFrame& f) noexcept {
     }
     lastRaw_ = raw & mask(size);
     ++drive_.pdoCount;
-    driveUpdated_ = true;
+    pair(driveUpdated_, driveStamp_, steerUpdated_, steerStamp_, f.stamp);
     if ((config_.trigger == SampleTrigger::DriveUpdated && haveSteer_) ||
         (config_.trigger == SampleTrigger::BothUpdated && steerUpdated_)) {
       emit(f.stamp);
@@ -262,7 +281,7 @@ FrameKind CanopenEncoders::onFrame(const CanFrame& f) noexcept {
     angle_ = sign * static_cast<double>(counts) * config_.steering.radiansPerCount;
     haveSteer_ = true;
     ++steer_.pdoCount;
-    steerUpdated_ = true;
+    pair(steerUpdated_, steerStamp_, driveUpdated_, driveStamp_, f.stamp);
     if (config_.trigger == SampleTrigger::BothUpdated && driveUpdated_) {
       emit(f.stamp);
     }
@@ -324,6 +343,11 @@ std::size_t CanopenEncoders::service(Timestamp now, Span<CanFrame> out) noexcept
   }
   if (config_.syncPeriod.ns > 0 && now >= nextSync_ && n < out.size()) {
     out[n++] = encodeSync(now);
+    if (config_.trigger == SampleTrigger::BothUpdated && (driveUpdated_ || steerUpdated_)) {
+      ++incomplete_;  // a new cycle: the half of the last one that came stays unpaired
+      driveUpdated_ = false;
+      steerUpdated_ = false;
+    }
     nextSync_ = nextSync_ + config_.syncPeriod;
     if (now - nextSync_ >= config_.syncPeriod) {  // late by more than a period: no burst of SYNCs
       nextSync_ = now + config_.syncPeriod;

@@ -80,6 +80,11 @@ struct CanopenEncodersConfig {
   Duration heartbeatTimeout = Duration::fromMilliseconds(300);
   /// SYNC production period; 0 = no SYNC (the devices send cyclic/event-driven PDOs).
   Duration syncPeriod = Duration{};
+  /// `BothUpdated`: the two positions of one sample must be received within this time of each
+  /// other (the TPDOs of one SYNC or cycle arrive back to back; keep it below the TPDO period). A
+  /// position whose partner was lost is dropped, not paired with the next cycle's, and counted in
+  /// `incompleteCycles()`; with SYNC, each SYNC also ends the cycle. 0 = no time check.
+  Duration pairingWindow = Duration::fromMilliseconds(3);
 };
 
 /// One EMCY message (CiA 301).
@@ -161,6 +166,9 @@ class CanopenEncoders {
   const NodeHealth& driveHealth() const noexcept { return drive_; }
   const NodeHealth& steeringHealth() const noexcept { return steer_; }
   std::uint32_t malformedFrames() const noexcept { return malformed_; }
+  /// `BothUpdated`: positions dropped because the other node's position of the same cycle never
+  /// came (a lost TPDO); each such cycle produces no sample.
+  std::uint32_t incompleteCycles() const noexcept { return incomplete_; }
 
   /// Unwrapped drive ticks so far (direction applied).
   std::int64_t driveTicks() const noexcept { return ticks_; }
@@ -171,6 +179,7 @@ class CanopenEncoders {
   void onHeartbeat(NodeHealth& h, const CanFrame& f, bool& needStart) noexcept;
   void onEmcy(NodeHealth& h, std::uint8_t node, const CanFrame& f) noexcept;
   void emit(Timestamp stamp) noexcept;
+  void pair(bool& ownUpdated, Timestamp& ownStamp, bool& otherUpdated, Timestamp otherStamp, Timestamp stamp) noexcept;
 
   CanopenEncodersConfig config_;
   NodeHealth drive_{};
@@ -186,6 +195,9 @@ class CanopenEncoders {
   double angle_ = 0.0;
   bool driveUpdated_ = false;
   bool steerUpdated_ = false;
+  Timestamp driveStamp_{};  // receive time of the pending drive / steering position
+  Timestamp steerStamp_{};
+  std::uint32_t incomplete_ = 0;
   // Output.
   bool sampleReady_ = false;
   hal::EncoderSample sample_{};
