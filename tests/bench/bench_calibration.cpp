@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "../calib/calib_sim.hpp"
+#include "../calib/keypoint_scan_sim.hpp"
 #include "agv/calib/keypoint_alignment.hpp"
 #include "agv/calib/refinement.hpp"
 #include "agv/falko/falko_descriptors.hpp"
@@ -77,15 +78,7 @@ void refine40(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(f.segments.size()));
 }
 
-/// FALKO keypoints and BSC descriptors of one standstill scan of the built-in warehouse.
-struct KeypointScan {
-  agv::FalkoKeypoints keypoints;
-  agv::BscDescriptors bsc;
-  agv::CghDescriptors cgh;
-  agv::KeypointScanView view() const {
-    return {{keypoints.data(), keypoints.size()}, {bsc.data(), bsc.size()}, {cgh.data(), cgh.size()}};
-  }
-};
+using agv::test::KeypointScan;
 
 /// The two standstill scans of a 42 deg half circle (beta 180 deg) of the calibration routine's
 /// start in the built-in warehouse: laser 1.6 m ahead of the logical point, 0.25 deg, 1 cm noise.
@@ -98,20 +91,13 @@ struct KeypointFixture {
     agv::sim::WorldParseError e;
     static_cast<void>(agv::sim::parseWorld(agv::sim::defaultWorldText(), world, e));
     const agv::sim::RayCaster caster(world, 1.0);
-    agv::sim::SimLaser laser(caster, agv::sim::SimLaserParams{}, 5U);
-    static agv::hal::LaserMeasurement m;
-    static agv::FalkoDetector detector;
-    const agv::FalkoDescriber describer;
     const double diameter = 2.0 * 1.5 / std::tan(agv::deg2rad(42.0));
     const agv::Pose2d mount{1.6, 0.0, 0.0};
     const agv::Pose2d p1 = agv::Pose2d{10.0, 12.5, 0.0}.compose(mount);
     const agv::Pose2d p2 = agv::Pose2d{10.0, 12.5 + diameter, agv::kPi<double>}.compose(mount);
     guess = agv::between(p1, p2);
-    for (KeypointScan* s : {&a, &b}) {
-      static_cast<void>(laser.scan(s == &a ? p1 : p2, agv::Timestamp{}, m));
-      static_cast<void>(detector.detect(m.scan, s->keypoints));
-      static_cast<void>(describer.describe(detector.points(), s->keypoints, s->bsc, s->cgh));
-    }
+    static_cast<void>(agv::test::simulateKeypointScan(caster, p1, agv::sim::SimLaserParams{}, 5U, a));
+    static_cast<void>(agv::test::simulateKeypointScan(caster, p2, agv::sim::SimLaserParams{}, 6U, b));
   }
 };
 

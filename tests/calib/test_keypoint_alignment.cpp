@@ -14,6 +14,7 @@
 #include "agv/sim/sim_laser.hpp"
 #include "agv/sim/world.hpp"
 #include "agv_test.hpp"
+#include "keypoint_scan_sim.hpp"
 
 using agv::deg2rad;
 using agv::KeypointAlignment;
@@ -52,15 +53,7 @@ agv::sim::World sparseRoom() {
   return w;
 }
 
-/// Keypoints and descriptors of one standstill scan.
-struct KeypointScan {
-  agv::FalkoKeypoints keypoints;
-  agv::BscDescriptors bsc;
-  agv::CghDescriptors cgh;
-  agv::KeypointScanView view() const {
-    return {{keypoints.data(), keypoints.size()}, {bsc.data(), bsc.size()}, {cgh.data(), cgh.size()}};
-  }
-};
+using agv::test::KeypointScan;
 
 agv::sim::SimLaserParams laserParams(double sigma) {
   agv::sim::SimLaserParams p;
@@ -73,14 +66,7 @@ agv::sim::SimLaserParams laserParams(double sigma) {
 
 void scanAt(const agv::sim::RayCaster& caster, const Pose2d& laserPose, double sigma, std::uint64_t seed,
             KeypointScan& out) {
-  agv::sim::SimLaser laser(caster, laserParams(sigma), seed);
-  REQUIRE(laser.status() == Status::Ok);
-  static agv::hal::LaserMeasurement m;
-  REQUIRE(laser.scan(laserPose, agv::Timestamp{}, m) == Status::Ok);
-  static agv::FalkoDetector detector;
-  static const agv::FalkoDescriber describer;
-  REQUIRE(detector.detect(m.scan, out.keypoints) == Status::Ok);
-  REQUIRE(describer.describe(detector.points(), out.keypoints, out.bsc, out.cgh) == Status::Ok);
+  REQUIRE(agv::test::simulateKeypointScan(caster, laserPose, laserParams(sigma), seed, out) == Status::Ok);
 }
 
 /// Scans of room() from two laser poses (range noise 5 mm).
