@@ -67,10 +67,10 @@ bool exists(const std::string& path) {
 /// with 5 mm / 0.1 deg egomotion noise (docs/calibration.md) is s_w 130 ppm, alpha 6 mdeg,
 /// l_x, l_y 0.8 mm, l_theta 18 mdeg; 8 segments scale it by sqrt(20/8) = 1.6, and the simulator
 /// adds wheel slip (2 mm/sqrt(m) over 7..15 m arcs) and 1 cm reflector noise, about doubling it:
-/// 5 of those stds are s_w 2100 ppm -> 500 ppm is kept tighter as the drive scale is the best
-/// determined; alpha 0.1 deg; l_x, l_y 8 mm; l_theta 0.3 deg.
+/// 5 of those stds are s_w 2000 ppm, alpha 0.1 deg, l_x, l_y 8 mm, l_theta 0.3 deg. (Seeds 1..8
+/// of the simulator gave at most 470 ppm, 0.019 deg, 2.9 mm, 0.031 deg with reflectors.)
 struct Tolerance {
-  double driveScaleRel = 500e-6;
+  double driveScaleRel = 2000e-6;
   double offset = deg2rad(0.1);
   double laserXy = 0.008;
   double laserTheta = deg2rad(0.3);
