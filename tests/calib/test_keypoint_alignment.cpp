@@ -286,6 +286,22 @@ TEST_CASE("calib.keypoint_alignment: too few corners refused", "[calib]") {
   CHECK(agv::alignKeypoints(c.view(), a.view(), Pose2d{}, strict, out) == Status::NotEnoughData);
 }
 
+TEST_CASE("calib.keypoint_alignment: unrefined keypoints take no part unless asked", "[calib]") {
+  static KeypointScan a;
+  static KeypointScan b;
+  roomScans(Pose2d{4.0, 3.0, 0.0}, Pose2d{6.5, 3.5, deg2rad(180.0)}, 21U, a, b);
+  for (agv::FalkoKeypoint& k : b.keypoints) {
+    k.refined = false;
+  }
+  KeypointAlignment out;
+  KeypointAlignmentOptions opt;
+  CHECK(agv::alignKeypoints(a.view(), b.view(), Pose2d{}, opt, out) == Status::NotEnoughData);
+  CHECK(out.candidates == 0U);
+  opt.refinedOnly = false;
+  CHECK(agv::alignKeypoints(a.view(), b.view(), Pose2d{}, opt, out) == Status::Ok);
+  CHECK(out.inliers >= 4U);
+}
+
 TEST_CASE("calib.keypoint_alignment: bad inputs", "[calib]") {
   static KeypointScan a;
   static KeypointScan b;

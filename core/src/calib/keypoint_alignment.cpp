@@ -40,7 +40,10 @@ void formCandidates(const KeypointScanView& first, const KeypointScanView& secon
   for (std::size_t j = 0; j < second.keypoints.size(); ++j) {
     std::array<float, kMaxKeypointCandidates> best{};
     std::size_t n = 0;
-    for (std::size_t i = 0; i < first.keypoints.size(); ++i) {
+    for (std::size_t i = 0; i < first.keypoints.size() && (second.keypoints[j].refined || !opt.refinedOnly); ++i) {
+      if (opt.refinedOnly && !first.keypoints[i].refined) {
+        continue;
+      }
       const float d = descriptorDistance(first, i, second, j, opt);
       if (d < 0.0F || (n == k && d >= best[n - 1])) {
         continue;

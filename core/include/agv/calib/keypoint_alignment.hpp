@@ -52,6 +52,10 @@ struct KeypointAlignmentOptions {
   /// (1..kMaxKeypointCandidates). Corners of a building look alike (right angles), so the true
   /// partner is often not the best descriptor match: keep many.
   std::size_t candidatesPerKeypoint = 16;
+  /// Only keypoints whose sub-beam refinement was accepted take part: an unrefined corner sits on
+  /// the beam nearest to it, up to a beam spacing away (4 cm at 10 m with 0.25 deg), and which
+  /// beam that is depends on the viewpoint.
+  bool refinedOnly = true;
   /// A match is consistent with a motion when the mapped second keypoint lies within this distance
   /// of its partner [m]: a few times the keypoint position noise (about the range noise).
   double inlierGate = 0.08;
