@@ -252,6 +252,7 @@ Status alignKeypoints(const KeypointScanView& first, const KeypointScanView& sec
       tryPair(ja, rng.below(cand.count[ja]), jb, rng.below(cand.count[jb]));
     }
   }
+  out.motion = best;
   if (bestCount < opt.minInliers) {
     out.inliers = bestCount;
     return Status::NotEnoughData;
@@ -266,6 +267,7 @@ Status alignKeypoints(const KeypointScanView& first, const KeypointScanView& sec
     count = associate(p, q, cand, motion, opt.inlierGate, pairOf, sq);
     if (count < opt.minInliers) {
       out.inliers = count;
+      out.motion = motion;
       return Status::NotEnoughData;
     }
     motion = fitRigid2d(p, q, pairs);
