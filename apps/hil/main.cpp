@@ -26,6 +26,7 @@
 #include "agv/sim/world.hpp"
 #include "calibration_routine.hpp"
 #include "scenario.hpp"
+#include "sim_calibration_vehicle.hpp"
 #include "svg_plots.hpp"
 
 namespace {
@@ -104,6 +105,11 @@ void writeLocalizerRun(std::FILE* f, const agv::hil::RunResult& r) {
                r.meanKeypointsPerScan);
 }
 
+// The calibration stage's outcome and the encoder frames its routine exchanged over CAN.
+struct HilCalibration : agv::calibration::CalibrationOutcome {
+  agv::sim::CanBusCounters can;
+};
+
 // A localizer run meets the requirement when it reached the operation point, the pose sent to
 // the PLC is within 2 cm / 0.1 deg and the localizer is not lost (a lost localizer stops the
 // vehicle through the PLC interlock, whatever its last pose).
@@ -113,8 +119,7 @@ bool runMeets(const agv::hil::RunResult& r) {
 
 // The encoder frames of the whole session (calibration routine and every run), decoded by the
 // vehicle's CANopen decoder: the only way the encoder samples reach the navigation.
-agv::sim::CanBusCounters canTotals(const agv::hil::CalibrationOutcome& calib,
-                                   const std::vector<agv::hil::RunResult>& runs,
+agv::sim::CanBusCounters canTotals(const HilCalibration& calib, const std::vector<agv::hil::RunResult>& runs,
                                    const std::vector<agv::hil::RunResult>& mappingRuns) {
   agv::sim::CanBusCounters c = calib.can;
   for (const std::vector<agv::hil::RunResult>* set : {&runs, &mappingRuns}) {
@@ -147,7 +152,7 @@ void writeCanJson(std::FILE* f, const agv::hil::ScenarioConfig& cfg, const agv::
   std::fprintf(f, "},\n");
 }
 
-bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, const agv::hil::CalibrationOutcome& calib,
+bool writeJson(const std::string& file, const agv::hil::ScenarioConfig& cfg, const HilCalibration& calib,
                const std::string& calibStatus, const std::vector<agv::hil::RunResult>& runs,
                const std::vector<agv::hil::RunResult>& mappingRuns, std::size_t mapCorners, bool requirementMet) {
   std::FILE* f = std::fopen(file.c_str(), "w");
@@ -271,23 +276,41 @@ int main(int argc, char** argv) {
 
   // Stage 1: the on-vehicle calibration routine against the simulated vehicle.
   const agv::sim::RayCaster caster(world, 1.0);
-  agv::hil::CalibrationPlan plan;
+  agv::calibration::PlanRequest request;
   if (!worldFile.empty()) {
-    plan.home = world.paths.empty() ? agv::Pose2d{} : world.paths.front().start;
+    request.start = world.paths.empty() ? agv::Pose2d{} : world.paths.front().start;
   }
-  if (shortScenario) {
-    plan.steeringDeg[0] = 18.0;
-    plan.steeringDeg[1] = 34.0;
-    plan.steeringDeg[2] = 50.0;
-    plan.steeringCount = 3;
+  agv::sim::Point2 lo;
+  agv::sim::Point2 hi;
+  world.bounds(&lo, &hi);
+  request.area = agv::calibration::FreeArea{lo.x, lo.y, hi.x, hi.y};  // the hall; paths keep clear of obstacles
+  request.wheelbase = cfg.nominal.kinematics.wheelbase;
+  request.segmentsPerPhase = shortScenario ? 3 : 5;  // steering 18/34/50 or 18/26/34/42/50 deg
+  agv::calibration::CalibrationPlan plan;
+  std::string planError;
+  HilCalibration calib;
+  if (agv::calibration::planCalibration(request, plan, planError) != agv::Status::Ok) {
+    calib.status = agv::Status::OutOfRange;
+    calib.message = planError;
+  } else {
+    std::printf("calibration routine: %zu half-circle segments (steering +-", plan.segments.size());
+    for (std::size_t k = 0; k < plan.segments.size(); k += 4) {
+      std::printf("%s%.0f", k == 0 ? "" : "/", agv::rad2deg(plan.segments[k].steering));
+    }
+    std::printf(" deg, forward and backward) from (%.1f, %.1f)...\n", request.start.x, request.start.y);
+    std::fflush(stdout);
+    // Encoder samples only through CAN frames, as in the runs.
+    agv::calibration::SimCalibrationVehicle simVehicle(caster, cfg.vehicle, cfg.laser, cfg.seed, request.start,
+                                                       &cfg.can);
+    agv::calibration::RoutineOptions routine;
+    routine.nominal = cfg.nominal.kinematics;
+    routine.nominalLaser = cfg.nominal.laserMount;
+    routine.deceleration = cfg.vehicle.acceleration;
+    routine.controlPeriod = cfg.controlPeriod;
+    static_cast<agv::calibration::CalibrationOutcome&>(calib) =
+        agv::calibration::runCalibrationRoutine(simVehicle, plan, routine, {});
+    calib.can = simVehicle.canCounters();
   }
-  std::printf("calibration routine: %d half-circle segments (steering +-", plan.steeringCount * 4);
-  for (int k = 0; k < plan.steeringCount; ++k) {
-    std::printf("%s%.0f", k == 0 ? "" : "/", plan.steeringDeg[k]);
-  }
-  std::printf(" deg, forward and backward) from (%.1f, %.1f)...\n", plan.home.x, plan.home.y);
-  std::fflush(stdout);
-  const agv::hil::CalibrationOutcome calib = agv::hil::runCalibration(caster, cfg, plan);
   std::string calibStatus = agv::toString(calib.status);
   if (calib.status == agv::Status::Ok) {
     cfg.estimate.kinematics = calib.result.params;
@@ -313,7 +336,7 @@ int main(int argc, char** argv) {
     std::printf(
         "calibration: %d of %d segments used, %.0f s of driving, reflector alignment rms %.1f mm, "
         "condition numbers fwd %.1f / bwd %.1f / laser %.1f\n",
-        calib.segmentsUsed, calib.segmentsDriven, calib.simSeconds, 1000.0 * calib.meanAlignmentRms,
+        calib.segmentsUsed, calib.segmentsDriven, calib.seconds, 1000.0 * calib.meanAlignmentRms,
         calib.result.report.conditionForward, calib.result.report.conditionBackward,
         calib.result.report.conditionLaser);
   } else {

@@ -325,41 +325,25 @@ Status estimateLaserPose(Span<const CalibSegment> segments, const TricycleParams
   return Status::Ok;
 }
 
-Status calibrateStc(Span<const CalibSegment> segments, const CalibrationOptions& options,
-                    CalibrationResult& result) noexcept {
-  result = CalibrationResult{};
-  CalibrationReport& report = result.report;
-  const Status obs = checkCalibrationObservability(segments, CalibModel::Stc, options, report);
-  if (obs != Status::Ok) {
-    return obs;
-  }
-  Eigen::Matrix2d m;
-  Eigen::Vector2d g;
-  rotationNormalEquations(segments, Dir::All, options, m, g);
-  const double det = m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0);
-  // J = (s_w / L) (cos alpha, sin alpha) = M^-1 g (2x2 inverse by cofactors).
-  const Eigen::Vector2d j((m(1, 1) * g(0) - m(0, 1) * g(1)) / det, (m(0, 0) * g(1) - m(1, 0) * g(0)) / det);
-  TricycleParams& p = result.params;
-  p.wheelbase = options.nominal.wheelbase;
-  p.driveScale = p.wheelbase * j.norm();
-  p.steerOffsetForward = std::atan2(j(1), j(0));
-  p.steerOffsetBackward = p.steerOffsetForward;
-  if (!std::isfinite(p.driveScale) || !(p.driveScale > 0.0) || !std::isfinite(p.steerOffsetForward)) {
-    return refuse(report, Status::Unobservable, CalibCondition::PositiveScale);
-  }
-  report.rotationRms = rotationRms(segments, p, options);
-  const Status laser = estimateLaserPose(segments, p, options, result.laserPose, report);
-  report.status = laser;
-  return laser;
-}
+namespace {
 
-Status calibrateAtc(Span<const CalibSegment> segments, const CalibrationOptions& options,
-                    CalibrationResult& result) noexcept {
-  result = CalibrationResult{};
-  CalibrationReport& report = result.report;
-  const Status obs = checkCalibrationObservability(segments, CalibModel::Atc, options, report);
-  if (obs != Status::Ok) {
-    return obs;
+/// The odometry closed form of `model` into `p` (wheelbase from the options): STC solves the 2x2
+/// normal equations of all segments, ATC the equal-norm quadratic program of the forward and
+/// backward blocks. False when the solve fails.
+bool solveOdometry(Span<const CalibSegment> segments, CalibModel model, const CalibrationOptions& options,
+                   TricycleParams& p, CalibrationReport& report) noexcept {
+  p.wheelbase = options.nominal.wheelbase;
+  if (model == CalibModel::Stc) {
+    Eigen::Matrix2d m;
+    Eigen::Vector2d g;
+    rotationNormalEquations(segments, Dir::All, options, m, g);
+    const double det = m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0);
+    // J = (s_w / L) (cos alpha, sin alpha) = M^-1 g (2x2 inverse by cofactors).
+    const Eigen::Vector2d j((m(1, 1) * g(0) - m(0, 1) * g(1)) / det, (m(0, 0) * g(1) - m(1, 0) * g(0)) / det);
+    p.driveScale = p.wheelbase * j.norm();
+    p.steerOffsetForward = std::atan2(j(1), j(0));
+    p.steerOffsetBackward = p.steerOffsetForward;
+    return true;
   }
   Eigen::Matrix2d mf;
   Eigen::Vector2d gf;
@@ -372,25 +356,46 @@ Status calibrateAtc(Span<const CalibSegment> segments, const CalibrationOptions&
   // matrices positive semi-definite, i.e. lambda in [A, B], A = -min eig M_F, B = min eig M_B.
   EqualNormFit fit;
   if (solveEqualNormFit(mf, gf, mb, gb, fit) != Status::Ok) {
-    return refuse(report, Status::Unobservable, CalibCondition::PositiveScale);
+    return false;
   }
-  const double lambda = fit.lambda;
-  const Eigen::Vector2d& psiF = fit.psiF;
-  const Eigen::Vector2d& psiB = fit.psiB;
-  report.lambda = lambda;
+  report.lambda = fit.lambda;
+  p.driveScale = 0.5 * p.wheelbase * (fit.psiF.norm() + fit.psiB.norm());
+  p.steerOffsetForward = std::atan2(fit.psiF(1), fit.psiF(0));
+  p.steerOffsetBackward = std::atan2(fit.psiB(1), fit.psiB(0));
+  return true;
+}
+
+/// Observability, odometry closed form of `model`, then the laser pose: the common path of the
+/// STC and ATC solves.
+Status calibrate(Span<const CalibSegment> segments, CalibModel model, const CalibrationOptions& options,
+                 CalibrationResult& result) noexcept {
+  result = CalibrationResult{};
+  CalibrationReport& report = result.report;
+  const Status obs = checkCalibrationObservability(segments, model, options, report);
+  if (obs != Status::Ok) {
+    return obs;
+  }
   TricycleParams& p = result.params;
-  p.wheelbase = options.nominal.wheelbase;
-  p.driveScale = 0.5 * p.wheelbase * (psiF.norm() + psiB.norm());
-  p.steerOffsetForward = std::atan2(psiF(1), psiF(0));
-  p.steerOffsetBackward = std::atan2(psiB(1), psiB(0));
-  if (!std::isfinite(p.driveScale) || !(p.driveScale > 0.0) || !std::isfinite(p.steerOffsetForward) ||
-      !std::isfinite(p.steerOffsetBackward)) {
+  if (!solveOdometry(segments, model, options, p, report) || !std::isfinite(p.driveScale) || !(p.driveScale > 0.0) ||
+      !std::isfinite(p.steerOffsetForward) || !std::isfinite(p.steerOffsetBackward)) {
     return refuse(report, Status::Unobservable, CalibCondition::PositiveScale);
   }
   report.rotationRms = rotationRms(segments, p, options);
   const Status laser = estimateLaserPose(segments, p, options, result.laserPose, report);
   report.status = laser;
   return laser;
+}
+
+}  // namespace
+
+Status calibrateStc(Span<const CalibSegment> segments, const CalibrationOptions& options,
+                    CalibrationResult& result) noexcept {
+  return calibrate(segments, CalibModel::Stc, options, result);
+}
+
+Status calibrateAtc(Span<const CalibSegment> segments, const CalibrationOptions& options,
+                    CalibrationResult& result) noexcept {
+  return calibrate(segments, CalibModel::Atc, options, result);
 }
 
 }  // namespace agv

@@ -1,5 +1,7 @@
 #include "agv/calib/reflector_alignment.hpp"
 
+#include "agv/calib/rigid_fit.hpp"
+
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -10,7 +12,7 @@
 namespace agv {
 namespace {
 
-constexpr std::uint16_t kNone = 0xFFFF;
+constexpr std::uint16_t kNone = kNoPair;
 static_assert(kMaxReflectors < kNone, "reflector indices must fit the association table");
 
 /// Mutual nearest neighbours within `gate` between first[i] and motion(second[j]).
@@ -50,48 +52,6 @@ std::size_t associate(Span<const Eigen::Vector2d> first, Span<const Eigen::Vecto
     }
   }
   return count;
-}
-
-/// Closed-form least squares: the rotation and translation mapping the paired second points
-/// onto the first ones (centroids, then the angle of the cross-covariance).
-Pose2d solvePairs(Span<const Eigen::Vector2d> first, Span<const Eigen::Vector2d> second,
-                  const std::array<std::uint16_t, kMaxReflectors>& pairOf, std::size_t count) noexcept {
-  Eigen::Vector2d cf = Eigen::Vector2d::Zero();
-  Eigen::Vector2d cs = Eigen::Vector2d::Zero();
-  for (std::size_t j = 0; j < second.size(); ++j) {
-    if (pairOf[j] != kNone) {
-      cf += first[pairOf[j]];
-      cs += second[j];
-    }
-  }
-  const double n = static_cast<double>(count);
-  cf /= n;
-  cs /= n;
-  double dot = 0.0;
-  double cross = 0.0;
-  for (std::size_t j = 0; j < second.size(); ++j) {
-    if (pairOf[j] != kNone) {
-      const Eigen::Vector2d q = second[j] - cs;
-      const Eigen::Vector2d p = first[pairOf[j]] - cf;
-      dot += q.dot(p);
-      cross += q.x() * p.y() - q.y() * p.x();
-    }
-  }
-  const double phi = std::atan2(cross, dot);
-  const double c = std::cos(phi);
-  const double s = std::sin(phi);
-  return Pose2d{cf.x() - (c * cs.x() - s * cs.y()), cf.y() - (s * cs.x() + c * cs.y()), phi};
-}
-
-double pairRms(Span<const Eigen::Vector2d> first, Span<const Eigen::Vector2d> second, const Pose2d& motion,
-               const std::array<std::uint16_t, kMaxReflectors>& pairOf, std::size_t count) noexcept {
-  double sum = 0.0;
-  for (std::size_t j = 0; j < second.size(); ++j) {
-    if (pairOf[j] != kNone) {
-      sum += (first[pairOf[j]] - motion.transformPoint(second[j])).squaredNorm();
-    }
-  }
-  return count > 0 ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
 }
 
 bool allFinite(Span<const Eigen::Vector2d> pts) noexcept {
@@ -137,7 +97,7 @@ Status alignReflectors(Span<const Eigen::Vector2d> first, Span<const Eigen::Vect
         out.matches = count;
         return Status::NotEnoughData;
       }
-      const Pose2d next = solvePairs(first, second, pairOf, count);
+      const Pose2d next = fitRigid2d(first, second, Span<const std::uint16_t>(pairOf.data(), second.size()));
       const double step =
           std::hypot(next.x - motion.x, next.y - motion.y) + std::fabs(angleDiff(next.theta, motion.theta));
       motion = next;
@@ -149,7 +109,7 @@ Status alignReflectors(Span<const Eigen::Vector2d> first, Span<const Eigen::Vect
   }
   out.motion = motion;
   out.matches = count;
-  out.rms = pairRms(first, second, motion, pairOf, count);
+  out.rms = rigidFitRms(first, second, Span<const std::uint16_t>(pairOf.data(), second.size()), motion);
   return converged ? Status::Ok : Status::NotConverged;
 }
 
