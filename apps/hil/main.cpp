@@ -242,6 +242,10 @@ int main(int argc, char** argv) {
   app.add_flag("--short", shortScenario,
                "test-size scenario: 1 run per path, 1 deg laser resolution, 3 calibration steering angles");
   app.add_flag("--print-world", printWorld, "print the built-in world file and exit");
+  int minHitsToCorrect = agv::hil::ScenarioConfig{}.dynamicMinHitsToCorrect;
+  app.add_option("--min-hits-to-correct", minHitsToCorrect,
+                 "dynamic mode: matches before a new corner corrects the pose (0 = at once)")
+      ->check(CLI::Range(0, 20));
   bool canSync = false;
   app.add_flag("--can-sync", canSync,
                "encoders send synchronous TPDOs on the vehicle's SYNC (every encoder period) instead of cyclic ones");
@@ -267,6 +271,7 @@ int main(int argc, char** argv) {
   agv::hil::ScenarioConfig cfg;
   cfg.runsPerPath = shortScenario && app.count("--runs") == 0 ? 1 : runs;
   cfg.seed = seed;
+  cfg.dynamicMinHitsToCorrect = static_cast<std::int16_t>(minHitsToCorrect);
   if (canSync) {
     cfg.can.bus.syncPeriod = cfg.vehicle.encoderPeriod;
   }

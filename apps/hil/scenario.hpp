@@ -72,6 +72,8 @@ struct ScenarioConfig {
   double startHeadingStdDev = 0.002;  ///< [rad]
   Duration controlPeriod = Duration::fromMilliseconds(20);
   double maxRunSeconds = 120.0;  ///< a run not finished by then is an error
+  /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
+  std::int16_t dynamicMinHitsToCorrect = 10;
 };
 
 /// One sample of a run's history (every control period).

@@ -56,6 +56,8 @@ int main(int argc, char** argv) {
                  "probability that an expected corner is detected (the check counts expected detections)");
   app.add_option("--min-hits-confirmed", options.localizer.minHitsConfirmed,
                  "hits from which a dynamic landmark is expected and kept while occluded");
+  app.add_option("--min-hits-to-correct", options.localizer.minHitsToCorrect,
+                 "hits from which a dynamic landmark corrects the pose (tentative before)");
   app.add_option("--lost-after", options.localizer.lostAfterBadCycles, "consecutive bad cycles that make it lost");
   app.add_option("--initial-hits", options.map.initialHits, "hit count of a new landmark");
   app.add_option("--max-hits", options.map.maxHits, "landmark hit-count cap");

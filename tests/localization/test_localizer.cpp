@@ -22,8 +22,9 @@ struct Scene {
   std::vector<Eigen::Vector2d> world;
   std::mt19937_64 rng{3};
 
-  explicit Scene(MapMode mode = MapMode::Static, bool surveyed = true) {
+  explicit Scene(MapMode mode = MapMode::Static, bool surveyed = true, std::int16_t minHitsToCorrect = 0) {
     params.laser.mounting = Pose2d{1.0, 0.0, 0.0};
+    params.minHitsToCorrect = minHitsToCorrect;
     loc = std::make_unique<Localizer>(params);
     LandmarkMapParams mp;
     mp.mode = mode;
@@ -266,6 +267,57 @@ TEST_CASE("localizer: dynamic map without a prior map: insert, confirm, forget",
     (void)s.cycle();
   }
   CHECK(s.map->size() == sizeBefore);
+}
+
+TEST_CASE("localizer: a new dynamic landmark is tentative (matched, not used) until minHitsToCorrect",
+          "[localization][localizer][map]") {
+  constexpr std::int16_t kNeed = 5;
+  Scene s(MapMode::Dynamic, false, kNeed);
+  const std::size_t n = s.world.size();
+  s.stand(10);
+  s.observe(s.world, LandmarkKind::Corner);
+  LocalizerHealth h = s.cycle();
+  REQUIRE(h.inserted == n);
+  const std::int16_t initialHits = s.map->params().initialHits;
+  // Matched but not used while the hit count is below kNeed: the filter state is exactly the
+  // prediction's, the map still counts the matches and averages the positions.
+  int tentativeCycles = 0;
+  for (std::int16_t hits = initialHits; hits < kNeed; ++hits) {
+    s.stand(10);
+    s.observe(s.world, LandmarkKind::Corner);
+    const Pose2d before = s.loc->pose();
+    const Eigen::Matrix3d covBefore = s.loc->covariance();
+    h = s.cycle();
+    CHECK(h.used == 0U);
+    CHECK(h.tentative == n);
+    CHECK(h.inserted == 0U);
+    CHECK((h.flags & static_cast<std::uint32_t>(LocalizerFlag::NoFix)) != 0U);
+    CHECK((h.flags & static_cast<std::uint32_t>(LocalizerFlag::BadCycle)) == 0U);  // a tentative match counts as seen
+    CHECK_FALSE(s.loc->lost());
+    CHECK(s.loc->pose().x == before.x);
+    CHECK(s.loc->pose().theta == before.theta);
+    CHECK(s.loc->covariance() == covBefore);
+    s.map->forEach([&](LandmarkIndex, const Landmark& l) { CHECK(l.hits == hits + 1); });
+    ++tentativeCycles;
+  }
+  CHECK(tentativeCycles == kNeed - initialHits);
+  // Confirmed: every match now corrects, and the position uncertainty shrinks.
+  s.stand(10);
+  s.observe(s.world, LandmarkKind::Corner);
+  const double varBefore = s.loc->covariance()(0, 0);
+  h = s.cycle();
+  CHECK(h.used == n);
+  CHECK(h.tentative == 0U);
+  CHECK(s.loc->covariance()(0, 0) < 0.5 * varBefore);
+}
+
+TEST_CASE("localizer: surveyed landmarks correct at once whatever minHitsToCorrect", "[localization][localizer][map]") {
+  Scene s(MapMode::Static, true, 20);
+  s.stand(10);
+  s.observe(s.world);
+  const LocalizerHealth& h = s.cycle();
+  CHECK(h.used == s.world.size());
+  CHECK(h.tentative == 0U);
 }
 
 TEST_CASE("localizer: a full map refuses new landmarks and the health says so", "[localization][localizer][map]") {

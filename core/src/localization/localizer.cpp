@@ -295,7 +295,7 @@ void Localizer::maintainMap(const ScanObservations& scan, const LaserScan* beams
   const std::uint32_t deletedBefore = map.counters().deleted;
   for (std::size_t i = 0; i < n; ++i) {
     const Scratch& s = scratch_[i];
-    if (s.state != Assoc::Used && s.state != Assoc::None) {
+    if (s.state != Assoc::Used && s.state != Assoc::Tentative && s.state != Assoc::None) {
       continue;
     }
     const PointObservation& o = scan.points[i];
@@ -304,7 +304,7 @@ void Localizer::maintainMap(const ScanObservations& scan, const LaserScan* beams
     Eigen::Matrix<double, 2, 3> J;
     J << 1.0, 0.0, -(w.y() - x.y), 0.0, 1.0, w.x() - x.x;
     const double var = 0.5 * (s.R.trace() + (J * P * J.transpose()).trace());
-    if (s.state == Assoc::Used) {
+    if (s.state == Assoc::Used || s.state == Assoc::Tentative) {
       (void)map.reinforce(s.landmark, w.x(), w.y(), var, cycle_);
     }
   }
@@ -457,6 +457,10 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
       s.state = Assoc::UpdateRejected;
       continue;
     }
+    if (!lm->surveyed && lm->hits < params_.minHitsToCorrect) {
+      s.state = Assoc::Tentative;  // matched for the map lifecycle, not used by the filter
+      continue;
+    }
     const PointObservation& o = scan.points[order_[q]];
     Eigen::Matrix2d R = s.R;
     R(0, 0) += lm->variance;
@@ -477,6 +481,9 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     switch (scratch_[i].state) {
       case Assoc::Used:
         ++health_.used;
+        break;
+      case Assoc::Tentative:
+        ++health_.tentative;
         break;
       case Assoc::NonFinite:
         ++health_.rejectedNonFinite;
@@ -526,7 +533,8 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     if (need < static_cast<double>(params_.minMatchesForFix)) {
       need = static_cast<double>(params_.minMatchesForFix);
     }
-    if (static_cast<double>(health_.used) < need) {
+    // A tentative match confirms the landmark is there as well as a used one.
+    if (static_cast<double>(health_.used) + static_cast<double>(health_.tentative) < need) {
       bad = true;
     }
   }

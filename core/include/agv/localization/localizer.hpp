@@ -120,6 +120,13 @@ struct LocalizerParams {
   /// artefact (an occlusion edge), its absence says nothing about the pose, and when it disappears
   /// behind something it is decremented as if in view.
   std::int16_t minHitsConfirmed = 3;
+  /// A dynamic landmark corrects the pose only once it has this many hits (surveyed landmarks
+  /// always do). Before that it is *tentative*: associated and gated like any other, matched
+  /// (hits, position averaged at the update rate) but not fed to the filter. A corner inserted
+  /// from this pose and re-observed from a few centimetres further on carries the same pose error
+  /// and nearly the same detector error; used at once it pulls the heading toward its own
+  /// insertion error (docs/localization.md, "Tentative landmarks"). 0 = every match corrects.
+  std::int16_t minHitsToCorrect = 0;
   /// A checked cycle is bad when fewer than max(minMatchesForFix, this fraction of the expected
   /// detections) landmarks were used.
   double minMatchedFraction = 0.3;
@@ -167,6 +174,7 @@ struct LocalizerHealth {
   Timestamp stamp;                 ///< the scan's stamp
   std::uint16_t observations = 0;  ///< points in the scan
   std::uint16_t used = 0;          ///< landmarks used in the update
+  std::uint16_t tentative = 0;     ///< matched to a tentative landmark (below minHitsToCorrect): not used
   std::uint16_t rejectedNonFinite = 0;
   std::uint16_t rejectedOutOfView = 0;
   std::uint16_t rejectedGate = 0;
@@ -244,6 +252,7 @@ class Localizer {
     Duplicate,
     Ambiguous,
     Used,
+    Tentative,
     UpdateRejected
   };
   struct Scratch {
