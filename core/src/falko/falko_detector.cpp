@@ -188,54 +188,41 @@ std::size_t farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::s
 }
 }  // namespace
 
-bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight,
-                           Side& left, Side& right) noexcept {
+FalkoDetector::Side FalkoDetector::gatherSide(const ScanPoints& pts, std::size_t i, int dir, std::size_t k, float r2,
+                                              float* xs, float* ys) noexcept {
   const float cx = pts.x(i);
   const float cy = pts.y(i);
-  const float r2 = radius * radius;
   // Invalid readings are far away (ScanPoints::kFarAway): the radius test drops them.
-  std::size_t nl = 0;
-  float slx = 0.0F;
-  float sly = 0.0F;
-  float* lx = leftX_.data();
-  float* ly = leftY_.data();
-  falko_detail::walkBeams(pts, i, -1, kLeft, [&](std::size_t j) {
+  std::size_t count = 0;
+  float sx = 0.0F;
+  float sy = 0.0F;
+  falko_detail::walkBeams(pts, i, dir, k, [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {
-      lx[nl] = dx;
-      ly[nl] = dy;
-      ++nl;
-      slx += dx;
-      sly += dy;
+      xs[count] = dx;
+      ys[count] = dy;
+      ++count;
+      sx += dx;
+      sy += dy;
     }
   });
-  left.count = nl;
-  left.sumX = slx;
-  left.sumY = sly;
-  if (nl < params_.minSidePoints) {
+  Side side;
+  side.count = count;
+  side.sumX = sx;
+  side.sumY = sy;
+  return side;
+}
+
+bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight,
+                           Side& left, Side& right) noexcept {
+  const float r2 = radius * radius;
+  left = gatherSide(pts, i, -1, kLeft, r2, leftX_.data(), leftY_.data());
+  if (left.count < params_.minSidePoints) {
     return false;  // early rejection: the other side is not needed
   }
-  std::size_t nr = 0;
-  float srx = 0.0F;
-  float sry = 0.0F;
-  float* rx = rightX_.data();
-  float* ry = rightY_.data();
-  falko_detail::walkBeams(pts, i, 1, kRight, [&](std::size_t j) {
-    const float dx = pts.x(j) - cx;
-    const float dy = pts.y(j) - cy;
-    if (dx * dx + dy * dy <= r2) {
-      rx[nr] = dx;
-      ry[nr] = dy;
-      ++nr;
-      srx += dx;
-      sry += dy;
-    }
-  });
-  right.count = nr;
-  right.sumX = srx;
-  right.sumY = sry;
-  return nr >= params_.minSidePoints;
+  right = gatherSide(pts, i, 1, kRight, r2, rightX_.data(), rightY_.data());
+  return right.count >= params_.minSidePoints;
 }
 
 float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float s) noexcept {

@@ -75,6 +75,10 @@ class FalkoDetector {
   /// farthest neighbours); returns false when a side has too few points.
   bool gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight, Side& left,
               Side& right) noexcept;
+  /// One side of gather: the points within sqrt(r2) of beam i among the k beams in direction dir
+  /// (-1: before, +1: after), nearest first, relative to the candidate, written to (xs, ys).
+  static Side gatherSide(const ScanPoints& pts, std::size_t i, int dir, std::size_t k, float r2, float* xs,
+                         float* ys) noexcept;
   float scoreOf(const Side& left, const Side& right, float c, float s) noexcept;
   /// Sub-beam refinement and orientation; false when the points around the candidate are
   /// explained by one line (the candidate is then dropped).
