@@ -306,11 +306,17 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     float* wy = leftY_.data();
     std::size_t m = 0;
     const std::size_t kmax = pts.maxOffset(pts.range(i), reach);
-    LineAcc total;
-    // Window in beam order: the earlier beams are walked nearest first, then reversed. Branch-free
-    // compaction: every beam is written, the count advances only for points within reach (at
-    // most one write beyond the kept points, inside the buffer: the window never exceeds the
-    // scan). The sums are accumulated afterwards in the same point order.
+    // The split point is the one nearest the corner, which lies within subbeamMaxShift of the
+    // candidate: farther splits are not tried (cheaper, and they could only be rejected). No
+    // point more than kSplit beams away can be that close.
+    const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
+    const float splitReach2 = splitReach * splitReach;
+    const std::size_t kSplitBound = pts.maxOffset(pts.range(i), splitReach);
+    const std::size_t kSplit = kSplitBound < kmax ? kSplitBound : kmax;
+    // Window in beam order (earlier beams farthest first). Branch-free compaction: every beam is
+    // written, the count advances only for points within reach (at most one write beyond the
+    // kept points, inside the buffer: the window never exceeds the scan). The window indices
+    // [qStart, qEnd) hold the points at most kSplit beams from the candidate.
     auto take = [&](std::size_t j) {
       const float qx = pts.x(j) - mxAbs;
       const float qy = pts.y(j) - myAbs;
@@ -318,21 +324,19 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
       wy[m] = qy;
       m += qx * qx + qy * qy <= reach2 ? 1U : 0U;  // invalid readings are far away
     };
-    falko_detail::walkBeams(pts, i, -1, kmax, take);
-    for (std::size_t a = 0; a < m; ++a) {
-      total.add(wx[a], wy[a]);
-    }
+    falko_detail::walkBeamsInOrder(pts, i, -1, kSplit + 1, kmax, take);
+    const std::size_t qStart = m;
+    falko_detail::walkBeamsInOrder(pts, i, -1, 1, kSplit, take);
     const std::size_t mLeft = m;
-    for (std::size_t a = 0, b = m; a + 1 < b; ++a, --b) {
-      const float tx = wx[a];
-      const float ty = wy[a];
-      wx[a] = wx[b - 1];
-      wy[a] = wy[b - 1];
-      wx[b - 1] = tx;
-      wy[b - 1] = ty;
-    }
     take(i);
-    falko_detail::walkBeams(pts, i, 1, kmax, take);
+    falko_detail::walkBeamsInOrder(pts, i, 1, 1, kSplit, take);
+    const std::size_t qEnd = m;
+    falko_detail::walkBeamsInOrder(pts, i, 1, kSplit + 1, kmax, take);
+    // Sums: the earlier points nearest first, then the candidate and the later points.
+    LineAcc total;
+    for (std::size_t a = mLeft; a > 0; --a) {
+      total.add(wx[a - 1], wy[a - 1]);
+    }
     for (std::size_t a = mLeft; a < m; ++a) {
       total.add(wx[a], wy[a]);
     }
@@ -342,16 +346,18 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     float bestCost = std::numeric_limits<float>::infinity();
     LineAcc bestL;
     LineAcc bestR;
-    // The split point is the one nearest the corner, which lies within subbeamMaxShift of the
-    // candidate: farther splits are not tried (cheaper, and they could only be rejected).
-    const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
-    const float splitReach2 = splitReach * splitReach;
     if (m >= 2 * minSide + 1) {
       const std::size_t qLast = m - minSide - 1;  // the last split point with minSide after it
+      // Split points beyond qEnd are outside the split reach: `before` is not needed there.
+      const std::size_t qStop = qEnd <= qLast ? qEnd : qLast + 1;
       for (std::size_t q = 0; q < minSide; ++q) {
         before.add(wx[q], wy[q]);
       }
-      for (std::size_t q = minSide; q <= qLast; ++q) {
+      std::size_t q = minSide;
+      for (; q < qStart && q < qStop; ++q) {
+        before.add(wx[q], wy[q]);
+      }
+      for (; q < qStop; ++q) {
         if (wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
           const float costL = before.residual();
           // The residual of the points before the split only grows with q (a line through more

@@ -173,5 +173,48 @@ inline void walkBeams(const ScanPoints& pts, std::size_t i, int dir, std::size_t
   }
 }
 
+/// Calls f(j) for the beams kNear..kFar steps (1 <= kNear; nothing when kNear > kFar) from beam i
+/// in direction dir (-1 or +1), in increasing beam order: farthest first before the candidate,
+/// nearest first after it. Wraps on 360 deg scans and stops at the scan ends otherwise; kFar must
+/// not exceed pts.maxOffset(...) so that the two directions never overlap. Two plain index runs.
+template <typename F>
+inline void walkBeamsInOrder(const ScanPoints& pts, std::size_t i, int dir, std::size_t kNear, std::size_t kFar,
+                             F&& f) {
+  if (kNear > kFar || kNear == 0) {
+    return;
+  }
+  const std::size_t n = pts.size();
+  if (dir < 0) {
+    // Offsets beyond i wrap to the end of the scan: indices n + i - kFar .. n + i - max(kNear, i + 1).
+    if (kFar > i && pts.wraps()) {
+      const std::size_t sNear = kNear > i ? kNear : i + 1;
+      for (std::size_t j = n + i - kFar; j <= n + i - sNear; ++j) {
+        f(j);
+      }
+    }
+    if (kNear <= i) {
+      const std::size_t sFar = kFar <= i ? kFar : i;
+      for (std::size_t j = i - sFar; j <= i - kNear; ++j) {
+        f(j);
+      }
+    }
+  } else {
+    // Offsets up to n - 1 - i stay direct, the rest wrap to the start of the scan.
+    const std::size_t lastDirect = n - 1 - i;
+    if (kNear <= lastDirect) {
+      const std::size_t sFar = kFar <= lastDirect ? kFar : lastDirect;
+      for (std::size_t j = i + kNear; j <= i + sFar; ++j) {
+        f(j);
+      }
+    }
+    if (kFar > lastDirect && pts.wraps()) {
+      const std::size_t sNear = kNear > lastDirect ? kNear : lastDirect + 1;
+      for (std::size_t j = i + sNear - n; j <= i + kFar - n; ++j) {
+        f(j);
+      }
+    }
+  }
+}
+
 }  // namespace falko_detail
 }  // namespace agv
