@@ -216,5 +216,33 @@ inline void walkBeamsInOrder(const ScanPoints& pts, std::size_t i, int dir, std:
   }
 }
 
+/// The beams at most k steps from beam i (i included) as at most two index runs [begin, end)
+/// (two when a 360 deg scan wraps), for loops where the visiting order does not matter. k must
+/// not exceed pts.maxOffset(...). Returns the number of runs.
+inline std::size_t beamRuns(const ScanPoints& pts, std::size_t i, std::size_t k, std::size_t (&begin)[2],
+                            std::size_t (&end)[2]) noexcept {
+  const std::size_t n = pts.size();
+  const std::size_t lo = k <= i ? i - k : 0;
+  const std::size_t hi = i + k < n ? i + k + 1 : n;
+  begin[0] = lo;
+  end[0] = hi;
+  if (!pts.wraps()) {
+    return 1;
+  }
+  // Wrapped parts: before beam 0 (from the end of the scan) or after beam n - 1 (from its start).
+  // maxOffset keeps 2k + 1 <= n, so the two parts never overlap the direct run.
+  if (k > i) {
+    begin[1] = n + i - k;
+    end[1] = n;
+    return 2;
+  }
+  if (i + k >= n) {
+    begin[1] = 0;
+    end[1] = i + k + 1 - n;
+    return 2;
+  }
+  return 1;
+}
+
 }  // namespace falko_detail
 }  // namespace agv
