@@ -16,6 +16,7 @@ unsigned popcount16(std::uint16_t v) noexcept {
   return (x + (x >> 8U)) & 0x1FU;
 }
 static_assert(kBscSectors == 16, "BSC rings are 16-bit masks and use the 16-sector fast path");
+static_assert(kBscRings == 8, "the ring search in describe takes three halving steps over 7 boundaries");
 }  // namespace
 
 std::uint32_t bscDistance(const BscDescriptor& a, const BscDescriptor& b) noexcept {
@@ -56,6 +57,10 @@ FalkoDescriber::FalkoDescriber(const FalkoDescriptorParams& params) noexcept : p
   for (float& w : kernel_) {
     w /= sum;
   }
+  for (std::size_t b = 0; b + 1 < kBscRings; ++b) {
+    const float rb = params.radius * static_cast<float>(b + 1) / static_cast<float>(kBscRings);
+    ringBound2_[b] = rb * rb;
+  }
 }
 
 Status FalkoDescriber::describe(const ScanPoints& points, const FalkoKeypoint& keypoint, BscDescriptor& bsc,
@@ -79,11 +84,6 @@ Status FalkoDescriber::describe(const ScanPoints& points, const FalkoKeypoint& k
   const float py = keypoint.y;
   const float c = std::cos(keypoint.orientation);
   const float s = std::sin(keypoint.orientation);
-  std::array<float, kBscRings - 1> ringBound2{};  // squared outer radius of rings 0..6
-  for (std::size_t b = 0; b + 1 < kBscRings; ++b) {
-    const float rb = R * static_cast<float>(b + 1) / static_cast<float>(kBscRings);
-    ringBound2[b] = rb * rb;
-  }
   const float binsPerRadian = static_cast<float>(kCghBins) / kTwoPi<float>;
   std::array<std::uint16_t, kCghBins> counts{};
 
@@ -113,10 +113,10 @@ Status FalkoDescriber::describe(const ScanPoints& points, const FalkoKeypoint& k
       const float v = dy * c - dx * s;
       const unsigned sector = falko_detail::sector16(u, v);
       // Ring from squared distance: count the ring boundaries below (no square root).
-      std::size_t ring = 0;
-      for (std::size_t b = 0; b + 1 < kBscRings; ++b) {
-        ring += d2 >= ringBound2[b] ? 1U : 0U;
-      }
+      // Three halving steps over the 7 sorted boundaries, without branches.
+      unsigned ring = d2 >= ringBound2_[3] ? 4U : 0U;
+      ring += d2 >= ringBound2_[ring + 1U] ? 2U : 0U;
+      ring += d2 >= ringBound2_[ring] ? 1U : 0U;
       bsc.rings[ring] = static_cast<std::uint16_t>(bsc.rings[ring] | (1U << sector));
       const unsigned bin = kCghBins == kBscSectors
                                ? sector
