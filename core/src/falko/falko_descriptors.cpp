@@ -94,7 +94,7 @@ Status FalkoDescriber::describe(const ScanPoints& points, const FalkoKeypoint& k
   const float sx = px - points.x(i);
   const float sy = py - points.y(i);
   const float reach = R + std::sqrt(sx * sx + sy * sy);
-  const std::size_t kmax = points.maxOffset(points.range(i), reach);
+  const std::size_t kmax = points.maxOffsetAt(i, reach);
   std::size_t runBegin[2];
   std::size_t runEnd[2];
   const std::size_t runs = falko_detail::beamRuns(points, i, kmax, runBegin, runEnd);

@@ -305,13 +305,13 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     float* wx = leftX_.data();
     float* wy = leftY_.data();
     std::size_t m = 0;
-    const std::size_t kmax = pts.maxOffset(pts.range(i), reach);
+    const std::size_t kmax = pts.maxOffsetAt(i, reach);
     // The split point is the one nearest the corner, which lies within subbeamMaxShift of the
     // candidate: farther splits are not tried (cheaper, and they could only be rejected). No
     // point more than kSplit beams away can be that close.
     const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
     const float splitReach2 = splitReach * splitReach;
-    const std::size_t kSplitBound = pts.maxOffset(pts.range(i), splitReach);
+    const std::size_t kSplitBound = pts.maxOffsetAt(i, splitReach);
     const std::size_t kSplit = kSplitBound < kmax ? kSplitBound : kmax;
     // Window in beam order (earlier beams farthest first). Branch-free compaction: every beam is
     // written, the count advances only for points within reach (at most one write beyond the
@@ -499,7 +499,7 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     // found from the window edges inwards; most beams (walls) stop here, before the full
     // neighbourhood and the score.
     const float r2 = radius * radius;
-    const std::size_t kmax = pts.maxOffset(rho, radius);
+    const std::size_t kmax = pts.maxOffsetAt(i, radius);
     float fx = 0.0F;
     float fy = 0.0F;
     float bx = 0.0F;

@@ -73,6 +73,23 @@ class ScanPoints {
     return static_cast<std::size_t>(bound);
   }
 
+  /// Same bound as maxOffset(range(i), radius) or larger (never smaller: every caller gets the
+  /// same points), without a division or square root when radius <= range(i) / 2: asin(q) <=
+  /// q * (1 + q^2 * (1/6 + q^2 / 5)) for q <= 1/2 (the Taylor series of asin has positive
+  /// coefficients and its tail beyond q^3 stays below q^5 / 5 there); maxOffset otherwise.
+  std::size_t maxOffsetAt(std::size_t i, float radius) const noexcept {
+    const float q = radius * invRange_[i];
+    if (!(q <= 0.5F)) {
+      return maxOffset(range_[i], radius);
+    }
+    const float q2 = q * q;
+    const float bound = q * (1.0F + q2 * (0.16666667F + 0.2F * q2)) * invIncrement_ + 1.0F;
+    if (!(bound < static_cast<float>(maxSideOffset_))) {
+      return maxSideOffset_;
+    }
+    return static_cast<std::size_t>(bound);
+  }
+
   /// Index `k` beams after `i` (k may be negative), wrapped on 360 deg scans; returns size() when
   /// the result lies outside a non-wrapping scan.
   std::size_t offsetIndex(std::size_t i, std::ptrdiff_t k) const noexcept {
@@ -96,6 +113,7 @@ class ScanPoints {
   std::array<float, kMaxScanBeams> x_{};
   std::array<float, kMaxScanBeams> y_{};
   std::array<float, kMaxScanBeams> range_{};
+  std::array<float, kMaxScanBeams> invRange_{};  ///< 1 / range, 0 for invalid readings
   std::array<std::uint8_t, kMaxScanBeams> valid_{};
   std::size_t size_ = 0;
   std::size_t validCount_ = 0;
