@@ -12,6 +12,9 @@ namespace agv {
 namespace {
 
 constexpr std::size_t kMaxGridSectors = 64;
+/// Interleaved copies of the score histogram (see scoreOf); FalkoDetector::hist_ holds them.
+constexpr std::size_t kHistCopies = falko_detail::kFourWide ? 2 : 1;
+static_assert(kHistCopies * kMaxGridSectors <= FalkoDetector::kHistSize, "score histogram buffer too small");
 constexpr float kNotCandidate = std::numeric_limits<float>::infinity();
 
 /// A line through (mx, my) with unit direction (dx, dy).
@@ -236,9 +239,12 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
     const Side& sd = side == 0 ? left : right;
     const float* px = side == 0 ? leftX_.data() : rightX_.data();
     const float* py = side == 0 ? leftY_.data() : rightY_.data();
-    // hist_ is all zero between calls: only the used bins are reset at the end.
-    std::array<unsigned, kMaxGridSectors> used;  // only [0, usedCount) is read
-    unsigned usedCount = 0;
+    // Counts in interleaved histograms (point k in copy k % kHistCopies): the points of one wall
+    // fall in one sector, and with a single histogram every increment waits for the previous one
+    // to reach memory (on out-of-order cores; in-order ones use one copy).
+    // hist_ is all zero between calls: only the occupied bins are reset at the end.
+    std::uint32_t* h = hist_.data();
+    std::uint64_t occupied = 0;
     std::size_t k = 0;
     if (fast16 && falko_detail::kFourWide) {
       // Sectors of four neighbours at a time, branch-free (vector registers where available).
@@ -250,9 +256,8 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
           b4[l] = falko_detail::sector16Branchless(u, v);
         }
         for (std::size_t l = 0; l < 4; ++l) {
-          if (hist_[b4[l]]++ == 0U) {
-            used[usedCount++] = b4[l];
-          }
+          ++h[(l % kHistCopies) * kMaxGridSectors + b4[l]];
+          occupied |= std::uint64_t{1} << b4[l];
         }
       }
     }
@@ -261,25 +266,36 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
       const float u = px[k] * c + py[k] * s;
       const float v = py[k] * c - px[k] * s;
       const unsigned b = fast16 ? falko_detail::sector16(u, v) : falko_detail::sectorOf(v, u, binsPerRadian, bins);
-      if (hist_[b]++ == 0U) {
-        used[usedCount++] = b;
+      ++h[(k % kHistCopies) * kMaxGridSectors + b];
+      occupied |= std::uint64_t{1} << b;
+    }
+    // Occupied sectors (branch-free compaction) and their counts.
+    std::array<unsigned, kMaxGridSectors> used;      // only [0, usedCount) is read
+    std::array<std::uint32_t, kMaxGridSectors> cnt;  // count of used[a]
+    unsigned usedCount = 0;
+    for (; occupied != 0U; occupied &= occupied - 1U) {
+      const unsigned b = falko_detail::lowestBitIndex(occupied);
+      std::uint32_t sum = 0;
+      for (std::size_t copy = 0; copy < kHistCopies; ++copy) {
+        sum += h[copy * kMaxGridSectors + b];
+        h[copy * kMaxGridSectors + b] = 0U;
       }
+      used[usedCount] = b;
+      cnt[usedCount] = sum;
+      ++usedCount;
     }
     // Sum over point pairs of the circular sector distance = sum over pairs of occupied sectors.
     std::uint32_t sum = 0;
     for (unsigned a = 0; a < usedCount; ++a) {
       for (unsigned b = a + 1U; b < usedCount; ++b) {
-        const unsigned d0 = used[a] > used[b] ? used[a] - used[b] : used[b] - used[a];
+        const unsigned d0 = used[b] - used[a];  // used[] is increasing
         const unsigned d = d0 > half ? bins - d0 : d0;
-        sum += hist_[used[a]] * hist_[used[b]] * d;  // < 2048^2 * 32: fits
+        sum += cnt[a] * cnt[b] * d;  // < 2048^2 * 32: fits
       }
     }
-    for (unsigned a = 0; a < usedCount; ++a) {
-      hist_[used[a]] = 0U;
-    }
-    const auto cnt = static_cast<float>(sd.count);
+    const auto cntSide = static_cast<float>(sd.count);
     total += static_cast<float>(sum);
-    pairs += 0.5F * cnt * (cnt - 1.0F);
+    pairs += 0.5F * cntSide * (cntSide - 1.0F);
   }
   return pairs > 0.0F ? total / pairs : 0.0F;
 }

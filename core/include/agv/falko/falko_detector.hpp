@@ -63,6 +63,10 @@ class FalkoDetector {
   /// (before non-maxima suppression); for diagnostics.
   std::size_t lastCandidateCount() const noexcept { return candidateCount_; }
 
+ public:
+  /// Entries of the score histogram buffer: up to 2 interleaved copies of 64 sectors.
+  static constexpr std::size_t kHistSize = 2 * 64;
+
  private:
   struct Side {
     std::size_t count = 0;
@@ -97,7 +101,7 @@ class FalkoDetector {
   std::array<float, kMaxScanBeams> sideY_{};
   std::array<std::uint32_t, kMaxScanBeams> order_{};  ///< candidates by score
   std::array<FalkoKeypoint, kMaxScanBeams> cands_{};  ///< accepted keypoints
-  std::array<std::uint32_t, 64> hist_{};              ///< score histogram, all zero between uses
+  std::array<std::uint32_t, kHistSize> hist_{};       ///< score histograms (interleaved copies), zero between uses
   std::size_t candidateCount_ = 0;
 };
 
