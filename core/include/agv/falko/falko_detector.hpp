@@ -63,9 +63,8 @@ class FalkoDetector {
   /// (before non-maxima suppression); for diagnostics.
   std::size_t lastCandidateCount() const noexcept { return candidateCount_; }
 
- public:
   /// Entries of the score histogram buffer: up to 2 interleaved copies of 64 sectors.
-  static constexpr std::size_t kHistSize = 2 * 64;
+  static constexpr std::size_t kHistSize = std::size_t{2} * 64U;
 
  private:
   struct Side {

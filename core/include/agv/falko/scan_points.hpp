@@ -70,7 +70,7 @@ class ScanPoints {
     if (!(bound < static_cast<float>(maxSideOffset_))) {
       return maxSideOffset_;
     }
-    return static_cast<std::size_t>(bound);
+    return static_cast<std::size_t>(static_cast<int>(bound));  // 0 < bound < maxSideOffset_: fits an int
   }
 
   /// Same bound as maxOffset(range(i), radius) or larger (never smaller: every caller gets the
@@ -87,7 +87,7 @@ class ScanPoints {
     if (!(bound < static_cast<float>(maxSideOffset_))) {
       return maxSideOffset_;
     }
-    return static_cast<std::size_t>(bound);
+    return static_cast<std::size_t>(static_cast<int>(bound));  // 0 < bound < maxSideOffset_: fits an int
   }
 
   /// Index `k` beams after `i` (k may be negative), wrapped on 360 deg scans; returns size() when
