@@ -239,12 +239,28 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
     const Side& sd = side == 0 ? left : right;
     const float* px = side == 0 ? leftX_.data() : rightX_.data();
     const float* py = side == 0 ? leftY_.data() : rightY_.data();
-    // Counts in interleaved histograms (point k in copy k % kHistCopies): the points of one wall
-    // fall in one sector, and with a single histogram every increment waits for the previous one
-    // to reach memory (on out-of-order cores; in-order ones use one copy).
-    // hist_ is all zero between calls: only the occupied bins are reset at the end.
+    // Histogram of the sectors; hist_ is all zero between calls: only the occupied bins are
+    // reset at the end. The points of one wall fall in one sector, so on out-of-order cores
+    // (kHistCopies > 1) point k counts in copy k % kHistCopies, and the occupied sectors are
+    // kept in two 32-bit masks: no increment waits for the previous one to reach memory. On
+    // in-order cores (one copy) the first increment of a sector lists it, which is cheaper.
     std::uint32_t* h = hist_.data();
-    std::uint64_t occupied = 0;
+    std::array<unsigned, kMaxGridSectors> used;      // only [0, usedCount) is read
+    std::array<std::uint32_t, kMaxGridSectors> cnt;  // count of sector used[a]
+    unsigned usedCount = 0;
+    std::uint32_t occupiedLo = 0;  // sectors 0..31
+    std::uint32_t occupiedHi = 0;  // sectors 32..63
+    auto count = [&](std::size_t k, unsigned b) {
+      if constexpr (kHistCopies == 1) {
+        if (h[b]++ == 0U) {
+          used[usedCount++] = b;
+        }
+      } else {
+        ++h[(k % kHistCopies) * kMaxGridSectors + b];
+        occupiedLo |= b < 32U ? 1U << (b & 31U) : 0U;
+        occupiedHi |= b < 32U ? 0U : 1U << (b & 31U);
+      }
+    };
     std::size_t k = 0;
     if (fast16 && falko_detail::kFourWide) {
       // Sectors of four neighbours at a time, branch-free (vector registers where available).
@@ -256,8 +272,7 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
           b4[l] = falko_detail::sector16Branchless(u, v);
         }
         for (std::size_t l = 0; l < 4; ++l) {
-          ++h[(l % kHistCopies) * kMaxGridSectors + b4[l]];
-          occupied |= std::uint64_t{1} << b4[l];
+          count(k + l, b4[l]);
         }
       }
     }
@@ -265,30 +280,34 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
       // Bearing of the neighbour seen from the candidate, relative to the corner orientation.
       const float u = px[k] * c + py[k] * s;
       const float v = py[k] * c - px[k] * s;
-      const unsigned b = fast16 ? falko_detail::sector16(u, v) : falko_detail::sectorOf(v, u, binsPerRadian, bins);
-      ++h[(k % kHistCopies) * kMaxGridSectors + b];
-      occupied |= std::uint64_t{1} << b;
+      count(k, fast16 ? falko_detail::sector16(u, v) : falko_detail::sectorOf(v, u, binsPerRadian, bins));
     }
-    // Occupied sectors (branch-free compaction) and their counts.
-    std::array<unsigned, kMaxGridSectors> used;      // only [0, usedCount) is read
-    std::array<std::uint32_t, kMaxGridSectors> cnt;  // count of used[a]
-    unsigned usedCount = 0;
-    for (; occupied != 0U; occupied &= occupied - 1U) {
-      const unsigned b = falko_detail::lowestBitIndex(occupied);
-      std::uint32_t sum = 0;
-      for (std::size_t copy = 0; copy < kHistCopies; ++copy) {
-        sum += h[copy * kMaxGridSectors + b];
-        h[copy * kMaxGridSectors + b] = 0U;
+    // Counts of the occupied sectors; the histogram is reset on the way.
+    if constexpr (kHistCopies == 1) {
+      for (unsigned a = 0; a < usedCount; ++a) {
+        cnt[a] = h[used[a]];
+        h[used[a]] = 0U;
       }
-      used[usedCount] = b;
-      cnt[usedCount] = sum;
-      ++usedCount;
+    } else {
+      for (unsigned base = 0; base < 64U; base += 32U) {
+        for (std::uint32_t m = base == 0U ? occupiedLo : occupiedHi; m != 0U; m &= m - 1U) {
+          const unsigned b = base + falko_detail::lowestBitIndex(m);
+          std::uint32_t sum = 0;
+          for (std::size_t copy = 0; copy < kHistCopies; ++copy) {
+            sum += h[copy * kMaxGridSectors + b];
+            h[copy * kMaxGridSectors + b] = 0U;
+          }
+          used[usedCount] = b;
+          cnt[usedCount] = sum;
+          ++usedCount;
+        }
+      }
     }
     // Sum over point pairs of the circular sector distance = sum over pairs of occupied sectors.
     std::uint32_t sum = 0;
     for (unsigned a = 0; a < usedCount; ++a) {
       for (unsigned b = a + 1U; b < usedCount; ++b) {
-        const unsigned d0 = used[b] - used[a];  // used[] is increasing
+        const unsigned d0 = used[a] > used[b] ? used[a] - used[b] : used[b] - used[a];
         const unsigned d = d0 > half ? bins - d0 : d0;
         sum += cnt[a] * cnt[b] * d;  // < 2048^2 * 32: fits
       }

@@ -65,13 +65,11 @@ inline unsigned sector16(float u, float v) noexcept {
 }
 
 /// Index of the lowest set bit of v (v != 0), without a compiler builtin: de Bruijn multiply.
-inline unsigned lowestBitIndex(std::uint64_t v) noexcept {
-  constexpr unsigned char kTable[64] = {0,  1,  48, 2,  57, 49, 28, 3,  61, 58, 50, 42, 38, 29, 17, 4,
-                                        62, 55, 59, 36, 53, 51, 43, 22, 45, 39, 33, 30, 24, 18, 12, 5,
-                                        63, 47, 56, 27, 60, 41, 37, 16, 54, 35, 52, 21, 44, 32, 23, 11,
-                                        46, 26, 40, 15, 34, 20, 31, 10, 25, 14, 19, 9,  13, 8,  7,  6};
-  const std::uint64_t lowest = v & (~v + 1U);
-  return kTable[(lowest * 0x03f79d71b4cb0a89ULL) >> 58U];
+inline unsigned lowestBitIndex(std::uint32_t v) noexcept {
+  constexpr unsigned char kTable[32] = {0,  1,  28, 2,  29, 14, 24, 3, 30, 22, 20, 15, 25, 17, 4,  8,
+                                        31, 27, 13, 23, 21, 19, 16, 7, 26, 12, 18, 6,  11, 5,  10, 9};
+  const std::uint32_t lowest = v & (~v + 1U);
+  return kTable[(lowest * 0x077CB531U) >> 27U];
 }
 
 /// True where the compiler can keep four float tests in one vector register (x86 SSE2, ARM NEON):
