@@ -515,26 +515,33 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
   const float invBeta = 1.0F / p.beta;
   std::size_t candidates = 0;
 
-  // 1. Candidates: side split, triangle test, score.
+  // 0. Radius and beam window of every candidate beam, in a loop of its own: the exponential and
+  //    the window bound then overlap from beam to beam instead of waiting behind the searches
+  //    below. Beams that are no candidate get an empty window.
   for (std::size_t i = 0; i < n; ++i) {
-    score_[i] = kNotCandidate;
-    if (!pts.valid(i)) {
-      continue;
-    }
     const float rho = pts.range(i);
-    if (rho < p.minExtractionRange || rho > p.maxExtractionRange) {
-      continue;
-    }
     float radius = p.neighA * std::exp(p.neighB * rho);
     const float maxRadius = p.maxRadiusRangeRatio * rho;
     if (radius > maxRadius) {
       radius = maxRadius;
     }
+    const bool candidate = pts.valid(i) && !(rho < p.minExtractionRange || rho > p.maxExtractionRange);
+    radius_[i] = radius;
+    window_[i] = candidate ? static_cast<std::uint32_t>(pts.maxOffsetAt(i, radius)) : 0U;
+  }
+
+  // 1. Candidates: side split, triangle test, score.
+  for (std::size_t i = 0; i < n; ++i) {
+    score_[i] = kNotCandidate;
+    const std::size_t kmax = window_[i];
+    if (kmax == 0) {
+      continue;
+    }
+    const float radius = radius_[i];
     // Early rejection: the triangle test needs only the first (front) and last (back) neighbours,
     // found from the window edges inwards; most beams (walls) stop here, before the full
     // neighbourhood and the score.
     const float r2 = radius * radius;
-    const std::size_t kmax = pts.maxOffsetAt(i, radius);
     float fx = 0.0F;
     float fy = 0.0F;
     float bx = 0.0F;
@@ -571,7 +578,6 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     const float score = scoreOf(left, right, ox / on, oy / on);
     if (score <= p.maxScore) {
       score_[i] = score;
-      radius_[i] = radius;
       sideX_[i] = ox;
       sideY_[i] = oy;
       ++candidates;

@@ -94,9 +94,10 @@ class FalkoDetector {
   std::array<float, kMaxScanBeams> leftY_{};
   std::array<float, kMaxScanBeams> rightX_{};
   std::array<float, kMaxScanBeams> rightY_{};
-  std::array<float, kMaxScanBeams> score_{};   ///< per beam; +inf when not a candidate
-  std::array<float, kMaxScanBeams> radius_{};  ///< per beam neighbourhood radius
-  std::array<float, kMaxScanBeams> sideX_{};   ///< per beam sum of the side centroids (relative)
+  std::array<float, kMaxScanBeams> score_{};           ///< per beam; +inf when not a candidate
+  std::array<float, kMaxScanBeams> radius_{};          ///< per beam neighbourhood radius
+  std::array<std::uint32_t, kMaxScanBeams> window_{};  ///< per beam window in beams, 0: no candidate
+  std::array<float, kMaxScanBeams> sideX_{};           ///< per beam sum of the side centroids (relative)
   std::array<float, kMaxScanBeams> sideY_{};
   std::array<std::uint32_t, kMaxScanBeams> order_{};  ///< candidates by score
   std::array<FalkoKeypoint, kMaxScanBeams> cands_{};  ///< accepted keypoints
