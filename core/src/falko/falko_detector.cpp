@@ -530,7 +530,12 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     window_[i] = candidate ? static_cast<std::uint32_t>(pts.maxOffsetAt(i, radius)) : 0U;
   }
 
-  // 1. Candidates: side split, triangle test, score.
+  // 1. Early rejection of every beam: the triangle test needs only the first (front) and last
+  //    (back) neighbours, found from the window edges inwards; most beams (walls) stop here. The
+  //    survivors are listed in order_ with their side extents packed in window_ (kLeft << 16 |
+  //    kRight, both below 2^16), so that the full neighbourhood and the score run in a loop of
+  //    their own.
+  std::size_t survivors = 0;
   for (std::size_t i = 0; i < n; ++i) {
     score_[i] = kNotCandidate;
     const std::size_t kmax = window_[i];
@@ -538,9 +543,6 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
       continue;
     }
     const float radius = radius_[i];
-    // Early rejection: the triangle test needs only the first (front) and last (back) neighbours,
-    // found from the window edges inwards; most beams (walls) stop here, before the full
-    // neighbourhood and the score.
     const float r2 = radius * radius;
     float fx = 0.0F;
     float fy = 0.0F;
@@ -564,9 +566,18 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     if (cross * cross < base2 * minLen * minLen) {
       continue;
     }
+    order_[survivors++] = static_cast<std::uint32_t>(i);
+    window_[i] = static_cast<std::uint32_t>(kLeft << 16U | kRight);
+  }
+  static_assert(kMaxScanBeams < (std::size_t{1} << 16U), "side extents are packed in 16 bits");
+
+  // 2. Sides and score of the survivors.
+  for (std::size_t o = 0; o < survivors; ++o) {
+    const std::size_t i = order_[o];
+    const float radius = radius_[i];
     Side left;
     Side right;
-    if (!gather(pts, i, radius, kLeft, kRight, left, right)) {
+    if (!gather(pts, i, radius, window_[i] >> 16U, window_[i] & 0xFFFFU, left, right)) {
       continue;
     }
     const float ox = left.sumX / static_cast<float>(left.count) + right.sumX / static_cast<float>(right.count);
@@ -585,7 +596,7 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
   }
   candidateCount_ = candidates;
 
-  // 2. Greedy non-maxima suppression, best score first (ties to the lower beam index): a
+  // 3. Greedy non-maxima suppression, best score first (ties to the lower beam index): a
   //    candidate whose beam point lies within nmsRadius of an accepted corner is suppressed;
   //    otherwise it is refined, and accepted unless the refinement rejects it or it lands within
   //    nmsRadius of an accepted corner. A rejected candidate suppresses nothing, so the next best
