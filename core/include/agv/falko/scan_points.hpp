@@ -62,36 +62,15 @@ class ScanPoints {
     if (!(radius < rangeAtCentre)) {
       return maxSideOffset_;
     }
-    // Beam k holds no point within `radius` once k * inc > asin(radius / range).
-    // tan(asin(q)) = q / sqrt(1 - q^2) >= asin(q) is a cheap upper bound (0.3 % larger at q = 0.1);
-    // the caller's distance test removes the extra beams.
-    const float q = radius / rangeAtCentre;
-    const float bound = q / std::sqrt(1.0F - q * q) * invIncrement_ + 1.0F;
-    if (!(bound < static_cast<float>(maxSideOffset_))) {
-      return maxSideOffset_;
-    }
-    return static_cast<std::size_t>(static_cast<int>(bound));  // 0 < bound < maxSideOffset_: fits an int
+    return offsetForRatio(radius / rangeAtCentre);
   }
 
-  /// Same bound as maxOffset(range(i), radius) or larger (never smaller: every caller gets the
-  /// same points), without a division or square root when radius <= range(i) / 2: asin(q) <=
-  /// q * (1 + q^2 * (1/6 + q^2 / 5)) for q <= 1/2 (the Taylor series of asin has positive
-  /// coefficients and its tail beyond q^3 stays below q^5 / 5 there); maxOffset otherwise.
-  std::size_t maxOffsetAt(std::size_t i, float radius) const noexcept {
-    const float q = radius * invRange_[i];
-    if (!(q <= 0.5F)) {
-      return maxOffset(range_[i], radius);
-    }
-    const float q2 = q * q;
-    const float bound = q * (1.0F + q2 * (0.16666667F + 0.2F * q2)) * invIncrement_ + 1.0F;
-    if (!(bound < static_cast<float>(maxSideOffset_))) {
-      return maxSideOffset_;
-    }
-    return static_cast<std::size_t>(static_cast<int>(bound));  // 0 < bound < maxSideOffset_: fits an int
-  }
+  /// maxOffset(range(i), radius) for the point of beam i, from its stored inverse range (no
+  /// division).
+  std::size_t maxOffsetAt(std::size_t i, float radius) const noexcept { return offsetForRatio(radius * invRange_[i]); }
 
-  /// Index `k` beams after `i` (k may be negative), wrapped on 360 deg scans; returns size() when
-  /// the result lies outside a non-wrapping scan.
+  /// Index `k` beams after `i` (k may be negative)  /// Index `k` beams after `i` (k may be negative), wrapped on 360
+  /// deg scans; returns size() when the result lies outside a non-wrapping scan.
   std::size_t offsetIndex(std::size_t i, std::ptrdiff_t k) const noexcept {
     const auto n = static_cast<std::ptrdiff_t>(size_);
     std::ptrdiff_t j = static_cast<std::ptrdiff_t>(i) + k;
@@ -106,6 +85,31 @@ class ScanPoints {
   }
 
  private:
+  /// Beam offset bound for q = radius / range: beam k holds no point within the radius once
+  /// k * increment > asin(q). Upper bounds of asin, tight and without a division:
+  /// - q <= 1/2: q * (1 + q^2 * (1/6 + q^2 / 5)) (the Taylor series of asin has positive
+  ///   coefficients and its tail beyond q^3 stays below q^5 / 5 there);
+  /// - 1/2 < q < 1: pi/2 - sqrt(2 (1 - q)), since acos(q) = 2 asin(sqrt((1 - q) / 2)) >=
+  ///   sqrt(2 (1 - q)) (0.2 % above asin at q = 0.9, where tan(asin(q)) is 84 % above);
+  /// - q >= 1 (or NaN): the whole half scan.
+  /// One beam of slack covers the float rounding; callers' distance tests drop the extra beams.
+  std::size_t offsetForRatio(float q) const noexcept {
+    float angle = 0.0F;
+    if (q <= 0.5F) {
+      const float q2 = q * q;
+      angle = q * (1.0F + q2 * (0.16666667F + 0.2F * q2));
+    } else if (q < 1.0F) {
+      angle = 1.57079633F - std::sqrt(2.0F * (1.0F - q));
+    } else {
+      return maxSideOffset_;
+    }
+    const float bound = angle * invIncrement_ + 1.0F;
+    if (!(bound < static_cast<float>(maxSideOffset_))) {
+      return maxSideOffset_;
+    }
+    return static_cast<std::size_t>(static_cast<int>(bound));  // 0 < bound < maxSideOffset_: fits an int
+  }
+
   void rebuildGeometry(float angleMin, float increment, std::size_t n) noexcept;
 
   std::array<float, kMaxScanBeams> cos_{};
