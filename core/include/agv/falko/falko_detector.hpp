@@ -37,7 +37,7 @@ using FalkoKeypoints = FixedVector<FalkoKeypoint, kMaxKeypoints>;
 /// the mean of the directions from the corner to the centroids of its two sides.
 ///
 /// Work per scan is bounded by beams x (window size), with the window bounded by the scan length;
-/// the object holds all its buffers (about 150 kB with 2048 beams), so keep it static on an MCU.
+/// the object holds all its buffers (about 190 kB with 2048 beams), so keep it static on an MCU.
 /// No heap, no exceptions.
 class FalkoDetector {
  public:
