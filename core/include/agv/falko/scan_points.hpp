@@ -86,16 +86,16 @@ class ScanPoints {
 
  private:
   /// Beam offset bound for q = radius / range: beam k holds no point within the radius once
-  /// k * increment > asin(q). Upper bounds of asin, tight and without a division:
-  /// - q <= 1/2: q * (1 + q^2 * (1/6 + q^2 / 5)) (the Taylor series of asin has positive
-  ///   coefficients and its tail beyond q^3 stays below q^5 / 5 there);
-  /// - 1/2 < q < 1: pi/2 - sqrt(2 (1 - q)), since acos(q) = 2 asin(sqrt((1 - q) / 2)) >=
-  ///   sqrt(2 (1 - q)) (0.2 % above asin at q = 0.9, where tan(asin(q)) is 84 % above);
+  /// k * increment > asin(q). Upper bounds of asin without a division, at most 2.5 % above it:
+  /// - q <= 3/4: q * (1 + q^2 * (1/6 + q^2 / 5)) (the Taylor series of asin has positive
+  ///   coefficients, and its tail beyond q^3 stays below q^5 / 5 up to q = 0.94);
+  /// - 3/4 < q < 1: pi/2 - sqrt(2 (1 - q)), since acos(q) = 2 asin(sqrt((1 - q) / 2)) >=
+  ///   sqrt(2 (1 - q)) (tan(asin(q)), the bound used before, is 84 % above asin at q = 0.9);
   /// - q >= 1 (or NaN): the whole half scan.
   /// One beam of slack covers the float rounding; callers' distance tests drop the extra beams.
   std::size_t offsetForRatio(float q) const noexcept {
     float angle = 0.0F;
-    if (q <= 0.5F) {
+    if (q <= 0.75F) {
       const float q2 = q * q;
       angle = q * (1.0F + q2 * (0.16666667F + 0.2F * q2));
     } else if (q < 1.0F) {
