@@ -69,8 +69,8 @@ class ScanPoints {
   /// division).
   std::size_t maxOffsetAt(std::size_t i, float radius) const noexcept { return offsetForRatio(radius * invRange_[i]); }
 
-  /// Index `k` beams after `i` (k may be negative)  /// Index `k` beams after `i` (k may be negative), wrapped on 360
-  /// deg scans; returns size() when the result lies outside a non-wrapping scan.
+  /// Index `k` beams after `i` (k may be negative), wrapped on 360 deg scans; returns size() when
+  /// the result lies outside a non-wrapping scan.
   std::size_t offsetIndex(std::size_t i, std::ptrdiff_t k) const noexcept {
     const auto n = static_cast<std::ptrdiff_t>(size_);
     std::ptrdiff_t j = static_cast<std::ptrdiff_t>(i) + k;
