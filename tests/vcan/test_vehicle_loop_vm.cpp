@@ -30,8 +30,8 @@
 #include "loopback_server.hpp"
 #include "sick_telegrams.hpp"
 #include "vcan_peer.hpp"
-#include "vehicle_files.hpp"
 #include "vehicle_loop.hpp"
+#include "vehicle_setup.hpp"
 #include "vm_alloc_count.hpp"
 
 using agv::Duration;
@@ -168,30 +168,49 @@ struct ScanServer {
   }
 };
 
-/// Largest distance between the end of the arc (ds, alpha) and the ends of the arcs whose rolled
-/// distance and steering angle differ by up to half a drive tick and half a steering count: what
-/// the quantisation of the encoders allows the measured motion to differ from the intended one.
-void quantisationEnvelope(double ds, double alpha, double halfTick, double halfCount, double L, double& position,
-                          double& heading) {
-  const Pose2d ideal = agv::tricycleArc(ds, alpha, L);
-  position = 0.0;
-  heading = 0.0;
-  for (const double e : {-halfTick, halfTick}) {
-    for (const double a : {-halfCount, halfCount}) {
-      const Pose2d q = agv::tricycleArc(ds + e, alpha + a, L);
+/// One constant-steering segment as the test sends it: `steps` equal TPDO pairs adding up to
+/// `ticks` drive ticks, at `counts` steering counts left of straight ahead.
+struct Segment {
+  std::int64_t ticks = 0;
+  std::int64_t counts = 0;
+  int steps = 1;
+};
+
+/// Checks the motion of the published pose from `from` to `to` over `seg`:
+/// - against the tricycle model (`tricycleArc`) with the ticks and counts sent and the calibration.
+///   The localizer integrates RK2 steps: per step the chord is d instead of d*sinc(t/2), short by at
+///   most d*t^2/24 (t = the step's rotation), so the position may differ by the sum of those; the
+///   heading is exact (1e-9 for rounding in both).
+/// - when `distance` > 0, against the intended motion (`distance` rolled at the true steering angle
+///   `angle`), within what half a drive tick and half a steering count move the end of that arc
+///   (the largest of the four corner cases: the end of the arc is smooth in both), plus the above.
+void checkSegment(const Pose2d& from, const Pose2d& to, const Segment& seg, const agv::TricycleParams& cal,
+                  double radPerCount, double distance = 0.0, double angle = 0.0) {
+  const double L = cal.wheelbase;
+  const double ds = static_cast<double>(seg.ticks) * cal.driveScale;
+  const double alpha = static_cast<double>(seg.counts) * radPerCount + cal.steerOffsetForward;
+  const double d = std::fabs(ds * std::cos(alpha)) / seg.steps;
+  const double t = ds * std::sin(alpha) / L / seg.steps;
+  const double rk2 = seg.steps * d * t * t / 24.0 + 1e-9;
+  const Pose2d moved = agv::between(from, to);
+  const Pose2d model = agv::tricycleArc(ds, alpha, L);
+  CHECK(std::hypot(moved.x - model.x, moved.y - model.y) <= rk2);
+  CHECK(std::fabs(agv::angleDiff(moved.theta, model.theta)) <= 1e-9);
+  if (distance <= 0.0) {
+    return;
+  }
+  const Pose2d ideal = agv::tricycleArc(distance, angle, L);
+  double position = 0.0;
+  double heading = 0.0;
+  for (const double e : {-0.5 * cal.driveScale, 0.5 * cal.driveScale}) {
+    for (const double a : {-0.5 * radPerCount, 0.5 * radPerCount}) {
+      const Pose2d q = agv::tricycleArc(distance + e, angle + a, L);
       position = std::max(position, std::hypot(q.x - ideal.x, q.y - ideal.y));
       heading = std::max(heading, std::fabs(agv::angleDiff(q.theta, ideal.theta)));
     }
   }
-}
-
-/// Position difference of the localizer's RK2 steps from the exact arc over `steps` equal steps of
-/// a constant-steering segment (ds, alpha): per step the chord is d instead of d*sinc(t/2), i.e.
-/// short by at most d*t^2/24 (t = the step's rotation); the heading is exact.
-double rk2Bound(double ds, double alpha, double L, int steps) {
-  const double d = std::fabs(ds * std::cos(alpha)) / steps;
-  const double t = ds * std::sin(alpha) / L / steps;
-  return steps * d * t * t / 24.0;
+  CHECK(std::hypot(moved.x - ideal.x, moved.y - ideal.y) <= position + rk2);
+  CHECK(std::fabs(agv::angleDiff(moved.theta, ideal.theta)) <= heading + 1e-9);
 }
 
 }  // namespace
@@ -215,14 +234,10 @@ TEST_CASE(
   const std::size_t at = text.find(syncLine);
   REQUIRE(at != std::string::npos);
   text.replace(at, syncLine.size(), "can.sync_period = 0\ncan.pairing_window = 0.1\n");
-  const std::string conf = dir.write("vehicle.conf", text);
-  dir.write("calibration.txt", agv::test::goodCalibration());
-  dir.write("landmarks.txt", agv::test::goodMap());
   agv::vehicle::VehicleConfig config;
-  agv::vehicle::ConfigError error;
-  REQUIRE(agv::vehicle::loadVehicleConfig(conf, config, error));
   agv::vehicle::VehicleFiles files;
-  REQUIRE(agv::vehicle::loadVehicleFiles(config, files, error));
+  agv::vehicle::ConfigError error;
+  REQUIRE(agv::test::loadTestVehicle(dir, text, config, files, error));
   const agv::TricycleParams cal = files.calibration.params;
   REQUIRE(config.haveInitialPose);
   const Pose2d start = config.initialPose;
@@ -324,9 +339,6 @@ TEST_CASE(
     }
     settle();
   };
-  const double halfTick = 0.5 * cal.driveScale;
-  const double halfCount = 0.5 * radPerCount;
-  const double L = cal.wheelbase;
 
   // --- 1. 1.0 m straight in 50 TPDO pairs.
   const double straightDistance = 1.0;
@@ -335,23 +347,8 @@ TEST_CASE(
   REQUIRE(straightTicks % straightSteps == 0);
   drive(straightSteps, straightTicks / straightSteps, straightCounts);
   const Pose2d afterStraight = plc.last.pose;
-  {
-    // The tricycle model with the ticks and counts sent and the calibration.
-    const double ds = static_cast<double>(straightTicks) * cal.driveScale;
-    const double alpha = static_cast<double>(straightCounts) * radPerCount + cal.steerOffsetForward;
-    const Pose2d want = start * agv::tricycleArc(ds, alpha, L);
-    const double tol = rk2Bound(ds, alpha, L, straightSteps) + 1e-9;
-    CHECK(std::hypot(afterStraight.x - want.x, afterStraight.y - want.y) <= tol);
-    CHECK(std::fabs(agv::angleDiff(afterStraight.theta, want.theta)) <= 1e-9);
-    // The intended motion (1 m straight ahead), within the encoders' quantisation.
-    double pos = 0.0;
-    double head = 0.0;
-    quantisationEnvelope(straightDistance, 0.0, halfTick, halfCount, L, pos, head);
-    const Pose2d moved = agv::between(start, afterStraight);
-    CHECK(std::hypot(moved.x - straightDistance, moved.y) <= pos + tol);
-    CHECK(std::fabs(moved.theta) <= head + 1e-9);
-    CHECK(moved.x > 0.99);  // a real motion, not a pose that stayed put
-  }
+  checkSegment(start, afterStraight, Segment{straightTicks, straightCounts, straightSteps}, cal, radPerCount,
+               straightDistance, 0.0);
   CHECK(plc.last.health.mode == NavMode::Localizing);
 
   // --- 2. Steering to 25 degrees (true) while standing: one pair, no motion.
@@ -369,22 +366,10 @@ TEST_CASE(
   REQUIRE(arcTicks % arcSteps == 0);
   drive(arcSteps, arcTicks / arcSteps, arcCounts);
   const Pose2d afterArc = plc.last.pose;
-  const double arcAlpha = static_cast<double>(arcCounts) * radPerCount + cal.steerOffsetForward;
-  {
-    const double ds = static_cast<double>(arcTicks) * cal.driveScale;
-    const Pose2d want = afterStraight * agv::tricycleArc(ds, arcAlpha, L);
-    const double tol = rk2Bound(ds, arcAlpha, L, arcSteps) + 1e-9;
-    CHECK(std::hypot(afterArc.x - want.x, afterArc.y - want.y) <= tol);
-    CHECK(std::fabs(agv::angleDiff(afterArc.theta, want.theta)) <= 1e-9);
-    double pos = 0.0;
-    double head = 0.0;
-    quantisationEnvelope(arcDistance, arcAngle, halfTick, halfCount, L, pos, head);
-    const Pose2d ideal = agv::tricycleArc(arcDistance, arcAngle, L);
-    const Pose2d moved = agv::between(afterStraight, afterArc);
-    CHECK(std::hypot(moved.x - ideal.x, moved.y - ideal.y) <= pos + tol);
-    CHECK(std::fabs(agv::angleDiff(moved.theta, ideal.theta)) <= head + 1e-9);
-    CHECK(ideal.theta > 0.4);  // 1.5 m at 25 degrees on L = 1.5 m turns by 0.42 rad
-  }
+  checkSegment(afterStraight, afterArc, Segment{arcTicks, arcCounts, arcSteps}, cal, radPerCount, arcDistance,
+               arcAngle);
+  // 1.5 m at 25 degrees on L = 1.5 m turns by 0.42 rad.
+  CHECK(agv::angleDiff(afterArc.theta, afterStraight.theta) > 0.4);
   CHECK(plc.last.health.mode == NavMode::Localizing);
   CHECK(plc.last.health.lastStatus == Status::Ok);
   CHECK(hasBit(loop.healthBits(), PlcHealthBit::EncodersOk));
@@ -417,18 +402,13 @@ TEST_CASE(
   // --- 5. The nodes come back: heartbeats clear the timeout, the motion goes on from where the
   // pose stopped (0.3 m more on the same arc).
   alive = true;
-  nextHeartbeat = Timestamp{};
+  REQUIRE(nodes.sendHeartbeats());
+  nextHeartbeat = monotonicNow() + Duration::fromMilliseconds(50);
   drive(10, 60, arcCounts);
   CHECK(hasBit(loop.healthBits(), PlcHealthBit::EncodersOk));
   CHECK_FALSE(hasBit(loop.healthBits(), PlcHealthBit::EncoderTimeout));
   CHECK(plc.last.health.mode == NavMode::Localizing);
-  {
-    const double ds = 600.0 * cal.driveScale;
-    const Pose2d want = afterArc * agv::tricycleArc(ds, arcAlpha, L);
-    const double tol = rk2Bound(ds, arcAlpha, L, 10) + 1e-9;
-    CHECK(std::hypot(plc.last.pose.x - want.x, plc.last.pose.y - want.y) <= tol);
-    CHECK(std::fabs(agv::angleDiff(plc.last.pose.theta, want.theta)) <= 1e-9);
-  }
+  checkSegment(afterArc, plc.last.pose, Segment{600, arcCounts, 10}, cal, radPerCount);
 
   // Every pair became a sample (none dropped as incomplete, none lost in the socket), the laser
   // was read all along, and the cycles after start-up allocated nothing.
