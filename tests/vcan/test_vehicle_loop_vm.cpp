@@ -45,18 +45,22 @@ using agv::hal::NavMode;
 
 namespace {
 
-/// A `hal::PlcLink` that keeps the last report published and has no commands: the loop's
-/// publication without the Modbus transport. Allocates nothing.
+/// A `hal::PlcLink` that keeps the last report published, with the loop's health bits at that
+/// moment (as the Modbus link of `VehicleRuntime` takes them for its status block), and has no
+/// commands: the loop's publication without the Modbus transport. Allocates nothing.
 class RecordingPlcLink final : public agv::hal::PlcLink {
  public:
   Status publish(const agv::hal::PoseReport& report) noexcept override {
     last = report;
+    bits = loop != nullptr ? loop->healthBits() : 0U;
     ++count;
     return Status::Ok;
   }
   Status readCommand(agv::hal::PlcCommand& /*out*/) noexcept override { return Status::NotFound; }
 
+  const agv::vehicle::VehicleLoop* loop = nullptr;
   agv::hal::PoseReport last{};
+  std::uint16_t bits = 0;  ///< plc::PlcHealthBit
   std::uint64_t count = 0;
 };
 
@@ -247,6 +251,7 @@ TEST_CASE(
   agv::drivers::SickLaserSource laser(config.laser);
   RecordingPlcLink plc;
   agv::vehicle::VehicleLoop loop(config, std::move(files), agv::vehicle::VehicleDevices{encoders, laser, plc});
+  plc.loop = &loop;
 
   EncoderNodes nodes;
   nodes.c = config.can.canopen;
@@ -324,10 +329,10 @@ TEST_CASE(
   settle();
   CHECK(plc.last.health.mode == NavMode::Localizing);
   CHECK(poseDifference(plc.last.pose, start) <= kStill);
-  CHECK(hasBit(loop.healthBits(), PlcHealthBit::EncodersOk));
-  CHECK(hasBit(loop.healthBits(), PlcHealthBit::LaserOk));
-  CHECK(hasBit(loop.healthBits(), PlcHealthBit::MapLoaded));
-  CHECK_FALSE(hasBit(loop.healthBits(), PlcHealthBit::DeviceFault));
+  CHECK(hasBit(plc.bits, PlcHealthBit::EncodersOk));
+  CHECK(hasBit(plc.bits, PlcHealthBit::LaserOk));
+  CHECK(hasBit(plc.bits, PlcHealthBit::MapLoaded));
+  CHECK_FALSE(hasBit(plc.bits, PlcHealthBit::DeviceFault));
   counting = true;
 
   // Drives `steps` equal steps of `ticksPerStep` at `counts`, one pair per pass.
@@ -373,19 +378,19 @@ TEST_CASE(
   CHECK(agv::angleDiff(afterArc.theta, afterStraight.theta) > 0.4);
   CHECK(plc.last.health.mode == NavMode::Localizing);
   CHECK(plc.last.health.lastStatus == Status::Ok);
-  CHECK(hasBit(loop.healthBits(), PlcHealthBit::EncodersOk));
+  CHECK(hasBit(plc.bits, PlcHealthBit::EncodersOk));
 
   // --- 4. The nodes go silent (no heartbeat, no TPDO): after can.heartbeat_timeout the published
   // health shows the encoder timeout while the laser keeps streaming; the pose stays where it was.
   alive = false;
   const std::uint64_t sweepsBeforeSilence = loop.counters().sweeps;
-  for (int i = 0; i < 3000 && !hasBit(loop.healthBits(), PlcHealthBit::EncoderTimeout); ++i) {
+  for (int i = 0; i < 3000 && !hasBit(plc.bits, PlcHealthBit::EncoderTimeout); ++i) {
     pump();
   }
-  REQUIRE(hasBit(loop.healthBits(), PlcHealthBit::EncoderTimeout));
-  CHECK_FALSE(hasBit(loop.healthBits(), PlcHealthBit::EncodersOk));
-  CHECK_FALSE(hasBit(loop.healthBits(), PlcHealthBit::DeviceFault));
-  CHECK(hasBit(loop.healthBits(), PlcHealthBit::LaserOk));
+  REQUIRE(hasBit(plc.bits, PlcHealthBit::EncoderTimeout));
+  CHECK_FALSE(hasBit(plc.bits, PlcHealthBit::EncodersOk));
+  CHECK_FALSE(hasBit(plc.bits, PlcHealthBit::DeviceFault));
+  CHECK(hasBit(plc.bits, PlcHealthBit::LaserOk));
   CHECK(plc.last.health.mode == NavMode::Lost);
   CHECK(plc.last.health.lastStatus == Status::Timeout);
   const std::uint64_t publishedAtTimeout = plc.count;
@@ -406,8 +411,8 @@ TEST_CASE(
   REQUIRE(nodes.sendHeartbeats());
   nextHeartbeat = monotonicNow() + Duration::fromMilliseconds(50);
   drive(10, 60, arcCounts);
-  CHECK(hasBit(loop.healthBits(), PlcHealthBit::EncodersOk));
-  CHECK_FALSE(hasBit(loop.healthBits(), PlcHealthBit::EncoderTimeout));
+  CHECK(hasBit(plc.bits, PlcHealthBit::EncodersOk));
+  CHECK_FALSE(hasBit(plc.bits, PlcHealthBit::EncoderTimeout));
   CHECK(plc.last.health.mode == NavMode::Localizing);
   checkSegment(afterArc, plc.last.pose, Segment{600, arcCounts, 10}, cal, radPerCount);
 
