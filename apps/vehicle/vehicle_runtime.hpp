@@ -1,45 +1,23 @@
 #pragma once
 /// @file vehicle_runtime.hpp
-/// The vehicle's navigation loop on the real drivers: CANopen encoders (SocketCAN) -> tricycle
-/// odometry -> EKF prediction; SICK laser -> reflectors (NAV350) and/or FALKO corners -> EKF
-/// correction against the landmark map; pose, covariance, health and calibration -> PLC link
-/// (Modbus TCP); PLC commands (localize from a set-pose, stop) -> localizer.
+/// The vehicle's navigation on the real drivers: owns the CANopen encoder source (SocketCAN), the
+/// SICK laser source (TCP) and the Modbus TCP PLC link, and runs `VehicleLoop` (vehicle_loop.hpp)
+/// on them until a signal.
 ///
-/// Everything is allocated by `create()`; the loop itself does not allocate. Not thread-safe.
+/// Everything is allocated by the constructor; the loop itself does not allocate. Not thread-safe.
 
 #include <csignal>
 #include <cstdint>
 #include <memory>
 #include <string>
 
-#include "agv/calib/calibration_file.hpp"
-#include "vehicle_config.hpp"
+#include "vehicle_loop.hpp"
 
 namespace agv::vehicle {
 
-/// The loaded calibration and map, checked (see `loadVehicleFiles`).
-struct VehicleFiles {
-  VehicleCalibration calibration{};
-  std::unique_ptr<LandmarkMap> map;
-};
-
-/// Reads the calibration file and the map file named by `config`. False with `error` naming the
-/// file, the line and the key (or the landmark field) when one cannot be read or is refused.
-bool loadVehicleFiles(const VehicleConfig& config, VehicleFiles& files, ConfigError& error);
-
-/// Counters of one run, printed at the end.
-struct RuntimeCounters {
-  std::uint64_t cycles = 0;
-  std::uint64_t encoderSamples = 0;
-  std::uint64_t sweeps = 0;
-  std::uint64_t corrections = 0;
-  std::uint64_t publications = 0;
-  std::uint64_t commands = 0;
-};
-
 class VehicleRuntime {
  public:
-  /// Builds the drivers and the localizer (allocates here, once).
+  /// Builds the drivers and the loop (allocates here, once).
   VehicleRuntime(const VehicleConfig& config, VehicleFiles&& files);
   ~VehicleRuntime();
   VehicleRuntime(const VehicleRuntime&) = delete;
@@ -56,15 +34,13 @@ class VehicleRuntime {
   /// One cycle at most: reads encoders and laser, corrects, publishes when due (no sleep).
   void cycle();
 
-  const RuntimeCounters& counters() const noexcept { return counters_; }
+  const RuntimeCounters& counters() const noexcept;
   /// PlcHealthBit bits of the last publication.
-  std::uint16_t healthBits() const noexcept { return healthBits_; }
+  std::uint16_t healthBits() const noexcept;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
-  RuntimeCounters counters_{};
-  std::uint16_t healthBits_ = 0;
 };
 
 }  // namespace agv::vehicle

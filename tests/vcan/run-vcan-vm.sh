@@ -191,6 +191,8 @@ done
 for i in vcan0 vcan1; do
   { ip link add dev $i type vcan && ip link set up $i; } || result "FAIL cannot create $i"
 done
+# Loopback (down after boot): the vehicle loop test's laser server listens on 127.0.0.1.
+ip link set up lo || result "FAIL cannot bring up lo"
 
 # Bus monitor; wait until it records (a sync frame shows up in its log).
 candump -L vcan0 > /tmp/candump.log 2> /tmp/candump.err &

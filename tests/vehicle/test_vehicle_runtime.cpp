@@ -15,6 +15,7 @@
 #include "vehicle_config.hpp"
 #include "vehicle_files.hpp"
 #include "vehicle_runtime.hpp"
+#include "vehicle_setup.hpp"
 
 TEST_CASE("vehicle cycles with laser sweeps, corrections and publications do not allocate", "[vehicle][laser]") {
   agv::test::TempFolder dir;
@@ -46,14 +47,10 @@ TEST_CASE("vehicle cycles with laser sweeps, corrections and publications do not
 
   std::string text = agv::test::goodVehicleConfig("agvcan8", "127.0.0.1", laser.port(), agv::test::closedPort());
   text += "localization.corners = true\n";
-  const std::string conf = dir.write("vehicle.conf", text);
-  dir.write("calibration.txt", agv::test::goodCalibration());
-  dir.write("landmarks.txt", agv::test::goodMap());
   agv::vehicle::VehicleConfig config;
-  agv::vehicle::ConfigError error;
-  REQUIRE(agv::vehicle::loadVehicleConfig(conf, config, error));
   agv::vehicle::VehicleFiles files;
-  REQUIRE(agv::vehicle::loadVehicleFiles(config, files, error));
+  agv::vehicle::ConfigError error;
+  REQUIRE(agv::test::loadTestVehicle(dir, text, config, files, error));
   agv::vehicle::VehicleRuntime runtime(config, std::move(files));
   std::string openError;
   REQUIRE(runtime.open(openError));
