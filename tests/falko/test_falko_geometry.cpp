@@ -8,6 +8,7 @@
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_descriptors.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "agv/falko/scan_points.hpp"
 #include "agv_test.hpp"
 #include "falko_test_util.hpp"
 #include "room_sim.hpp"
@@ -210,4 +211,45 @@ TEST_CASE("falko geometry: descriptors of one corner from two poses match best",
   }
   CHECK(compared >= 4);
   CHECK(bscCompared >= 4);
+}
+
+TEST_CASE("falko geometry: the beam window bound holds every neighbour and is tight", "[falko]") {
+  // Beam i + k carries the point of its ray nearest to the centre point (range rho cos(k inc), at
+  // distance rho sin(k inc)): the hardest case for an angular bound. Every such point within the
+  // radius must lie inside the window, and the window must not exceed asin(q) by more than 2.5 %
+  // and two beams (q = radius / range), for q on both sides of the 3/4 switch of the bound.
+  auto scan = std::make_unique<LaserScan>();
+  auto pts = std::make_unique<agv::ScanPoints>();
+  for (const float incDeg : {0.25F, 0.5F, 1.0F}) {
+    const float inc = incDeg * kDeg;
+    const auto n = static_cast<std::size_t>(180.0F / incDeg) + 1;  // 180 deg: no wrap
+    const std::size_t i = n / 2;
+    for (const float rho : {0.3F, 1.0F, 3.0F, 10.0F}) {
+      scan->angleMin = -90.0F * kDeg;
+      scan->angleIncrement = inc;
+      scan->rangeMin = 0.01F;
+      scan->rangeMax = 50.0F;
+      scan->ranges.clear();
+      for (std::size_t j = 0; j < n; ++j) {
+        const float off = static_cast<float>(j > i ? j - i : i - j) * inc;
+        REQUIRE(agv::isOk(scan->ranges.push_back(off < 89.0F * kDeg ? rho * std::cos(off) : 100.0F)));
+      }
+      REQUIRE(pts->assign(*scan) == Status::Ok);
+      for (const float q : {0.05F, 0.2F, 0.45F, 0.5F, 0.55F, 0.7F, 0.75F, 0.8F, 0.9F, 0.99F}) {
+        const float radius = q * rho;
+        const std::size_t kmax = pts->maxOffset(rho, radius);
+        CHECK(pts->maxOffsetAt(i, radius) == kmax);
+        CHECK(static_cast<double>(kmax) <= 1.025 * std::asin(static_cast<double>(q)) / static_cast<double>(inc) + 2.0);
+        for (std::size_t k = 1; k < i; ++k) {
+          for (const std::size_t j : {i - k, i + k}) {
+            const float dx = pts->x(j) - pts->x(i);
+            const float dy = pts->y(j) - pts->y(i);
+            if (dx * dx + dy * dy <= radius * radius) {
+              CHECK(k <= kmax);
+            }
+          }
+        }
+      }
+    }
+  }
 }

@@ -12,6 +12,9 @@ namespace agv {
 namespace {
 
 constexpr std::size_t kMaxGridSectors = 64;
+/// Interleaved copies of the score histogram (see scoreOf); FalkoDetector::hist_ holds them.
+constexpr std::size_t kHistCopies = falko_detail::kFourWide ? 2 : 1;
+static_assert(kHistCopies * kMaxGridSectors <= FalkoDetector::kHistSize, "score histogram buffer too small");
 constexpr float kNotCandidate = std::numeric_limits<float>::infinity();
 
 /// A line through (mx, my) with unit direction (dx, dy).
@@ -188,54 +191,41 @@ std::size_t farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::s
 }
 }  // namespace
 
-bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight,
-                           Side& left, Side& right) noexcept {
+FalkoDetector::Side FalkoDetector::gatherSide(const ScanPoints& pts, std::size_t i, int dir, std::size_t k, float r2,
+                                              float* xs, float* ys) noexcept {
   const float cx = pts.x(i);
   const float cy = pts.y(i);
-  const float r2 = radius * radius;
   // Invalid readings are far away (ScanPoints::kFarAway): the radius test drops them.
-  std::size_t nl = 0;
-  float slx = 0.0F;
-  float sly = 0.0F;
-  float* lx = leftX_.data();
-  float* ly = leftY_.data();
-  falko_detail::walkBeams(pts, i, -1, kLeft, [&](std::size_t j) {
+  std::size_t count = 0;
+  float sx = 0.0F;
+  float sy = 0.0F;
+  falko_detail::walkBeams(pts, i, dir, k, [&](std::size_t j) {
     const float dx = pts.x(j) - cx;
     const float dy = pts.y(j) - cy;
     if (dx * dx + dy * dy <= r2) {
-      lx[nl] = dx;
-      ly[nl] = dy;
-      ++nl;
-      slx += dx;
-      sly += dy;
+      xs[count] = dx;
+      ys[count] = dy;
+      ++count;
+      sx += dx;
+      sy += dy;
     }
   });
-  left.count = nl;
-  left.sumX = slx;
-  left.sumY = sly;
-  if (nl < params_.minSidePoints) {
+  Side side;
+  side.count = count;
+  side.sumX = sx;
+  side.sumY = sy;
+  return side;
+}
+
+bool FalkoDetector::gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight,
+                           Side& left, Side& right) noexcept {
+  const float r2 = radius * radius;
+  left = gatherSide(pts, i, -1, kLeft, r2, leftX_.data(), leftY_.data());
+  if (left.count < params_.minSidePoints) {
     return false;  // early rejection: the other side is not needed
   }
-  std::size_t nr = 0;
-  float srx = 0.0F;
-  float sry = 0.0F;
-  float* rx = rightX_.data();
-  float* ry = rightY_.data();
-  falko_detail::walkBeams(pts, i, 1, kRight, [&](std::size_t j) {
-    const float dx = pts.x(j) - cx;
-    const float dy = pts.y(j) - cy;
-    if (dx * dx + dy * dy <= r2) {
-      rx[nr] = dx;
-      ry[nr] = dy;
-      ++nr;
-      srx += dx;
-      sry += dy;
-    }
-  });
-  right.count = nr;
-  right.sumX = srx;
-  right.sumY = sry;
-  return nr >= params_.minSidePoints;
+  right = gatherSide(pts, i, 1, kRight, r2, rightX_.data(), rightY_.data());
+  return right.count >= params_.minSidePoints;
 }
 
 float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float s) noexcept {
@@ -249,9 +239,28 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
     const Side& sd = side == 0 ? left : right;
     const float* px = side == 0 ? leftX_.data() : rightX_.data();
     const float* py = side == 0 ? leftY_.data() : rightY_.data();
-    // hist_ is all zero between calls: only the used bins are reset at the end.
-    std::array<unsigned, kMaxGridSectors> used;  // only [0, usedCount) is read
+    // Histogram of the sectors; hist_ is all zero between calls: only the occupied bins are
+    // reset at the end. The points of one wall fall in one sector, so on out-of-order cores
+    // (kHistCopies > 1) point k counts in copy k % kHistCopies, and the occupied sectors are
+    // kept in two 32-bit masks: no increment waits for the previous one to reach memory. On
+    // in-order cores (one copy) the first increment of a sector lists it, which is cheaper.
+    std::uint32_t* h = hist_.data();
+    std::array<unsigned, kMaxGridSectors> used;      // only [0, usedCount) is read
+    std::array<std::uint32_t, kMaxGridSectors> cnt;  // count of sector used[a]
     unsigned usedCount = 0;
+    std::uint32_t occupiedLo = 0;  // sectors 0..31
+    std::uint32_t occupiedHi = 0;  // sectors 32..63
+    auto count = [&](std::size_t k, unsigned b) {
+      if constexpr (kHistCopies == 1) {
+        if (h[b]++ == 0U) {
+          used[usedCount++] = b;
+        }
+      } else {
+        ++h[(k % kHistCopies) * kMaxGridSectors + b];
+        occupiedLo |= b < 32U ? 1U << (b & 31U) : 0U;
+        occupiedHi |= b < 32U ? 0U : 1U << (b & 31U);
+      }
+    };
     std::size_t k = 0;
     if (fast16 && falko_detail::kFourWide) {
       // Sectors of four neighbours at a time, branch-free (vector registers where available).
@@ -263,9 +272,7 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
           b4[l] = falko_detail::sector16Branchless(u, v);
         }
         for (std::size_t l = 0; l < 4; ++l) {
-          if (hist_[b4[l]]++ == 0U) {
-            used[usedCount++] = b4[l];
-          }
+          count(k + l, b4[l]);
         }
       }
     }
@@ -273,9 +280,27 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
       // Bearing of the neighbour seen from the candidate, relative to the corner orientation.
       const float u = px[k] * c + py[k] * s;
       const float v = py[k] * c - px[k] * s;
-      const unsigned b = fast16 ? falko_detail::sector16(u, v) : falko_detail::sectorOf(v, u, binsPerRadian, bins);
-      if (hist_[b]++ == 0U) {
-        used[usedCount++] = b;
+      count(k, fast16 ? falko_detail::sector16(u, v) : falko_detail::sectorOf(v, u, binsPerRadian, bins));
+    }
+    // Counts of the occupied sectors; the histogram is reset on the way.
+    if constexpr (kHistCopies == 1) {
+      for (unsigned a = 0; a < usedCount; ++a) {
+        cnt[a] = h[used[a]];
+        h[used[a]] = 0U;
+      }
+    } else {
+      for (unsigned base = 0; base < 64U; base += 32U) {
+        for (std::uint32_t m = base == 0U ? occupiedLo : occupiedHi; m != 0U; m &= m - 1U) {
+          const unsigned b = base + falko_detail::lowestBitIndex(m);
+          std::uint32_t sum = 0;
+          for (std::size_t copy = 0; copy < kHistCopies; ++copy) {
+            sum += h[copy * kMaxGridSectors + b];
+            h[copy * kMaxGridSectors + b] = 0U;
+          }
+          used[usedCount] = b;
+          cnt[usedCount] = sum;
+          ++usedCount;
+        }
       }
     }
     // Sum over point pairs of the circular sector distance = sum over pairs of occupied sectors.
@@ -284,15 +309,12 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
       for (unsigned b = a + 1U; b < usedCount; ++b) {
         const unsigned d0 = used[a] > used[b] ? used[a] - used[b] : used[b] - used[a];
         const unsigned d = d0 > half ? bins - d0 : d0;
-        sum += hist_[used[a]] * hist_[used[b]] * d;  // < 2048^2 * 32: fits
+        sum += cnt[a] * cnt[b] * d;  // < 2048^2 * 32: fits
       }
     }
-    for (unsigned a = 0; a < usedCount; ++a) {
-      hist_[used[a]] = 0U;
-    }
-    const auto cnt = static_cast<float>(sd.count);
+    const auto cntSide = static_cast<float>(sd.count);
     total += static_cast<float>(sum);
-    pairs += 0.5F * cnt * (cnt - 1.0F);
+    pairs += 0.5F * cntSide * (cntSide - 1.0F);
   }
   return pairs > 0.0F ? total / pairs : 0.0F;
 }
@@ -318,12 +340,18 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     float* wx = leftX_.data();
     float* wy = leftY_.data();
     std::size_t m = 0;
-    const std::size_t kmax = pts.maxOffset(pts.range(i), reach);
-    LineAcc total;
-    // Window in beam order: the earlier beams are walked nearest first, then reversed. Branch-free
-    // compaction: every beam is written, the count advances only for points within reach (at
-    // most one write beyond the kept points, inside the buffer: the window never exceeds the
-    // scan). The sums are accumulated afterwards in the same point order.
+    const std::size_t kmax = pts.maxOffsetAt(i, reach);
+    // The split point is the one nearest the corner, which lies within subbeamMaxShift of the
+    // candidate: farther splits are not tried (cheaper, and they could only be rejected). No
+    // point more than kSplit beams away can be that close.
+    const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
+    const float splitReach2 = splitReach * splitReach;
+    const std::size_t kSplitBound = pts.maxOffsetAt(i, splitReach);
+    const std::size_t kSplit = kSplitBound < kmax ? kSplitBound : kmax;
+    // Window in beam order (earlier beams farthest first). Branch-free compaction: every beam is
+    // written, the count advances only for points within reach (at most one write beyond the
+    // kept points, inside the buffer: the window never exceeds the scan). The window indices
+    // [qStart, qEnd) hold the points at most kSplit beams from the candidate.
     auto take = [&](std::size_t j) {
       const float qx = pts.x(j) - mxAbs;
       const float qy = pts.y(j) - myAbs;
@@ -331,21 +359,19 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
       wy[m] = qy;
       m += qx * qx + qy * qy <= reach2 ? 1U : 0U;  // invalid readings are far away
     };
-    falko_detail::walkBeams(pts, i, -1, kmax, take);
-    for (std::size_t a = 0; a < m; ++a) {
-      total.add(wx[a], wy[a]);
-    }
+    falko_detail::walkBeamsInOrder(pts, i, -1, kSplit + 1, kmax, take);
+    const std::size_t qStart = m;
+    falko_detail::walkBeamsInOrder(pts, i, -1, 1, kSplit, take);
     const std::size_t mLeft = m;
-    for (std::size_t a = 0, b = m; a + 1 < b; ++a, --b) {
-      const float tx = wx[a];
-      const float ty = wy[a];
-      wx[a] = wx[b - 1];
-      wy[a] = wy[b - 1];
-      wx[b - 1] = tx;
-      wy[b - 1] = ty;
-    }
     take(i);
-    falko_detail::walkBeams(pts, i, 1, kmax, take);
+    falko_detail::walkBeamsInOrder(pts, i, 1, 1, kSplit, take);
+    const std::size_t qEnd = m;
+    falko_detail::walkBeamsInOrder(pts, i, 1, kSplit + 1, kmax, take);
+    // Sums: the earlier points nearest first, then the candidate and the later points.
+    LineAcc total;
+    for (std::size_t a = mLeft; a > 0; --a) {
+      total.add(wx[a - 1], wy[a - 1]);
+    }
     for (std::size_t a = mLeft; a < m; ++a) {
       total.add(wx[a], wy[a]);
     }
@@ -355,16 +381,18 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     float bestCost = std::numeric_limits<float>::infinity();
     LineAcc bestL;
     LineAcc bestR;
-    // The split point is the one nearest the corner, which lies within subbeamMaxShift of the
-    // candidate: farther splits are not tried (cheaper, and they could only be rejected).
-    const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
-    const float splitReach2 = splitReach * splitReach;
     if (m >= 2 * minSide + 1) {
       const std::size_t qLast = m - minSide - 1;  // the last split point with minSide after it
+      // Split points beyond qEnd are outside the split reach: `before` is not needed there.
+      const std::size_t qStop = qEnd <= qLast ? qEnd : qLast + 1;
       for (std::size_t q = 0; q < minSide; ++q) {
         before.add(wx[q], wy[q]);
       }
-      for (std::size_t q = minSide; q <= qLast; ++q) {
+      std::size_t q = minSide;
+      for (; q < qStart && q < qStop; ++q) {
+        before.add(wx[q], wy[q]);
+      }
+      for (; q < qStop; ++q) {
         if (wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
           const float costL = before.residual();
           // The residual of the points before the split only grows with q (a line through more
@@ -487,26 +515,35 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
   const float invBeta = 1.0F / p.beta;
   std::size_t candidates = 0;
 
-  // 1. Candidates: side split, triangle test, score.
+  // 0. Radius and beam window of every candidate beam, in a loop of its own: the exponential and
+  //    the window bound then overlap from beam to beam instead of waiting behind the searches
+  //    below. Beams that are no candidate get an empty window.
   for (std::size_t i = 0; i < n; ++i) {
-    score_[i] = kNotCandidate;
-    if (!pts.valid(i)) {
-      continue;
-    }
     const float rho = pts.range(i);
-    if (rho < p.minExtractionRange || rho > p.maxExtractionRange) {
-      continue;
-    }
     float radius = p.neighA * std::exp(p.neighB * rho);
     const float maxRadius = p.maxRadiusRangeRatio * rho;
     if (radius > maxRadius) {
       radius = maxRadius;
     }
-    // Early rejection: the triangle test needs only the first (front) and last (back) neighbours,
-    // found from the window edges inwards; most beams (walls) stop here, before the full
-    // neighbourhood and the score.
+    const bool candidate = pts.valid(i) && !(rho < p.minExtractionRange || rho > p.maxExtractionRange);
+    radius_[i] = radius;
+    window_[i] = candidate ? static_cast<std::uint32_t>(pts.maxOffsetAt(i, radius)) : 0U;
+  }
+
+  // 1. Early rejection of every beam: the triangle test needs only the first (front) and last
+  //    (back) neighbours, found from the window edges inwards; most beams (walls) stop here. The
+  //    survivors are listed in order_ with their side extents packed in window_ (kLeft << 16 |
+  //    kRight, both below 2^16), so that the full neighbourhood and the score run in a loop of
+  //    their own.
+  std::size_t survivors = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    score_[i] = kNotCandidate;
+    const std::size_t kmax = window_[i];
+    if (kmax == 0) {
+      continue;
+    }
+    const float radius = radius_[i];
     const float r2 = radius * radius;
-    const std::size_t kmax = pts.maxOffset(rho, radius);
     float fx = 0.0F;
     float fy = 0.0F;
     float bx = 0.0F;
@@ -529,9 +566,18 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     if (cross * cross < base2 * minLen * minLen) {
       continue;
     }
+    order_[survivors++] = static_cast<std::uint32_t>(i);
+    window_[i] = static_cast<std::uint32_t>(kLeft << 16U | kRight);
+  }
+  static_assert(kMaxScanBeams < (std::size_t{1} << 16U), "side extents are packed in 16 bits");
+
+  // 2. Sides and score of the survivors.
+  for (std::size_t o = 0; o < survivors; ++o) {
+    const std::size_t i = order_[o];
+    const float radius = radius_[i];
     Side left;
     Side right;
-    if (!gather(pts, i, radius, kLeft, kRight, left, right)) {
+    if (!gather(pts, i, radius, window_[i] >> 16U, window_[i] & 0xFFFFU, left, right)) {
       continue;
     }
     const float ox = left.sumX / static_cast<float>(left.count) + right.sumX / static_cast<float>(right.count);
@@ -543,7 +589,6 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     const float score = scoreOf(left, right, ox / on, oy / on);
     if (score <= p.maxScore) {
       score_[i] = score;
-      radius_[i] = radius;
       sideX_[i] = ox;
       sideY_[i] = oy;
       ++candidates;
@@ -551,7 +596,7 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
   }
   candidateCount_ = candidates;
 
-  // 2. Greedy non-maxima suppression, best score first (ties to the lower beam index): a
+  // 3. Greedy non-maxima suppression, best score first (ties to the lower beam index): a
   //    candidate whose beam point lies within nmsRadius of an accepted corner is suppressed;
   //    otherwise it is refined, and accepted unless the refinement rejects it or it lands within
   //    nmsRadius of an accepted corner. A rejected candidate suppresses nothing, so the next best

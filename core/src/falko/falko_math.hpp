@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include <cstddef>
+#include <cstdint>
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/scan_points.hpp"
@@ -61,6 +62,14 @@ inline unsigned sector16(float u, float v) noexcept {
   const unsigned fromZero = u >= 0.0F ? (v >= 0.0F ? q : 16U - q) : (v >= 0.0F ? 8U - q : 8U + q);
   // Bin 0 is centred on -pi (180 deg).
   return (fromZero + 8U) & 15U;
+}
+
+/// Index of the lowest set bit of v (v != 0), without a compiler builtin: de Bruijn multiply.
+inline unsigned lowestBitIndex(std::uint32_t v) noexcept {
+  constexpr unsigned char kTable[32] = {0,  1,  28, 2,  29, 14, 24, 3, 30, 22, 20, 15, 25, 17, 4,  8,
+                                        31, 27, 13, 23, 21, 19, 16, 7, 26, 12, 18, 6,  11, 5,  10, 9};
+  const std::uint32_t lowest = v & (~v + 1U);
+  return kTable[(lowest * 0x077CB531U) >> 27U];
 }
 
 /// True where the compiler can keep four float tests in one vector register (x86 SSE2, ARM NEON):
@@ -171,6 +180,77 @@ inline void walkBeams(const ScanPoints& pts, std::size_t i, int dir, std::size_t
       }
     }
   }
+}
+
+/// Calls f(j) for the beams kNear..kFar steps (1 <= kNear; nothing when kNear > kFar) from beam i
+/// in direction dir (-1 or +1), in increasing beam order: farthest first before the candidate,
+/// nearest first after it. Wraps on 360 deg scans and stops at the scan ends otherwise; kFar must
+/// not exceed pts.maxOffset(...) so that the two directions never overlap. Two plain index runs.
+template <typename F>
+inline void walkBeamsInOrder(const ScanPoints& pts, std::size_t i, int dir, std::size_t kNear, std::size_t kFar,
+                             F&& f) {
+  if (kNear > kFar || kNear == 0) {
+    return;
+  }
+  const std::size_t n = pts.size();
+  if (dir < 0) {
+    // Offsets beyond i wrap to the end of the scan: indices n + i - kFar .. n + i - max(kNear, i + 1).
+    if (kFar > i && pts.wraps()) {
+      const std::size_t sNear = kNear > i ? kNear : i + 1;
+      for (std::size_t j = n + i - kFar; j <= n + i - sNear; ++j) {
+        f(j);
+      }
+    }
+    if (kNear <= i) {
+      const std::size_t sFar = kFar <= i ? kFar : i;
+      for (std::size_t j = i - sFar; j <= i - kNear; ++j) {
+        f(j);
+      }
+    }
+  } else {
+    // Offsets up to n - 1 - i stay direct, the rest wrap to the start of the scan.
+    const std::size_t lastDirect = n - 1 - i;
+    if (kNear <= lastDirect) {
+      const std::size_t sFar = kFar <= lastDirect ? kFar : lastDirect;
+      for (std::size_t j = i + kNear; j <= i + sFar; ++j) {
+        f(j);
+      }
+    }
+    if (kFar > lastDirect && pts.wraps()) {
+      const std::size_t sNear = kNear > lastDirect ? kNear : lastDirect + 1;
+      for (std::size_t j = i + sNear - n; j <= i + kFar - n; ++j) {
+        f(j);
+      }
+    }
+  }
+}
+
+/// The beams at most k steps from beam i (i included) as at most two index runs [begin, end)
+/// (two when a 360 deg scan wraps), for loops where the visiting order does not matter. k must
+/// not exceed pts.maxOffset(...). Returns the number of runs.
+inline std::size_t beamRuns(const ScanPoints& pts, std::size_t i, std::size_t k, std::size_t (&begin)[2],
+                            std::size_t (&end)[2]) noexcept {
+  const std::size_t n = pts.size();
+  const std::size_t lo = k <= i ? i - k : 0;
+  const std::size_t hi = i + k < n ? i + k + 1 : n;
+  begin[0] = lo;
+  end[0] = hi;
+  if (!pts.wraps()) {
+    return 1;
+  }
+  // Wrapped parts: before beam 0 (from the end of the scan) or after beam n - 1 (from its start).
+  // maxOffset keeps 2k + 1 <= n, so the two parts never overlap the direct run.
+  if (k > i) {
+    begin[1] = n + i - k;
+    end[1] = n;
+    return 2;
+  }
+  if (i + k >= n) {
+    begin[1] = 0;
+    end[1] = i + k + 1 - n;
+    return 2;
+  }
+  return 1;
 }
 
 }  // namespace falko_detail

@@ -46,6 +46,7 @@ Status ScanPoints::assign(const LaserScan& scan) noexcept {
     valid_[i] = ok ? 1U : 0U;
     const float rr = ok ? r : 0.0F;
     range_[i] = rr;
+    invRange_[i] = ok ? 1.0F / rr : 0.0F;
     // Invalid readings sit far away (finite, so squared distances stay finite): every radius
     // test rejects them without a separate validity branch in the inner loops.
     x_[i] = ok ? rr * cos_[i] : kFarAway;

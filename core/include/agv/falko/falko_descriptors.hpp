@@ -71,6 +71,7 @@ class FalkoDescriber {
   static constexpr std::size_t kKernelHalfWidth = 3;
   FalkoDescriptorParams params_;
   std::array<float, 2 * kKernelHalfWidth + 1> kernel_{};
+  std::array<float, kBscRings - 1> ringBound2_{};  ///< squared outer radius of BSC rings 0..kBscRings-2
   bool valid_ = false;
 };
 

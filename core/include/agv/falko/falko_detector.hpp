@@ -37,7 +37,7 @@ using FalkoKeypoints = FixedVector<FalkoKeypoint, kMaxKeypoints>;
 /// the mean of the directions from the corner to the centroids of its two sides.
 ///
 /// Work per scan is bounded by beams x (window size), with the window bounded by the scan length;
-/// the object holds all its buffers (about 150 kB with 2048 beams), so keep it static on an MCU.
+/// the object holds all its buffers (about 190 kB with 2048 beams), so keep it static on an MCU.
 /// No heap, no exceptions.
 class FalkoDetector {
  public:
@@ -63,6 +63,9 @@ class FalkoDetector {
   /// (before non-maxima suppression); for diagnostics.
   std::size_t lastCandidateCount() const noexcept { return candidateCount_; }
 
+  /// Entries of the score histogram buffer: up to 2 interleaved copies of 64 sectors.
+  static constexpr std::size_t kHistSize = std::size_t{2} * 64U;
+
  private:
   struct Side {
     std::size_t count = 0;
@@ -75,6 +78,10 @@ class FalkoDetector {
   /// farthest neighbours); returns false when a side has too few points.
   bool gather(const ScanPoints& pts, std::size_t i, float radius, std::size_t kLeft, std::size_t kRight, Side& left,
               Side& right) noexcept;
+  /// One side of gather: the points within sqrt(r2) of beam i among the k beams in direction dir
+  /// (-1: before, +1: after), nearest first, relative to the candidate, written to (xs, ys).
+  static Side gatherSide(const ScanPoints& pts, std::size_t i, int dir, std::size_t k, float r2, float* xs,
+                         float* ys) noexcept;
   float scoreOf(const Side& left, const Side& right, float c, float s) noexcept;
   /// Sub-beam refinement and orientation; false when the points around the candidate are
   /// explained by one line (the candidate is then dropped).
@@ -87,13 +94,14 @@ class FalkoDetector {
   std::array<float, kMaxScanBeams> leftY_{};
   std::array<float, kMaxScanBeams> rightX_{};
   std::array<float, kMaxScanBeams> rightY_{};
-  std::array<float, kMaxScanBeams> score_{};   ///< per beam; +inf when not a candidate
-  std::array<float, kMaxScanBeams> radius_{};  ///< per beam neighbourhood radius
-  std::array<float, kMaxScanBeams> sideX_{};   ///< per beam sum of the side centroids (relative)
+  std::array<float, kMaxScanBeams> score_{};           ///< per beam; +inf when not a candidate
+  std::array<float, kMaxScanBeams> radius_{};          ///< per beam neighbourhood radius
+  std::array<std::uint32_t, kMaxScanBeams> window_{};  ///< per beam window in beams, 0: no candidate
+  std::array<float, kMaxScanBeams> sideX_{};           ///< per beam sum of the side centroids (relative)
   std::array<float, kMaxScanBeams> sideY_{};
   std::array<std::uint32_t, kMaxScanBeams> order_{};  ///< candidates by score
   std::array<FalkoKeypoint, kMaxScanBeams> cands_{};  ///< accepted keypoints
-  std::array<std::uint32_t, 64> hist_{};              ///< score histogram, all zero between uses
+  std::array<std::uint32_t, kHistSize> hist_{};       ///< score histograms (interleaved copies), zero between uses
   std::size_t candidateCount_ = 0;
 };
 

@@ -62,16 +62,12 @@ class ScanPoints {
     if (!(radius < rangeAtCentre)) {
       return maxSideOffset_;
     }
-    // Beam k holds no point within `radius` once k * inc > asin(radius / range).
-    // tan(asin(q)) = q / sqrt(1 - q^2) >= asin(q) is a cheap upper bound (0.3 % larger at q = 0.1);
-    // the caller's distance test removes the extra beams.
-    const float q = radius / rangeAtCentre;
-    const float bound = q / std::sqrt(1.0F - q * q) * invIncrement_ + 1.0F;
-    if (!(bound < static_cast<float>(maxSideOffset_))) {
-      return maxSideOffset_;
-    }
-    return static_cast<std::size_t>(bound);
+    return offsetForRatio(radius / rangeAtCentre);
   }
+
+  /// maxOffset(range(i), radius) for the point of beam i, from its stored inverse range (no
+  /// division).
+  std::size_t maxOffsetAt(std::size_t i, float radius) const noexcept { return offsetForRatio(radius * invRange_[i]); }
 
   /// Index `k` beams after `i` (k may be negative), wrapped on 360 deg scans; returns size() when
   /// the result lies outside a non-wrapping scan.
@@ -89,6 +85,31 @@ class ScanPoints {
   }
 
  private:
+  /// Beam offset bound for q = radius / range: beam k holds no point within the radius once
+  /// k * increment > asin(q). Upper bounds of asin without a division, at most 2.5 % above it:
+  /// - q <= 3/4: q * (1 + q^2 * (1/6 + q^2 / 5)) (the Taylor series of asin has positive
+  ///   coefficients, and its tail beyond q^3 stays below q^5 / 5 up to q = 0.94);
+  /// - 3/4 < q < 1: pi/2 - sqrt(2 (1 - q)), since acos(q) = 2 asin(sqrt((1 - q) / 2)) >=
+  ///   sqrt(2 (1 - q)) (tan(asin(q)), the bound used before, is 84 % above asin at q = 0.9);
+  /// - q >= 1 (or NaN): the whole half scan.
+  /// One beam of slack covers the float rounding; callers' distance tests drop the extra beams.
+  std::size_t offsetForRatio(float q) const noexcept {
+    float angle = 0.0F;
+    if (q <= 0.75F) {
+      const float q2 = q * q;
+      angle = q * (1.0F + q2 * (0.16666667F + 0.2F * q2));
+    } else if (q < 1.0F) {
+      angle = 1.57079633F - std::sqrt(2.0F * (1.0F - q));
+    } else {
+      return maxSideOffset_;
+    }
+    const float bound = angle * invIncrement_ + 1.0F;
+    if (!(bound < static_cast<float>(maxSideOffset_))) {
+      return maxSideOffset_;
+    }
+    return static_cast<std::size_t>(static_cast<int>(bound));  // 0 < bound < maxSideOffset_: fits an int
+  }
+
   void rebuildGeometry(float angleMin, float increment, std::size_t n) noexcept;
 
   std::array<float, kMaxScanBeams> cos_{};
@@ -96,6 +117,7 @@ class ScanPoints {
   std::array<float, kMaxScanBeams> x_{};
   std::array<float, kMaxScanBeams> y_{};
   std::array<float, kMaxScanBeams> range_{};
+  std::array<float, kMaxScanBeams> invRange_{};  ///< 1 / range, 0 for invalid readings
   std::array<std::uint8_t, kMaxScanBeams> valid_{};
   std::size_t size_ = 0;
   std::size_t validCount_ = 0;
