@@ -106,7 +106,7 @@ struct RoutineOptions {
   RefinementOptions refinement{};                ///< noise model of the joint refinement (reflector egomotion)
   /// Noise model of the joint refinement with keypoint egomotion: FALKO corners scatter more in
   /// translation and less in rotation than the reflector figures say (measured in the built-in
-  /// warehouse, 0.25 deg laser, 1 cm range noise, half circles of 18..50 deg: 9.1 / 9.4 mm per
+  /// warehouse, 0.25 deg laser, 1 cm range noise, half circles of 18..50 deg: 8.6 / 9.2 mm per
   /// axis, 0.038 deg; docs/calibration.md). With the reflector figures the refinement trusts the
   /// translations some 25 times too much relative to the rotations, and the translations of
   /// keypoint egomotion are short (corners on round pillars move with the viewpoint): through
