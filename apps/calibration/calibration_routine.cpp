@@ -343,8 +343,8 @@ CalibrationOutcome runCalibrationRoutine(CalibrationVehicle& vehicle, const Cali
   }
   out.stcStatus = calibrateStc(span(), calibOptions, out.stc);
   if (out.status == Status::Ok) {
-    out.refinedStatus =
-        refineCalibration(span(), out.result.params, out.result.laserPose, options.refinement, out.refined);
+    out.refinedStatus = refineCalibration(span(), out.result.params, out.result.laserPose,
+                                          options.refinementFor(options.egomotion), out.refined);
   }
   out.segmentsUsed = static_cast<int>(segments.size());
   double rmsSum = 0.0;

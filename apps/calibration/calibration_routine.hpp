@@ -103,7 +103,28 @@ struct RoutineOptions {
   /// Keypoint alignment: hypotheses farther than this from the odometry's guess are discarded.
   double keypointGuessTranslation = 1.0;         ///< [m]
   double keypointGuessRotation = deg2rad(10.0);  ///< [rad]
-  RefinementOptions refinement{};                ///< noise model of the joint refinement
+  RefinementOptions refinement{};                ///< noise model of the joint refinement (reflector egomotion)
+  /// Noise model of the joint refinement with keypoint egomotion: FALKO corners scatter more in
+  /// translation and less in rotation than the reflector figures say (measured in the built-in
+  /// warehouse, 0.25 deg laser, 1 cm range noise, half circles of 18..50 deg: 8.6 / 9.2 mm per
+  /// axis, 0.038 deg; docs/calibration.md). With the reflector figures the refinement trusts the
+  /// translations some 25 times too much relative to the rotations, and the translations of
+  /// keypoint egomotion are short (corners on round pillars move with the viewpoint): through
+  /// the laser's lever arm that pulled s_w down by about 450 ppm.
+  RefinementOptions keypointRefinement = keypointRefinementOptions();
+
+  /// The keypoint noise model above: sigmaTranslation 10 mm, sigmaRotation 0.04 deg, the
+  /// steering figures of `RefinementOptions`.
+  static RefinementOptions keypointRefinementOptions() noexcept {
+    RefinementOptions o;
+    o.sigmaTranslation = 0.010;
+    o.sigmaRotation = deg2rad(0.04);
+    return o;
+  }
+  /// The refinement options for `egomotion`.
+  const RefinementOptions& refinementFor(EgomotionSource source) const noexcept {
+    return source == EgomotionSource::Keypoints ? keypointRefinement : refinement;
+  }
 };
 
 /// Progress after each segment.

@@ -352,3 +352,134 @@ TEST_CASE("calib.keypoint_alignment: deterministic and allocation-free", "[calib
   CHECK(o1.inliers == o2.inliers);
   CHECK(o1.hypotheses <= 50);
 }
+
+namespace {
+
+/// Errors of keypoint egomotion against the truth, pooled over trials.
+struct EgomotionErrors {
+  int trials = 0;
+  int aligned = 0;
+  double sumLong = 0.0;  // translation error along the true translation / its length [1]
+  double sumLong2 = 0.0;
+  double sumRot = 0.0;  // rotation error / pi [1]
+  double sumRot2 = 0.0;
+  double sumX = 0.0;  // translation error per axis [m]
+  double sumY = 0.0;
+  double sumX2 = 0.0;
+  double sumY2 = 0.0;
+  double meanLong() const { return sumLong / aligned; }
+  double seLong() const { return std::sqrt((sumLong2 / aligned - meanLong() * meanLong()) / aligned); }
+  double meanRot() const { return sumRot / aligned; }
+  double seRot() const { return std::sqrt((sumRot2 / aligned - meanRot() * meanRot()) / aligned); }
+  double sdRot() const { return std::sqrt(sumRot2 / aligned - meanRot() * meanRot()) * agv::kPi<double>; }
+  double sdX() const { return std::sqrt(sumX2 / aligned - (sumX / aligned) * (sumX / aligned)); }
+  double sdY() const { return std::sqrt(sumY2 / aligned - (sumY / aligned) * (sumY / aligned)); }
+};
+
+/// Keypoint egomotion of the half circles (beta 180 deg) that `agvnav-calibrate` drives from its
+/// default start (10, 12.5, 0) in the built-in warehouse: steering 18..50 deg left and right, the
+/// simulator's laser mount (1.62, 0.025, 0.7 deg), its default laser (0.25 deg, 1 cm range
+/// noise), the routine's guess gates around the true motion. `withPillars` false: the same hall
+/// without its three round building pillars.
+EgomotionErrors warehouseHalfCircles(bool withPillars, int seeds) {
+  agv::sim::World w;
+  agv::sim::WorldParseError err;
+  REQUIRE(agv::sim::parseWorld(agv::sim::defaultWorldText(), w, err) == Status::Ok);
+  if (!withPillars) {
+    std::vector<agv::sim::Circle> kept;
+    for (const agv::sim::Circle& c : w.circles) {
+      if (c.kind != agv::sim::ObstacleKind::Pillar) {
+        kept.push_back(c);
+      }
+    }
+    REQUIRE(kept.size() + 3U == w.circles.size());
+    w.circles = kept;
+  }
+  const agv::sim::RayCaster caster(w, 1.0);
+  const agv::sim::SimLaserParams laser;  // what agvnav-calibrate simulates
+  REQUIRE(laser.rangeNoiseStdDev == 0.01);
+  const Pose2d start{10.0, 12.5, 0.0};
+  const Pose2d mount{1.62, 0.025, deg2rad(0.7)};
+  const double wheelbase = 1.5;
+  KeypointAlignmentOptions opt;
+  opt.guessTranslationGate = 1.0;
+  opt.guessRotationGate = deg2rad(10.0);
+  static KeypointScan a;
+  static KeypointScan b;
+  EgomotionErrors e;
+  for (int s = 0; s < seeds; ++s) {
+    const Pose2d first = start.compose(mount);
+    REQUIRE(agv::test::simulateKeypointScan(caster, first, laser, 100U + 2U * static_cast<unsigned>(s), a) ==
+            Status::Ok);
+    for (const double steerDeg : {18.0, 26.0, 34.0, 42.0, 50.0}) {
+      for (const double side : {1.0, -1.0}) {
+        const double radius = wheelbase / std::tan(deg2rad(steerDeg));
+        const Pose2d second = start.compose(Pose2d{0.0, side * 2.0 * radius, side * agv::kPi<double>}).compose(mount);
+        REQUIRE(agv::test::simulateKeypointScan(caster, second, laser, 101U + 2U * static_cast<unsigned>(s), b) ==
+                Status::Ok);
+        const Pose2d truth = agv::between(first, second);
+        KeypointAlignment out;
+        ++e.trials;
+        if (agv::alignKeypoints(a.view(), b.view(), truth, opt, out) != Status::Ok) {
+          continue;
+        }
+        ++e.aligned;
+        const Eigen::Vector2d t(truth.x, truth.y);
+        const Eigen::Vector2d d(out.motion.x - truth.x, out.motion.y - truth.y);
+        const double lng = d.dot(t) / t.squaredNorm();
+        const double rot = agv::angleDiff(out.motion.theta, truth.theta) / agv::kPi<double>;
+        e.sumLong += lng;
+        e.sumLong2 += lng * lng;
+        e.sumRot += rot;
+        e.sumRot2 += rot * rot;
+        e.sumX += d.x();
+        e.sumY += d.y();
+        e.sumX2 += d.x() * d.x();
+        e.sumY2 += d.y() * d.y();
+      }
+    }
+  }
+  return e;
+}
+
+}  // namespace
+
+// Why keypoint calibration runs underestimated s_w (docs/calibration.md, "Keypoint egomotion in
+// the warehouse"): FALKO reports a corner on each round pillar, at the intersection of two lines
+// fitted to the arc facing the sensor (about 0.29 m from the centre of a 0.25 m pillar). That
+// point moves with the viewpoint, towards each laser position, so the translations of keypoint
+// egomotion come out short while the rotations stay nearly unbiased. The bounds pinned here
+// (this test measures: with pillars -1020 +- 61 ppm along the translation, rotation +20 +- 8 ppm
+// of pi, scatter 8.6 / 9.2 mm per axis and 0.038 deg; without the pillars -221 +- 55 ppm and
+// -8 +- 7 ppm) let a regression show; the routine weighs keypoint egomotion with the scatter
+// measured here (RoutineOptions::keypointRefinement: 10 mm, 0.04 deg), so that the rotations,
+// not the short translations, set s_w.
+TEST_CASE("calib.keypoint_alignment: warehouse half circles, translation bias from round pillars", "[calib]") {
+  const int seeds = 100;
+  const EgomotionErrors pillars = warehouseHalfCircles(true, seeds);
+  const EgomotionErrors plain = warehouseHalfCircles(false, seeds);
+  std::printf(
+      "warehouse half circles, %d seeds x 10: with pillars %d aligned, translation %+.0f +- %.0f ppm, rotation "
+      "%+.0f +- %.0f ppm of pi (sd %.4f deg), sd x %.2f mm, y %.2f mm; without pillars %d aligned, translation "
+      "%+.0f +- %.0f ppm, rotation %+.0f +- %.0f ppm of pi\n",
+      seeds, pillars.aligned, 1e6 * pillars.meanLong(), 1e6 * pillars.seLong(), 1e6 * pillars.meanRot(),
+      1e6 * pillars.seRot(), agv::rad2deg(pillars.sdRot()), 1e3 * pillars.sdX(), 1e3 * pillars.sdY(), plain.aligned,
+      1e6 * plain.meanLong(), 1e6 * plain.seLong(), 1e6 * plain.meanRot(), 1e6 * plain.seRot());
+  // Enough segments align for a calibration (the 18 deg right circle sees too few common corners).
+  CHECK(pillars.aligned >= pillars.trials / 2);
+  CHECK(plain.aligned >= plain.trials / 2);
+  // The pillars shorten the translations: the bias is significant with them, at most 1300 ppm,
+  // and four times smaller without them (the true corners' refinement is nearly unbiased).
+  CHECK(pillars.meanLong() < -3.0 * pillars.seLong());
+  CHECK(pillars.meanLong() > -1300e-6);
+  CHECK(std::fabs(plain.meanLong()) < 0.25 * std::fabs(pillars.meanLong()) + 3.0 * plain.seLong());
+  // The rotations are nearly unbiased (60 ppm of a half circle is a quarter of the s_w std of an
+  // 8-segment calibration) in both halls.
+  CHECK(std::fabs(pillars.meanRot()) < 60e-6);
+  CHECK(std::fabs(plain.meanRot()) < 60e-6);
+  // The scatter stays within the routine's keypoint noise model (10 mm per axis, 0.04 deg) with
+  // the 10 % margin of a 100-seed estimate.
+  CHECK(pillars.sdX() < 1.1 * 0.010);
+  CHECK(pillars.sdY() < 1.1 * 0.010);
+  CHECK(pillars.sdRot() < 1.1 * deg2rad(0.04));
+}
