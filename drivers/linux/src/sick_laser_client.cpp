@@ -22,8 +22,9 @@ void sleepFor(Duration d) noexcept {
 }
 
 /// Makes sure `tcp` is connected before `deadline`: waits for the next allowed attempt if it falls
-/// before the deadline. Ok when connected (and `fresh` tells whether the connection is new).
-Status connectBy(TcpStream& tcp, Timestamp deadline, bool& fresh) noexcept {
+/// before the deadline. Ok when connected (and `fresh` tells whether the connection is new; a new
+/// connection restarts `framer`, as in connectForPoll).
+Status connectBy(TcpStream& tcp, sick::TelegramFramer& framer, Timestamp deadline, bool& fresh) noexcept {
   fresh = false;
   if (tcp.connected()) {
     return Status::Ok;
@@ -40,6 +41,7 @@ Status connectBy(TcpStream& tcp, Timestamp deadline, bool& fresh) noexcept {
   if (s != Status::Ok) {
     return Status::Lost;
   }
+  framer.reset();
   fresh = true;
   return Status::Ok;
 }
@@ -203,11 +205,10 @@ Status ColaAScanClient::receive(LaserScan& scan, Duration timeout) noexcept {
       return Status::Timeout;
     }
     bool fresh = false;
-    if (connectBy(tcp_, deadline, fresh) != Status::Ok) {
+    if (connectBy(tcp_, framer_, deadline, fresh) != Status::Ok) {
       return Status::Lost;
     }
     if (fresh) {
-      framer_.reset();
       requested = false;
       if (config_.subscribe && sendCommand("sEN LMDscandata 1", deadline - monotonicNow()) != Status::Ok) {
         tcp_.close();
@@ -297,11 +298,10 @@ Status Nav350Client::requestPose(bool waitForNextScan, sick::Nav350Mask mask, si
       return Status::Timeout;
     }
     bool fresh = false;
-    if (connectBy(tcp_, deadline, fresh) != Status::Ok) {
+    if (connectBy(tcp_, framer_, deadline, fresh) != Status::Ok) {
       return Status::Lost;
     }
     if (fresh) {
-      framer_.reset();
       requested = false;
     }
     if (!requested) {
