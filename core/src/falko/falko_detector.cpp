@@ -189,6 +189,7 @@ std::size_t farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::s
   }
   return 0;
 }
+
 }  // namespace
 
 FalkoDetector::Side FalkoDetector::gatherSide(const ScanPoints& pts, std::size_t i, int dir, std::size_t k, float r2,
@@ -536,38 +537,85 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
   //    kRight, both below 2^16), so that the full neighbourhood and the score run in a loop of
   //    their own.
   std::size_t survivors = 0;
-  for (std::size_t i = 0; i < n; ++i) {
+  // Triangle front / candidate (origin) / back: base and height at least r / beta; survivors are
+  // listed with their side extents.
+  auto triangle = [&](std::size_t i, std::size_t kLeft, float fx, float fy, std::size_t kRight, float bx, float by) {
+    const float minLen = radius_[i] * invBeta;
+    const float base2 = (bx - fx) * (bx - fx) + (by - fy) * (by - fy);
+    if (base2 < minLen * minLen) {
+      return;
+    }
+    const float cross = fx * by - fy * bx;  // = base * height
+    if (cross * cross < base2 * minLen * minLen) {
+      return;
+    }
+    order_[survivors++] = static_cast<std::uint32_t>(i);
+    window_[i] = static_cast<std::uint32_t>(kLeft << 16U | kRight);
+  };
+  auto earlyRejection = [&](std::size_t i) {
     score_[i] = kNotCandidate;
     const std::size_t kmax = window_[i];
     if (kmax == 0) {
-      continue;
+      return;
     }
-    const float radius = radius_[i];
-    const float r2 = radius * radius;
+    const float r2 = radius_[i] * radius_[i];
     float fx = 0.0F;
     float fy = 0.0F;
     float bx = 0.0F;
     float by = 0.0F;
     const std::size_t kLeft = farthestWithin(pts, i, -1, kmax, r2, fx, fy);
     if (kLeft == 0) {
-      continue;
+      return;
     }
     const std::size_t kRight = farthestWithin(pts, i, 1, kmax, r2, bx, by);
     if (kRight == 0) {
-      continue;
+      return;
     }
-    // Triangle front / candidate (origin) / back: base and height at least r / beta.
-    const float minLen = radius * invBeta;
-    const float base2 = (bx - fx) * (bx - fx) + (by - fy) * (by - fy);
-    if (base2 < minLen * minLen) {
-      continue;
+    triangle(i, kLeft, fx, fy, kRight, bx, by);
+  };
+  // Four candidates at a time where the lockstep search exists and no window reaches a scan end;
+  // one at a time elsewhere. Both give the same survivors.
+  std::size_t i0 = 0;
+  if (falko_detail::kLockstep4) {
+    const float* xs = pts.xData();
+    const float* ys = pts.yData();
+    for (; i0 + 4 <= n; i0 += 4) {
+      const std::size_t kTop =
+          std::max(std::max(window_[i0], window_[i0 + 1]), std::max(window_[i0 + 2], window_[i0 + 3]));
+      if (kTop == 0 || kTop > i0 || i0 + 3 + kTop >= n) {
+        for (std::size_t i = i0; i < i0 + 4; ++i) {
+          earlyRejection(i);
+        }
+        continue;
+      }
+      float kmax[4];
+      float r2[4];
+      for (std::size_t l = 0; l < 4; ++l) {
+        score_[i0 + l] = kNotCandidate;
+        kmax[l] = static_cast<float>(window_[i0 + l]);
+        r2[l] = radius_[i0 + l] * radius_[i0 + l];
+      }
+      float left[4];
+      float right[4];
+      falko_detail::farthestWithin4(xs, ys, i0, -1, kTop, kmax, r2, left);
+      if (left[0] == 0.0F && left[1] == 0.0F && left[2] == 0.0F && left[3] == 0.0F) {
+        continue;
+      }
+      falko_detail::farthestWithin4(xs, ys, i0, 1, kTop, kmax, r2, right);
+      for (std::size_t l = 0; l < 4; ++l) {
+        if (left[l] == 0.0F || right[l] == 0.0F) {
+          continue;
+        }
+        const std::size_t i = i0 + l;
+        const auto kLeft = static_cast<std::size_t>(static_cast<int>(left[l]));
+        const auto kRight = static_cast<std::size_t>(static_cast<int>(right[l]));
+        triangle(i, kLeft, xs[i - kLeft] - xs[i], ys[i - kLeft] - ys[i], kRight, xs[i + kRight] - xs[i],
+                 ys[i + kRight] - ys[i]);
+      }
     }
-    const float cross = fx * by - fy * bx;  // = base * height
-    if (cross * cross < base2 * minLen * minLen) {
-      continue;
-    }
-    order_[survivors++] = static_cast<std::uint32_t>(i);
-    window_[i] = static_cast<std::uint32_t>(kLeft << 16U | kRight);
+  }
+  for (std::size_t i = i0; i < n; ++i) {
+    earlyRejection(i);
   }
   static_assert(kMaxScanBeams < (std::size_t{1} << 16U), "side extents are packed in 16 bits");
 

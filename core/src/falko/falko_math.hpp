@@ -6,6 +6,12 @@
 #include <cstddef>
 #include <cstdint>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#elif defined(__ARM_NEON) && defined(__aarch64__)
+#include <arm_neon.h>
+#endif
+
 #include "agv/core/angle.hpp"
 #include "agv/falko/scan_points.hpp"
 
@@ -151,6 +157,79 @@ inline std::size_t lastWithinDescending(const float* x, const float* y, std::siz
     }
   }
   return end;
+}
+
+/// True where farthestWithin4 exists: x86 SSE2 and AArch64 NEON. Elsewhere the detector searches
+/// one beam at a time.
+#if defined(__SSE2__) || (defined(__ARM_NEON) && defined(__aarch64__))
+constexpr bool kLockstep4 = true;
+#else
+constexpr bool kLockstep4 = false;
+#endif
+
+/// The farthest-neighbour search of four consecutive candidate beams c..c+3 at once, one lane per
+/// candidate. Lane l gets in found[l] the largest offset k in 1..kmax[l] whose beam c + l + dir*k
+/// holds a point within sqrt(r2[l]) of the candidate's point (0 when none does). The beams k steps
+/// from the four candidates are four consecutive beams, so a step is one unaligned four-wide load
+/// per coordinate. Steps run from kTop (the largest kmax) inwards until every lane has its hit:
+/// one exit test per step for four candidates, instead of two data-dependent exits per candidate.
+/// The caller guarantees that no beam c + l + dir*k (k <= kTop) lies outside [0, n).
+inline void farthestWithin4(const float* x, const float* y, std::size_t c, int dir, std::size_t kTop,
+                            const float (&kmax)[4], const float (&r2)[4], float (&found)[4]) noexcept {
+#if defined(__SSE2__)
+  const __m128 cx = _mm_loadu_ps(x + c);
+  const __m128 cy = _mm_loadu_ps(y + c);
+  const __m128 vk = _mm_loadu_ps(kmax);
+  const __m128 vr2 = _mm_loadu_ps(r2);
+  const __m128 zero = _mm_setzero_ps();
+  const __m128 one = _mm_set1_ps(1.0F);
+  __m128 hits = zero;
+  __m128 fk = _mm_set1_ps(static_cast<float>(static_cast<int>(kTop)));
+  for (std::size_t k = kTop; k >= 1; --k) {
+    const std::size_t j = dir < 0 ? c - k : c + k;
+    const __m128 dx = _mm_sub_ps(_mm_loadu_ps(x + j), cx);
+    const __m128 dy = _mm_sub_ps(_mm_loadu_ps(y + j), cy);
+    const __m128 d2 = _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy));
+    // A lane takes its first hit (the farthest offset) within its own window.
+    const __m128 take = _mm_and_ps(_mm_and_ps(_mm_cmple_ps(d2, vr2), _mm_cmple_ps(fk, vk)), _mm_cmpeq_ps(hits, zero));
+    hits = _mm_or_ps(hits, _mm_and_ps(take, fk));
+    if (_mm_movemask_ps(_mm_cmpgt_ps(hits, zero)) == 0xF) {
+      break;
+    }
+    fk = _mm_sub_ps(fk, one);
+  }
+  _mm_storeu_ps(found, hits);
+#elif defined(__ARM_NEON) && defined(__aarch64__)
+  const float32x4_t cx = vld1q_f32(x + c);
+  const float32x4_t cy = vld1q_f32(y + c);
+  const float32x4_t vk = vld1q_f32(kmax);
+  const float32x4_t vr2 = vld1q_f32(r2);
+  const float32x4_t zero = vdupq_n_f32(0.0F);
+  float32x4_t hits = zero;
+  float32x4_t fk = vdupq_n_f32(static_cast<float>(static_cast<int>(kTop)));
+  for (std::size_t k = kTop; k >= 1; --k) {
+    const std::size_t j = dir < 0 ? c - k : c + k;
+    const float32x4_t dx = vsubq_f32(vld1q_f32(x + j), cx);
+    const float32x4_t dy = vsubq_f32(vld1q_f32(y + j), cy);
+    const float32x4_t d2 = vaddq_f32(vmulq_f32(dx, dx), vmulq_f32(dy, dy));
+    const uint32x4_t take = vandq_u32(vandq_u32(vcleq_f32(d2, vr2), vcleq_f32(fk, vk)), vceqq_f32(hits, zero));
+    hits = vbslq_f32(take, fk, hits);
+    if (vminvq_u32(vcgtq_f32(hits, zero)) != 0U) {
+      break;
+    }
+    fk = vsubq_f32(fk, vdupq_n_f32(1.0F));
+  }
+  vst1q_f32(found, hits);
+#else
+  (void)x;
+  (void)y;
+  (void)c;
+  (void)dir;
+  (void)kTop;
+  (void)kmax;
+  (void)r2;
+  found[0] = found[1] = found[2] = found[3] = 0.0F;  // not used: kLockstep4 is false
+#endif
 }
 
 /// Calls f(j) for the beams 1..k steps from beam i in direction dir (-1 or +1), nearest first,
