@@ -189,7 +189,6 @@ std::size_t farthestWithin(const ScanPoints& pts, std::size_t i, int dir, std::s
   }
   return 0;
 }
-
 }  // namespace
 
 FalkoDetector::Side FalkoDetector::gatherSide(const ScanPoints& pts, std::size_t i, int dir, std::size_t k, float r2,
