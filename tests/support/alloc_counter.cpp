@@ -19,10 +19,17 @@ namespace {
 std::atomic<std::uint64_t> g_allocations{0};
 std::atomic<std::uint64_t> g_deallocations{0};
 std::atomic<bool> g_active{false};
+// Allocations made by the current thread. Constant-initialised and defined in the executable
+// (this file is compiled into every test binary), so reading it never allocates.
+thread_local std::uint64_t t_allocations = 0;
 
+void countOneAllocation() noexcept {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  ++t_allocations;
+}
 void noteAllocation(const void* p) noexcept {
   if (p != nullptr) {
-    g_allocations.fetch_add(1, std::memory_order_relaxed);
+    countOneAllocation();
   }
 }
 void noteDeallocation(const void* p) noexcept {
@@ -35,6 +42,9 @@ void noteDeallocation(const void* p) noexcept {
 namespace agv::test {
 AllocationStats allocationStats() noexcept {
   return {g_allocations.load(std::memory_order_relaxed), g_deallocations.load(std::memory_order_relaxed)};
+}
+std::uint64_t threadAllocations() noexcept {
+  return t_allocations;
 }
 bool allocationCountingActive() noexcept {
   return g_active.load();
@@ -83,7 +93,7 @@ void* calloc(std::size_t n, std::size_t size) {
 void* realloc(void* old, std::size_t size) {
   void* p = __libc_realloc(old, size);
   if (p != nullptr || size == 0) {
-    g_allocations.fetch_add(1, std::memory_order_relaxed);  // any realloc call is heap activity
+    countOneAllocation();  // any realloc call is heap activity
   }
   return p;
 }

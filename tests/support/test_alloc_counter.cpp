@@ -1,9 +1,11 @@
 // Self-test of the allocation counter: it must catch every way a test could allocate, and must
 // stay at zero for code that does not.
+#include <atomic>
 #include <cstdlib>
 #include <memory>
 #include <new>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "agv_test.hpp"
@@ -99,4 +101,31 @@ TEST_CASE("the no-allocation check fails on an allocation and passes without", "
   CHECK(x > 1.0);
   const agv::test::AllocationStats s = agv::test::allocationStats();
   CHECK(s.allocations >= s.deallocations);
+}
+
+TEST_CASE("a count covers the calling thread only; the totals cover every thread", "[alloc]") {
+  // A peer thread allocates while the counted section waits for it: the section made no
+  // allocation of its own, the process totals still see the peer's.
+  std::atomic<int> stage{0};
+  std::thread peer([&stage]() {
+    while (stage.load() == 0) {
+      std::this_thread::yield();
+    }
+    for (int i = 0; i < 10; ++i) {
+      void* p = std::malloc(32);
+      escape(p);
+      std::free(p);
+    }
+    stage = 2;
+  });
+  const std::uint64_t totalBefore = agv::test::allocationStats().allocations;
+  const std::uint64_t mine = agv::test::countAllocations([&stage]() {
+    stage = 1;
+    while (stage.load() != 2) {
+      std::this_thread::yield();
+    }
+  });
+  peer.join();
+  CHECK(mine == 0U);
+  CHECK(agv::test::allocationStats().allocations - totalBefore >= 10U);
 }
