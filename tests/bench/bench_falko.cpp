@@ -2,6 +2,9 @@
 // keypoints of a scan). One iteration = one scan, cycling over every scan of the set, so the
 // reported time is the mean per scan. Sets: intel, fr079, mitcsail (all scans of the FLIRTLib
 // logs in the shared data) and dense1440 (360 deg, 0.25 deg scans of a simulated room).
+// BM_FalkoReferenceParams/<set> times the same detector with the public reference
+// implementation's own default parameters instead of the thesis defaults, for a comparison with
+// the reference's published times at equal parameters (see docs/falko.md).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -76,6 +79,7 @@ const Scans& scanSet(int set) {
 }
 
 struct Work {
+  explicit Work(const agv::FalkoParams& params = agv::FalkoParams{}) : detector(params) {}
   agv::FalkoDetector detector;
   agv::FalkoDescriber describer;
   agv::FalkoKeypoints keypoints;
@@ -83,9 +87,20 @@ struct Work {
   agv::CghDescriptors cgh;
 };
 
-void BM_Falko(benchmark::State& state, int set) {
+/// The public reference implementation's defaults where they differ from the thesis defaults of
+/// FalkoParams: neighbourhood a = 0.1 m, triangle ratio beta = 2.5, suppression radius 0.1 m.
+/// (Its relative score threshold has no counterpart here: maxScore keeps its default.)
+agv::FalkoParams referenceParams() {
+  agv::FalkoParams p;
+  p.neighA = 0.1F;
+  p.beta = 2.5F;
+  p.nmsRadius = 0.1F;
+  return p;
+}
+
+void timeDetector(benchmark::State& state, int set, const agv::FalkoParams& params) {
   const Scans& scans = scanSet(set);
-  auto w = std::make_unique<Work>();
+  auto w = std::make_unique<Work>(params);
   std::size_t i = 0;
   std::size_t keypoints = 0;
   for (auto _ : state) {
@@ -96,6 +111,14 @@ void BM_Falko(benchmark::State& state, int set) {
   }
   state.counters["scans"] = static_cast<double>(scans.size());
   state.counters["kp_per_scan"] = static_cast<double>(keypoints) / static_cast<double>(state.iterations());
+}
+
+void BM_Falko(benchmark::State& state, int set) {
+  timeDetector(state, set, agv::FalkoParams{});
+}
+
+void BM_FalkoReferenceParams(benchmark::State& state, int set) {
+  timeDetector(state, set, referenceParams());
 }
 
 void BM_FalkoDescriptors(benchmark::State& state, int set) {
@@ -135,6 +158,14 @@ BENCHMARK_CAPTURE(BM_Falko, mitcsail, 2)
     ->ComputeStatistics("min", minOf);
 BENCHMARK_CAPTURE(BM_Falko, dense1440, 3)
     ->Name("BM_Falko/dense1440")
+    ->Unit(benchmark::kMicrosecond)
+    ->ComputeStatistics("min", minOf);
+BENCHMARK_CAPTURE(BM_FalkoReferenceParams, fr079, 1)
+    ->Name("BM_FalkoReferenceParams/fr079")
+    ->Unit(benchmark::kMicrosecond)
+    ->ComputeStatistics("min", minOf);
+BENCHMARK_CAPTURE(BM_FalkoReferenceParams, dense1440, 3)
+    ->Name("BM_FalkoReferenceParams/dense1440")
     ->Unit(benchmark::kMicrosecond)
     ->ComputeStatistics("min", minOf);
 BENCHMARK_CAPTURE(BM_FalkoDescriptors, intel, 0)
