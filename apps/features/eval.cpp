@@ -314,7 +314,15 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
   return true;
 }
 
-std::string resultsToJson(const std::vector<DatasetResult>& results) {
+std::string paramsLine(const FalkoParams& p) {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), "FALKO parameters: a %.3g m, b %.3g 1/m, beta %.3g, sectors %zu, max score %.3g, NMS %.3g m",
+                static_cast<double>(p.neighA), static_cast<double>(p.neighB), static_cast<double>(p.beta),
+                p.gridSectors, static_cast<double>(p.maxScore), static_cast<double>(p.nmsRadius));
+  return buf;
+}
+
+std::string resultsToJson(const std::vector<DatasetResult>& results, const FalkoParams& params) {
   std::ostringstream js;
   js.precision(6);
   js << "{\n  \"repeatability\": {";
@@ -354,7 +362,9 @@ std::string resultsToJson(const std::vector<DatasetResult>& results) {
     }
     js << "}";
   }
-  js << "\n  }\n}\n";
+  js << "\n  },\n  \"falko_params\": {\"neigh_a\": " << params.neighA << ", \"neigh_b\": " << params.neighB
+     << ", \"beta\": " << params.beta << ", \"grid_sectors\": " << params.gridSectors
+     << ", \"max_score\": " << params.maxScore << ", \"nms_radius\": " << params.nmsRadius << "}\n}\n";
   return js.str();
 }
 

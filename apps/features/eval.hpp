@@ -58,8 +58,12 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
                  std::string& error);
 
 /// JSON of the results: {"repeatability": {dataset: {test: {level: value}}},
-/// "keypoints_per_scan": {dataset: value}, "descriptors": {...}}.
-std::string resultsToJson(const std::vector<DatasetResult>& results);
+/// "keypoints_per_scan": {dataset: value}, "scans": {...}, "descriptors": {...},
+/// "falko_params": {...}} (the detector parameters of the run).
+std::string resultsToJson(const std::vector<DatasetResult>& results, const FalkoParams& params = FalkoParams{});
+
+/// The detector parameters a run used, one line (for logs and table headers).
+std::string paramsLine(const FalkoParams& params);
 
 /// Human-readable tables.
 std::string resultsToTables(const std::vector<DatasetResult>& results);

@@ -6,8 +6,10 @@
 
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "agv/datasets/carmen_log.hpp"
@@ -30,7 +32,57 @@ struct Dataset {
 const Dataset kDatasets[] = {
     {"intel", "intel/intel-lab.log.gz"}, {"fr079", "fr079/fr079.log.gz"}, {"mit-csail", "mit-csail/mit-cscail.log.gz"}};
 
-int runDetect(const std::string& logPath, std::size_t index, const std::string& svgPath) {
+/// Detector parameters from the command line: a named set, then single values on top of it.
+struct FalkoCli {
+  std::string set = "thesis";
+  float neighA = 0.0F;
+  float neighB = 0.0F;
+  float beta = 0.0F;
+  std::size_t gridSectors = 0;
+  float maxScore = 0.0F;
+  float nmsRadius = 0.0F;
+  std::vector<std::pair<CLI::Option*, std::function<void(agv::FalkoParams&)>>> overrides;
+
+  void addTo(CLI::App* cmd) {
+    cmd->add_option("--params", set,
+                    "detector parameter set: thesis (the FALKO thesis defaults) or reference (the public reference "
+                    "implementation's defaults: a 0.1 m, beta 2.5, NMS 0.1 m)")
+        ->check(CLI::IsMember({"thesis", "reference"}));
+    add(cmd->add_option("--neigh-a", neighA, "[m] neighbourhood radius at the sensor, a (overrides --params)")
+            ->check(CLI::PositiveNumber),
+        [this](agv::FalkoParams& p) { p.neighA = neighA; });
+    add(cmd->add_option("--neigh-b", neighB, "[1/m] growth of the radius with range, b")->check(CLI::NonNegativeNumber),
+        [this](agv::FalkoParams& p) { p.neighB = neighB; });
+    add(cmd->add_option("--beta", beta, "triangle test ratio beta")->check(CLI::PositiveNumber),
+        [this](agv::FalkoParams& p) { p.beta = beta; });
+    add(cmd->add_option("--sectors", gridSectors, "cornerness score sectors s_n")->check(CLI::Range(4, 64)),
+        [this](agv::FalkoParams& p) { p.gridSectors = gridSectors; });
+    add(cmd->add_option("--max-score", maxScore, "largest accepted cornerness score")->check(CLI::NonNegativeNumber),
+        [this](agv::FalkoParams& p) { p.maxScore = maxScore; });
+    add(cmd->add_option("--nms-radius", nmsRadius, "[m] non-maxima suppression radius")->check(CLI::NonNegativeNumber),
+        [this](agv::FalkoParams& p) { p.nmsRadius = nmsRadius; });
+  }
+  void add(CLI::Option* option, std::function<void(agv::FalkoParams&)> apply) {
+    overrides.emplace_back(option, std::move(apply));
+  }
+  /// The parameters asked for; false (with a message) when they are out of their domain.
+  bool resolve(agv::FalkoParams& p) const {
+    p = set == "reference" ? agv::falkoReferenceParams() : agv::FalkoParams{};
+    for (const auto& o : overrides) {
+      if (o.first->count() > 0) {
+        o.second(p);
+      }
+    }
+    if (!agv::isValid(p)) {
+      std::fprintf(stderr, "agvnav-features: invalid detector parameters (%s)\n", agv::features::paramsLine(p).c_str());
+      return false;
+    }
+    return true;
+  }
+};
+
+int runDetect(const std::string& logPath, std::size_t index, const std::string& svgPath,
+              const agv::FalkoParams& params) {
   agv::datasets::CarmenLog log;
   std::string err;
   if (!agv::datasets::readCarmenLog(logPath, log, err)) {
@@ -48,8 +100,9 @@ int runDetect(const std::string& logPath, std::size_t index, const std::string& 
   if (!log.scans[index].toLaserScan(*scan)) {
     std::fprintf(stderr, "agvnav-features: scan %zu has more beams than the capacity\n", index);
   }
-  auto detector = std::make_unique<agv::FalkoDetector>();
+  auto detector = std::make_unique<agv::FalkoDetector>(params);
   auto kps = std::make_unique<agv::FalkoKeypoints>();
+  std::printf("%s\n", agv::features::paramsLine(params).c_str());
   const agv::Status st = detector->detect(*scan, *kps);
   std::printf("scan %zu (line %zu): %zu beams, %zu valid, %zu keypoints (%s)\n", index, log.scans[index].line,
               scan->size(), detector->points().validCount(), kps->size(), agv::toString(st));
@@ -79,6 +132,8 @@ int main(int argc, char** argv) {
   detect->add_option("log", logPath, "CARMEN / FLIRTLib log (.log or .log.gz)")->required();
   detect->add_option("-s,--scan", index, "index of the scan in the log (0-based)");
   detect->add_option("-o,--svg", svgPath, "SVG output file");
+  FalkoCli detectParams;
+  detectParams.addTo(detect);
 
   std::string dataDir = AGVNAV_DEFAULT_DATA_DIR;
   std::vector<std::string> names;
@@ -92,12 +147,22 @@ int main(int argc, char** argv) {
   eval->add_option("--json", jsonPath, "write the results as JSON");
   eval->add_option("--svg-dir", svgDir, "write repeatability curves (SVG) into this folder");
   eval->add_option("--match-distance", options.matchDistance, "[m] repeated keypoint tolerance");
+  FalkoCli evalParams;
+  evalParams.addTo(eval);
 
   CLI11_PARSE(app, argc, argv);
 
   if (*detect) {
-    return runDetect(logPath, index, svgPath);
+    agv::FalkoParams params;
+    if (!detectParams.resolve(params)) {
+      return 2;
+    }
+    return runDetect(logPath, index, svgPath, params);
   }
+  if (!evalParams.resolve(options.falko)) {
+    return 2;
+  }
+  std::printf("%s\n", agv::features::paramsLine(options.falko).c_str());
   std::vector<agv::features::DatasetResult> results;
   for (const Dataset& d : kDatasets) {
     bool wanted = names.empty();
@@ -120,7 +185,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::fputs(agv::features::resultsToTables(results).c_str(), stdout);
-  if (!jsonPath.empty() && !writeFile(jsonPath, agv::features::resultsToJson(results))) {
+  if (!jsonPath.empty() && !writeFile(jsonPath, agv::features::resultsToJson(results, options.falko))) {
     std::fprintf(stderr, "agvnav-features: cannot write %s\n", jsonPath.c_str());
     return 1;
   }

@@ -87,17 +87,6 @@ struct Work {
   agv::CghDescriptors cgh;
 };
 
-/// The public reference implementation's defaults where they differ from the thesis defaults of
-/// FalkoParams: neighbourhood a = 0.1 m, triangle ratio beta = 2.5, suppression radius 0.1 m.
-/// (Its relative score threshold has no counterpart here: maxScore keeps its default.)
-agv::FalkoParams referenceParams() {
-  agv::FalkoParams p;
-  p.neighA = 0.1F;
-  p.beta = 2.5F;
-  p.nmsRadius = 0.1F;
-  return p;
-}
-
 void timeDetector(benchmark::State& state, int set, const agv::FalkoParams& params) {
   const Scans& scans = scanSet(set);
   auto w = std::make_unique<Work>(params);
@@ -118,7 +107,7 @@ void BM_Falko(benchmark::State& state, int set) {
 }
 
 void BM_FalkoReferenceParams(benchmark::State& state, int set) {
-  timeDetector(state, set, referenceParams());
+  timeDetector(state, set, agv::falkoReferenceParams());
 }
 
 void BM_FalkoDescriptors(benchmark::State& state, int set) {

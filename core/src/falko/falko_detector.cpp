@@ -117,8 +117,7 @@ bool intersect(const Line& a, const Line& b, float& cx, float& cy) noexcept {
 
 FalkoDetector::FalkoDetector(const FalkoParams& params) noexcept : params_(params) {}
 
-bool FalkoDetector::paramsValid() const noexcept {
-  const FalkoParams& p = params_;
+bool isValid(const FalkoParams& p) noexcept {
   const bool finite = std::isfinite(p.neighA) && std::isfinite(p.neighB) && std::isfinite(p.beta) &&
                       std::isfinite(p.maxScore) && std::isfinite(p.nmsRadius) && std::isfinite(p.subbeamMaxShift) &&
                       std::isfinite(p.refineRadiusFactor) && std::isfinite(p.refineInlierDistance) &&
@@ -507,7 +506,7 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
 Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out) noexcept {
   out.clear();
   candidateCount_ = 0;
-  if (!paramsValid()) {
+  if (!isValid(params_)) {
     return Status::InvalidArgument;
   }
   const std::size_t n = pts.size();

@@ -72,7 +72,6 @@ class FalkoDetector {
     float sumX = 0.0F;
     float sumY = 0.0F;
   };
-  bool paramsValid() const noexcept;
   /// Gathers the neighbours of beam i into left/right buffers (coordinates relative to the
   /// candidate) from the beams at most kLeft before and kRight after it (the offsets of the
   /// farthest neighbours); returns false when a side has too few points.

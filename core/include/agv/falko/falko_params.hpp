@@ -54,6 +54,24 @@ struct FalkoParams {
   float maxExtractionRange = 30.0F;
 };
 
+/// True when every field of `p` lies in its documented domain (finite, positive where a size or
+/// a radius, gridSectors in [4, 64], refineRadiusFactor >= 1, maxRadiusRangeRatio in (0, 1));
+/// FalkoDetector::detect returns InvalidArgument otherwise. Lets a caller check a configuration
+/// before the first scan.
+bool isValid(const FalkoParams& p) noexcept;
+
+/// The thesis defaults with the three values that the public reference implementation of FALKO
+/// sets differently by default: neighA 0.1 m, beta 2.5, nmsRadius 0.1 m. For comparisons with
+/// that implementation at equal parameters (its speed figures and repeatability are for these);
+/// the reference's relative score threshold has no counterpart, so maxScore keeps its default.
+inline FalkoParams falkoReferenceParams() noexcept {
+  FalkoParams p;
+  p.neighA = 0.1F;
+  p.beta = 2.5F;
+  p.nmsRadius = 0.1F;
+  return p;
+}
+
 /// Descriptor parameters (BSC and CGH). The grid sizes are compile-time (kBscRings, kBscSectors,
 /// kCghBins in falko_descriptors.hpp): 8 radial x 16 angular for BSC, 16 bins for CGH.
 struct FalkoDescriptorParams {
