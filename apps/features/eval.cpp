@@ -316,7 +316,8 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
 
 std::string paramsLine(const FalkoParams& p) {
   char buf[256];
-  std::snprintf(buf, sizeof(buf), "FALKO parameters: a %.3g m, b %.3g 1/m, beta %.3g, sectors %zu, max score %.3g, NMS %.3g m",
+  std::snprintf(buf, sizeof(buf),
+                "FALKO parameters: a %.3g m, b %.3g 1/m, beta %.3g, sectors %zu, max score %.3g, NMS %.3g m",
                 static_cast<double>(p.neighA), static_cast<double>(p.neighB), static_cast<double>(p.beta),
                 p.gridSectors, static_cast<double>(p.maxScore), static_cast<double>(p.nmsRadius));
   return buf;
