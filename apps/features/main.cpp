@@ -6,10 +6,8 @@
 
 #include <cstdio>
 #include <fstream>
-#include <functional>
 #include <memory>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "agv/datasets/carmen_log.hpp"
@@ -41,38 +39,38 @@ struct FalkoCli {
   std::size_t gridSectors = 0;
   float maxScore = 0.0F;
   float nmsRadius = 0.0F;
-  std::vector<std::pair<CLI::Option*, std::function<void(agv::FalkoParams&)>>> overrides;
+  CLI::Option* neighAOpt = nullptr;
+  CLI::Option* neighBOpt = nullptr;
+  CLI::Option* betaOpt = nullptr;
+  CLI::Option* sectorsOpt = nullptr;
+  CLI::Option* maxScoreOpt = nullptr;
+  CLI::Option* nmsRadiusOpt = nullptr;
 
   void addTo(CLI::App* cmd) {
     cmd->add_option("--params", set,
                     "detector parameter set: thesis (the FALKO thesis defaults) or reference (the public reference "
                     "implementation's defaults: a 0.1 m, beta 2.5, NMS 0.1 m)")
         ->check(CLI::IsMember({"thesis", "reference"}));
-    add(cmd->add_option("--neigh-a", neighA, "[m] neighbourhood radius at the sensor, a (overrides --params)")
-            ->check(CLI::PositiveNumber),
-        [this](agv::FalkoParams& p) { p.neighA = neighA; });
-    add(cmd->add_option("--neigh-b", neighB, "[1/m] growth of the radius with range, b")->check(CLI::NonNegativeNumber),
-        [this](agv::FalkoParams& p) { p.neighB = neighB; });
-    add(cmd->add_option("--beta", beta, "triangle test ratio beta")->check(CLI::PositiveNumber),
-        [this](agv::FalkoParams& p) { p.beta = beta; });
-    add(cmd->add_option("--sectors", gridSectors, "cornerness score sectors s_n")->check(CLI::Range(4, 64)),
-        [this](agv::FalkoParams& p) { p.gridSectors = gridSectors; });
-    add(cmd->add_option("--max-score", maxScore, "largest accepted cornerness score")->check(CLI::NonNegativeNumber),
-        [this](agv::FalkoParams& p) { p.maxScore = maxScore; });
-    add(cmd->add_option("--nms-radius", nmsRadius, "[m] non-maxima suppression radius")->check(CLI::NonNegativeNumber),
-        [this](agv::FalkoParams& p) { p.nmsRadius = nmsRadius; });
-  }
-  void add(CLI::Option* option, std::function<void(agv::FalkoParams&)> apply) {
-    overrides.emplace_back(option, std::move(apply));
+    neighAOpt = cmd->add_option("--neigh-a", neighA, "[m] neighbourhood radius at the sensor, a (overrides --params)")
+                    ->check(CLI::PositiveNumber);
+    neighBOpt =
+        cmd->add_option("--neigh-b", neighB, "[1/m] growth of the radius with range, b")->check(CLI::NonNegativeNumber);
+    betaOpt = cmd->add_option("--beta", beta, "triangle test ratio beta")->check(CLI::PositiveNumber);
+    sectorsOpt = cmd->add_option("--sectors", gridSectors, "cornerness score sectors s_n")->check(CLI::Range(4, 64));
+    maxScoreOpt =
+        cmd->add_option("--max-score", maxScore, "largest accepted cornerness score")->check(CLI::NonNegativeNumber);
+    nmsRadiusOpt =
+        cmd->add_option("--nms-radius", nmsRadius, "[m] non-maxima suppression radius")->check(CLI::NonNegativeNumber);
   }
   /// The parameters asked for; false (with a message) when they are out of their domain.
   bool resolve(agv::FalkoParams& p) const {
     p = set == "reference" ? agv::falkoReferenceParams() : agv::FalkoParams{};
-    for (const auto& o : overrides) {
-      if (o.first->count() > 0) {
-        o.second(p);
-      }
-    }
+    p.neighA = *neighAOpt ? neighA : p.neighA;
+    p.neighB = *neighBOpt ? neighB : p.neighB;
+    p.beta = *betaOpt ? beta : p.beta;
+    p.gridSectors = *sectorsOpt ? gridSectors : p.gridSectors;
+    p.maxScore = *maxScoreOpt ? maxScore : p.maxScore;
+    p.nmsRadius = *nmsRadiusOpt ? nmsRadius : p.nmsRadius;
     if (!agv::isValid(p)) {
       std::fprintf(stderr, "agvnav-features: invalid detector parameters (%s)\n", agv::features::paramsLine(p).c_str());
       return false;

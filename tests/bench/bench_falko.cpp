@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <initializer_list>
 #include <memory>
 #include <string>
 #include <vector>
@@ -133,49 +134,25 @@ double minOf(const std::vector<double>& v) {
   return v.empty() ? 0.0 : *std::min_element(v.begin(), v.end());
 }
 
-BENCHMARK_CAPTURE(BM_Falko, intel, 0)
-    ->Name("BM_Falko/intel")
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_Falko, fr079, 1)
-    ->Name("BM_Falko/fr079")
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_Falko, mitcsail, 2)
-    ->Name("BM_Falko/mitcsail")
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_Falko, dense1440, 3)
-    ->Name("BM_Falko/dense1440")
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_FalkoReferenceParams, fr079, 1)
-    ->Name("BM_FalkoReferenceParams/fr079")
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_FalkoReferenceParams, dense1440, 3)
-    ->Name("BM_FalkoReferenceParams/dense1440")
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_FalkoDescriptors, intel, 0)
-    ->Name("BM_FalkoDescriptors/intel")
-    ->UseManualTime()
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_FalkoDescriptors, fr079, 1)
-    ->Name("BM_FalkoDescriptors/fr079")
-    ->UseManualTime()
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_FalkoDescriptors, mitcsail, 2)
-    ->Name("BM_FalkoDescriptors/mitcsail")
-    ->UseManualTime()
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
-BENCHMARK_CAPTURE(BM_FalkoDescriptors, dense1440, 3)
-    ->Name("BM_FalkoDescriptors/dense1440")
-    ->UseManualTime()
-    ->Unit(benchmark::kMicrosecond)
-    ->ComputeStatistics("min", minOf);
+/// Registers one row: `family`/<set> for each set, times in µs, with the `*_min` statistic;
+/// `manualTime` for the descriptor rows, which time only the describe call.
+void addRows(const char* family, void (*fn)(benchmark::State&, int), std::initializer_list<int> sets, bool manualTime) {
+  static const char* const kSetNames[] = {"intel", "fr079", "mitcsail", "dense1440"};
+  for (const int set : sets) {
+    const std::string name = std::string(family) + "/" + kSetNames[set];
+    auto* b = benchmark::RegisterBenchmark(name.c_str(), fn, set)->Unit(benchmark::kMicrosecond);
+    b->ComputeStatistics("min", minOf);
+    if (manualTime) {
+      b->UseManualTime();
+    }
+  }
+}
+
+const int kRegistered = [] {
+  addRows("BM_Falko", BM_Falko, {0, 1, 2, 3}, false);
+  addRows("BM_FalkoReferenceParams", BM_FalkoReferenceParams, {1, 3}, false);
+  addRows("BM_FalkoDescriptors", BM_FalkoDescriptors, {0, 1, 2, 3}, true);
+  return 0;
+}();
 
 }  // namespace
