@@ -1,8 +1,12 @@
 #include "eval.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <istream>
+#include <ostream>
 #include <random>
 #include <sstream>
 
@@ -128,7 +132,228 @@ std::vector<PrPoint> precisionRecall(std::vector<MatchRecord> rec, std::size_t w
   return out;
 }
 
+std::string samplingLabel(int factor) {
+  return factor < 0 ? "x1/" + std::to_string(-factor) : "x" + std::to_string(factor);
+}
+
+/// The scans of a log the evaluation uses: those with ground truth, at most maxScans.
+bool loadScans(const std::string& path, const EvalOptions& o, std::vector<ScanData>& data, std::string& error) {
+  datasets::CarmenLog log;
+  if (!datasets::readCarmenLog(path, log, error)) {
+    return false;
+  }
+  data.clear();
+  for (const auto& s : log.scans) {
+    if (!s.hasGroundTruth) {
+      continue;
+    }
+    if (o.maxScans > 0 && data.size() >= o.maxScans) {
+      break;
+    }
+    ScanData d;
+    d.scan = std::make_unique<LaserScan>();
+    (void)s.toLaserScan(*d.scan);
+    d.pose = s.groundTruth;
+    data.push_back(std::move(d));
+  }
+  if (data.empty()) {
+    error = path + ": no scan with ground truth";
+    return false;
+  }
+  return true;
+}
+
+std::vector<Pose2d> posesOf(const std::vector<ScanData>& data) {
+  std::vector<Pose2d> poses;
+  poses.reserve(data.size());
+  for (const ScanData& d : data) {
+    poses.push_back(d.pose);
+  }
+  return poses;
+}
+
+/// An external keypoint table must cover exactly the variants and scans of this run.
+bool checkExternal(const KeypointTable& table, const std::string& name, const std::vector<ScanVariant>& variants,
+                   std::size_t scans, std::string& error) {
+  const auto ds = table.find(name);
+  if (ds == table.end()) {
+    error = "keypoint file: no line for dataset " + name;
+    return false;
+  }
+  for (const auto& v : ds->second) {
+    const bool known =
+        std::any_of(variants.begin(), variants.end(), [&](const ScanVariant& sv) { return sv.name == v.first; });
+    if (!known) {
+      error = "keypoint file: " + name + ": unknown variant " + v.first;
+      return false;
+    }
+  }
+  for (const ScanVariant& v : variants) {
+    const auto it = ds->second.find(v.name);
+    if (it == ds->second.end()) {
+      error = "keypoint file: " + name + ": no line for variant " + v.name;
+      return false;
+    }
+    for (std::size_t i = 0; i < scans; ++i) {
+      if (it->second.count(i) == 0U) {
+        error = "keypoint file: " + name + " " + v.name + ": no line for scan " + std::to_string(i);
+        return false;
+      }
+    }
+    if (it->second.size() != scans) {
+      error = "keypoint file: " + name + " " + v.name + ": scan " + std::to_string(it->second.rbegin()->first) +
+              " beyond the " + std::to_string(scans) + " scans of this run (same --max-scans?)";
+      return false;
+    }
+  }
+  return true;
+}
+
+bool parseCount(const std::string& tok, long long& v) {
+  errno = 0;
+  char* end = nullptr;
+  v = std::strtoll(tok.c_str(), &end, 10);
+  return !tok.empty() && end == tok.c_str() + tok.size() && errno == 0;
+}
+
+bool parseNumber(const std::string& tok, double& v) {
+  char* end = nullptr;
+  v = std::strtod(tok.c_str(), &end);
+  return !tok.empty() && end == tok.c_str() + tok.size();
+}
+
 }  // namespace
+
+std::vector<ScanVariant> scanVariants(const EvalOptions& o) {
+  std::vector<ScanVariant> v;
+  v.push_back(ScanVariant{"clean", "", "", 0});
+  for (std::size_t l = 0; l < o.noiseLevels.size(); ++l) {
+    const std::string lb = label(o.noiseLevels[l]);
+    v.push_back(ScanVariant{"noise-" + lb, "noise", lb, l});
+  }
+  for (std::size_t l = 0; l < o.resampleLevels.size(); ++l) {
+    const std::string lb = samplingLabel(o.resampleLevels[l]);
+    v.push_back(ScanVariant{"sampling-" + lb, "sampling", lb, l});
+  }
+  return v;
+}
+
+void makeVariant(const ScanVariant& v, std::size_t i, const LaserScan& clean, const EvalOptions& o, LaserScan& out) {
+  if (v.test == "noise") {
+    out = clean;
+    addRangeNoise(out, o.noiseLevels[v.levelIndex], o.seed + static_cast<std::uint32_t>(i * 7919U + v.levelIndex));
+  } else if (v.test == "sampling") {
+    resampleScan(clean, o.resampleLevels[v.levelIndex], out);
+  } else {
+    out = clean;
+  }
+}
+
+std::vector<ScanPair> viewpointPairs(const std::vector<Pose2d>& poses, const EvalOptions& o) {
+  std::vector<ScanPair> pairs;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    std::vector<bool> binUsed(o.viewpointLevels.size(), false);
+    std::size_t found = 0;
+    for (std::size_t j = i + 1; j < poses.size() && j < i + 2000 && found < o.pairsPerScan; ++j) {
+      const double d = std::hypot(poses[i].x - poses[j].x, poses[i].y - poses[j].y);
+      if (d > o.pairMaxDistance) {
+        continue;
+      }
+      std::size_t bin = 0;
+      while (bin < o.viewpointLevels.size() && d > o.viewpointLevels[bin]) {
+        ++bin;
+      }
+      if (bin >= o.viewpointLevels.size() || binUsed[bin]) {
+        continue;
+      }
+      binUsed[bin] = true;
+      ++found;
+      pairs.push_back(ScanPair{i, j, d, bin});
+    }
+  }
+  return pairs;
+}
+
+bool readKeypointTable(std::istream& in, KeypointTable& table, std::string& error) {
+  std::string line;
+  std::size_t lineNo = 0;
+  while (std::getline(in, line)) {
+    ++lineNo;
+    std::istringstream ls(line);
+    std::vector<std::string> tok;
+    for (std::string t; ls >> t;) {
+      tok.push_back(t);
+    }
+    if (tok.empty() || tok[0][0] == '#') {
+      continue;
+    }
+    const std::string where = "keypoint file line " + std::to_string(lineNo) + ": ";
+    long long scan = 0;
+    long long k = 0;
+    if (tok.size() < 4 || !parseCount(tok[2], scan) || !parseCount(tok[3], k)) {
+      error = where + "expected <dataset> <variant> <scan> <count> <x y>...";
+      return false;
+    }
+    if (scan < 0 || k < 0) {
+      error = where + "negative scan index or count";
+      return false;
+    }
+    const std::size_t values = tok.size() - 4;
+    if (values != 2U * static_cast<unsigned long long>(k)) {
+      error = where + std::to_string(k) + " keypoints need " + std::to_string(2 * k) + " coordinates, found " +
+              std::to_string(values);
+      return false;
+    }
+    std::vector<FalkoKeypoint> kps(static_cast<std::size_t>(k));
+    for (std::size_t a = 0; a < kps.size(); ++a) {
+      double x = 0.0;
+      double y = 0.0;
+      if (!parseNumber(tok[4 + 2 * a], x) || !parseNumber(tok[5 + 2 * a], y) || !std::isfinite(x) ||
+          !std::isfinite(y)) {
+        error = where + "keypoint " + std::to_string(a + 1) + " is not a pair of finite numbers";
+        return false;
+      }
+      kps[a].x = static_cast<float>(x);
+      kps[a].y = static_cast<float>(y);
+    }
+    auto& scans = table[tok[0]][tok[1]];
+    if (!scans.emplace(static_cast<std::size_t>(scan), std::move(kps)).second) {
+      error = where + tok[0] + " " + tok[1] + " scan " + tok[2] + " is listed twice";
+      return false;
+    }
+  }
+  if (in.bad()) {
+    error = "keypoint file: read error";
+    return false;
+  }
+  return true;
+}
+
+std::string keypointLine(const std::string& dataset, const std::string& variant, std::size_t scan,
+                         const std::vector<FalkoKeypoint>& keypoints) {
+  std::string out = dataset + " " + variant + " " + std::to_string(scan) + " " + std::to_string(keypoints.size());
+  char buf[64];
+  for (const FalkoKeypoint& k : keypoints) {
+    std::snprintf(buf, sizeof(buf), " %.9g %.9g", static_cast<double>(k.x), static_cast<double>(k.y));
+    out += buf;
+  }
+  return out + "\n";
+}
+
+std::string scanLine(const std::string& dataset, const std::string& variant, std::size_t scan, const LaserScan& s) {
+  std::string out = dataset + " " + variant + " " + std::to_string(scan);
+  char buf[64];
+  for (const float v : {s.angleMin, s.angleIncrement, s.rangeMin, s.rangeMax}) {
+    std::snprintf(buf, sizeof(buf), " %.9g", static_cast<double>(v));
+    out += buf;
+  }
+  out += " " + std::to_string(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    std::snprintf(buf, sizeof(buf), " %.9g", static_cast<double>(s.ranges[i]));
+    out += buf;
+  }
+  return out + "\n";
+}
 
 void addRangeNoise(LaserScan& scan, double sigma, std::uint32_t seed) {
   std::mt19937 rng(seed);
@@ -172,37 +397,27 @@ void resampleScan(const LaserScan& in, int factor, LaserScan& out) {
 }
 
 bool evaluateLog(const std::string& name, const std::string& path, const EvalOptions& o, DatasetResult& result,
-                 std::string& error) {
-  datasets::CarmenLog log;
-  if (!datasets::readCarmenLog(path, log, error)) {
+                 std::string& error, const KeypointTable* external) {
+  std::vector<ScanData> data;
+  if (!loadScans(path, o, data, error)) {
+    return false;
+  }
+  const std::vector<ScanVariant> variants = scanVariants(o);
+  if (external != nullptr && !checkExternal(*external, name, variants, data.size(), error)) {
     return false;
   }
   auto engine = std::make_unique<Engine>(o);
-  std::vector<ScanData> data;
-  for (const auto& s : log.scans) {
-    if (!s.hasGroundTruth) {
-      continue;
-    }
-    if (o.maxScans > 0 && data.size() >= o.maxScans) {
-      break;
-    }
-    ScanData d;
-    d.scan = std::make_unique<LaserScan>();
-    (void)s.toLaserScan(*d.scan);
-    d.pose = s.groundTruth;
-    data.push_back(std::move(d));
-  }
-  if (data.empty()) {
-    error = path + ": no scan with ground truth";
-    return false;
-  }
   result = DatasetResult{};
   result.name = name;
   result.scans = data.size();
   std::size_t total = 0;
-  for (ScanData& d : data) {
-    engine->detectDescribe(d);
-    total += d.keypoints.size();
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (external != nullptr) {
+      data[i].keypoints = external->at(name).at(variants.front().name).at(i);
+    } else {
+      engine->detectDescribe(data[i]);
+    }
+    total += data[i].keypoints.size();
   }
   result.keypointsPerScan = static_cast<double>(total) / static_cast<double>(data.size());
 
@@ -211,64 +426,52 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
   std::vector<MatchRecord> bscRec;
   std::vector<MatchRecord> cghRec;
   std::size_t withTruth = 0;
-  for (std::size_t i = 0; i < data.size(); ++i) {
-    std::vector<bool> binUsed(o.viewpointLevels.size(), false);
-    std::size_t found = 0;
-    for (std::size_t j = i + 1; j < data.size() && j < i + 2000 && found < o.pairsPerScan; ++j) {
-      const double d = std::hypot(data[i].pose.x - data[j].pose.x, data[i].pose.y - data[j].pose.y);
-      if (d > o.pairMaxDistance) {
+  for (const ScanPair& p : viewpointPairs(posesOf(data), o)) {
+    const std::size_t i = p.i;
+    const std::size_t j = p.j;
+    ++result.pairs;
+    repeat(data[i].keypoints, data[i].pose, data[j].keypoints, data[j].pose, *data[j].scan, o, vp[p.bin]);
+    repeat(data[j].keypoints, data[j].pose, data[i].keypoints, data[i].pose, *data[i].scan, o, vp[p.bin]);
+    if (external != nullptr) {
+      continue;  // the descriptors need this describer's keypoints
+    }
+    // Descriptors: nearest neighbour in j of each keypoint of i seen by j.
+    const Pose2d ij = between(data[j].pose, data[i].pose);
+    for (std::size_t a = 0; a < data[i].keypoints.size(); ++a) {
+      const FalkoKeypoint& k = data[i].keypoints[a];
+      const Pose2d::Vector2 q = ij.transformPoint(Pose2d::Vector2(k.x, k.y));
+      if (!sees(*data[j].scan, q.x(), q.y(), o.visibilityTolerance) || data[j].keypoints.empty()) {
         continue;
       }
-      std::size_t bin = 0;
-      while (bin < o.viewpointLevels.size() && d > o.viewpointLevels[bin]) {
-        ++bin;
-      }
-      if (bin >= o.viewpointLevels.size() || binUsed[bin]) {
-        continue;
-      }
-      binUsed[bin] = true;
-      ++found;
-      ++result.pairs;
-      repeat(data[i].keypoints, data[i].pose, data[j].keypoints, data[j].pose, *data[j].scan, o, vp[bin]);
-      repeat(data[j].keypoints, data[j].pose, data[i].keypoints, data[i].pose, *data[i].scan, o, vp[bin]);
-      // Descriptors: nearest neighbour in j of each keypoint of i seen by j.
-      const Pose2d ij = between(data[j].pose, data[i].pose);
-      for (std::size_t a = 0; a < data[i].keypoints.size(); ++a) {
-        const FalkoKeypoint& k = data[i].keypoints[a];
-        const Pose2d::Vector2 q = ij.transformPoint(Pose2d::Vector2(k.x, k.y));
-        if (!sees(*data[j].scan, q.x(), q.y(), o.visibilityTolerance) || data[j].keypoints.empty()) {
-          continue;
+      std::size_t truth = data[j].keypoints.size();
+      double best = o.matchDistance;
+      for (std::size_t b = 0; b < data[j].keypoints.size(); ++b) {
+        const double e = std::hypot(static_cast<double>(data[j].keypoints[b].x) - q.x(),
+                                    static_cast<double>(data[j].keypoints[b].y) - q.y());
+        if (e <= best) {
+          best = e;
+          truth = b;
         }
-        std::size_t truth = data[j].keypoints.size();
-        double best = o.matchDistance;
-        for (std::size_t b = 0; b < data[j].keypoints.size(); ++b) {
-          const double e = std::hypot(static_cast<double>(data[j].keypoints[b].x) - q.x(),
-                                      static_cast<double>(data[j].keypoints[b].y) - q.y());
-          if (e <= best) {
-            best = e;
-            truth = b;
-          }
-        }
-        withTruth += truth < data[j].keypoints.size() ? 1U : 0U;
-        std::size_t nnB = 0;
-        std::size_t nnC = 0;
-        double dB = 1e300;
-        double dC = 1e300;
-        for (std::size_t b = 0; b < data[j].keypoints.size(); ++b) {
-          const double db = bscDistance(data[i].bsc[a], data[j].bsc[b]);
-          const double dc = static_cast<double>(cghDistance(data[i].cgh[a], data[j].cgh[b]));
-          if (db < dB) {
-            dB = db;
-            nnB = b;
-          }
-          if (dc < dC) {
-            dC = dc;
-            nnC = b;
-          }
-        }
-        bscRec.push_back(MatchRecord{dB, nnB == truth});
-        cghRec.push_back(MatchRecord{dC, nnC == truth});
       }
+      withTruth += truth < data[j].keypoints.size() ? 1U : 0U;
+      std::size_t nnB = 0;
+      std::size_t nnC = 0;
+      double dB = 1e300;
+      double dC = 1e300;
+      for (std::size_t b = 0; b < data[j].keypoints.size(); ++b) {
+        const double db = bscDistance(data[i].bsc[a], data[j].bsc[b]);
+        const double dc = static_cast<double>(cghDistance(data[i].cgh[a], data[j].cgh[b]));
+        if (db < dB) {
+          dB = db;
+          nnB = b;
+        }
+        if (dc < dC) {
+          dC = dc;
+          nnC = b;
+        }
+      }
+      bscRec.push_back(MatchRecord{dB, nnB == truth});
+      cghRec.push_back(MatchRecord{dC, nnC == truth});
     }
   }
   for (std::size_t b = 0; b < vp.size(); ++b) {
@@ -277,39 +480,71 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
     result.repeatability["viewpoint"][l] =
         vp[b].visible > 0 ? static_cast<double>(vp[b].matched) / static_cast<double>(vp[b].visible) : 0.0;
   }
-  result.bsc = precisionRecall(bscRec, withTruth, {2, 4, 6, 8, 10, 12, 16, 20, 24, 32, 48, 64, 128});
-  result.cgh = precisionRecall(cghRec, withTruth, {0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0});
+  if (external == nullptr) {
+    result.bsc = precisionRecall(bscRec, withTruth, {2, 4, 6, 8, 10, 12, 16, 20, 24, 32, 48, 64, 128});
+    result.cgh = precisionRecall(cghRec, withTruth, {0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0});
+  }
 
   // 2. Range noise and 3. angular resampling: the same scan and pose, modified vs clean.
   auto modified = std::make_unique<LaserScan>();
   std::vector<FalkoKeypoint> kp;
   const Pose2d identity;
-  for (std::size_t l = 0; l < o.noiseLevels.size(); ++l) {
+  for (std::size_t v = 1; v < variants.size(); ++v) {
+    const ScanVariant& var = variants[v];
     Counts c;
     for (std::size_t i = 0; i < data.size(); ++i) {
-      *modified = *data[i].scan;
-      addRangeNoise(*modified, o.noiseLevels[l], o.seed + static_cast<std::uint32_t>(i * 7919U + l));
-      engine->detect(*modified, kp);
+      makeVariant(var, i, *data[i].scan, o, *modified);
+      if (external != nullptr) {
+        kp = external->at(name).at(var.name).at(i);
+      } else {
+        engine->detect(*modified, kp);
+      }
       repeat(data[i].keypoints, identity, kp, identity, *modified, o, c);
       repeat(kp, identity, data[i].keypoints, identity, *data[i].scan, o, c);
     }
-    const std::string lb = label(o.noiseLevels[l]);
-    result.samples["noise"][lb] = c.visible;
-    result.repeatability["noise"][lb] =
+    result.samples[var.test][var.level] = c.visible;
+    result.repeatability[var.test][var.level] =
         c.visible > 0 ? static_cast<double>(c.matched) / static_cast<double>(c.visible) : 0.0;
   }
-  for (const int f : o.resampleLevels) {
-    Counts c;
-    for (std::size_t i = 0; i < data.size(); ++i) {
-      resampleScan(*data[i].scan, f, *modified);
-      engine->detect(*modified, kp);
-      repeat(data[i].keypoints, identity, kp, identity, *modified, o, c);
-      repeat(kp, identity, data[i].keypoints, identity, *data[i].scan, o, c);
+  return true;
+}
+
+bool exportLog(const std::string& name, const std::string& path, const EvalOptions& o, const ExportStreams& out,
+               std::string& error) {
+  std::vector<ScanData> data;
+  if (!loadScans(path, o, data, error)) {
+    return false;
+  }
+  if (out.scans != nullptr || out.keypoints != nullptr) {
+    auto engine = std::make_unique<Engine>(o);
+    auto modified = std::make_unique<LaserScan>();
+    std::vector<FalkoKeypoint> kp;
+    for (const ScanVariant& v : scanVariants(o)) {
+      for (std::size_t i = 0; i < data.size(); ++i) {
+        makeVariant(v, i, *data[i].scan, o, *modified);
+        if (out.scans != nullptr) {
+          *out.scans << scanLine(name, v.name, i, *modified);
+        }
+        if (out.keypoints != nullptr) {
+          engine->detect(*modified, kp);
+          *out.keypoints << keypointLine(name, v.name, i, kp);
+        }
+      }
     }
-    const std::string lb = f < 0 ? "x1/" + std::to_string(-f) : "x" + std::to_string(f);
-    result.samples["sampling"][lb] = c.visible;
-    result.repeatability["sampling"][lb] =
-        c.visible > 0 ? static_cast<double>(c.matched) / static_cast<double>(c.visible) : 0.0;
+  }
+  if (out.pairs != nullptr) {
+    char buf[128];
+    for (const ScanPair& p : viewpointPairs(posesOf(data), o)) {
+      std::snprintf(buf, sizeof(buf), "%s %zu %zu %.4f %s\n", name.c_str(), p.i, p.j, p.distance,
+                    label(o.viewpointLevels[p.bin]).c_str());
+      *out.pairs << buf;
+    }
+  }
+  for (std::ostream* s : {out.scans, out.keypoints, out.pairs}) {
+    if (s != nullptr && !*s) {
+      error = "export: write failed";
+      return false;
+    }
   }
   return true;
 }
@@ -323,7 +558,8 @@ std::string paramsLine(const FalkoParams& p) {
   return buf;
 }
 
-std::string resultsToJson(const std::vector<DatasetResult>& results, const FalkoParams& params) {
+std::string resultsToJson(const std::vector<DatasetResult>& results, const FalkoParams& params,
+                          const std::string& keypointsFile) {
   std::ostringstream js;
   js.precision(6);
   js << "{\n  \"repeatability\": {";
@@ -363,6 +599,17 @@ std::string resultsToJson(const std::vector<DatasetResult>& results, const Falko
     }
     js << "}";
   }
+  if (!keypointsFile.empty()) {
+    js << "\n  },\n  \"keypoints_file\": \"";
+    for (const char ch : keypointsFile) {
+      if (ch == '"' || ch == '\\') {
+        js << '\\';
+      }
+      js << ch;
+    }
+    js << "\"\n}\n";
+    return js.str();
+  }
   js << "\n  },\n  \"falko_params\": {\"neigh_a\": " << params.neighA << ", \"neigh_b\": " << params.neighB
      << ", \"beta\": " << params.beta << ", \"grid_sectors\": " << params.gridSectors
      << ", \"max_score\": " << params.maxScore << ", \"nms_radius\": " << params.nmsRadius << "}\n}\n";
@@ -383,6 +630,10 @@ std::string resultsToTables(const std::vector<DatasetResult>& results) {
         std::snprintf(buf, sizeof(buf), "    %-8s %6.3f  (%zu keypoints)\n", level.first.c_str(), level.second, n);
         out << buf;
       }
+    }
+    if (r.bsc.empty() && r.cgh.empty()) {
+      out << "  descriptors: not evaluated (keypoints from a file)\n";
+      continue;
     }
     for (int k = 0; k < 2; ++k) {
       out << "  " << (k == 0 ? "BSC" : "CGH") << " nearest-neighbour matching: threshold precision recall\n";

@@ -1,11 +1,16 @@
 // agvnav-features: FALKO keypoints on recorded 2D laser scans.
 //   detect: keypoints of one scan of a log, written as SVG (points, keypoints, orientations).
 //   eval:   repeatability (viewpoint, range noise, angular resampling) and BSC / CGH precision /
-//           recall on the shared logs; tables on stdout, SVG curves, JSON with --json.
+//           recall on the shared logs; tables on stdout, SVG curves, JSON with --json. With
+//           --keypoints FILE it scores another detector's keypoints instead of running its own.
+//   export: the scans eval uses (every variant), for another detector to process; optionally this
+//           detector's keypoints in the format eval --keypoints reads, and the viewpoint pairs.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <vector>
@@ -117,6 +122,71 @@ int runDetect(const std::string& logPath, std::size_t index, const std::string& 
   return 0;
 }
 
+/// The datasets named on the command line (all when none), with their log paths; false when a
+/// name is unknown.
+bool selectDatasets(const std::vector<std::string>& names, const std::string& dataDir,
+                    std::vector<std::pair<std::string, std::string>>& out) {
+  for (const std::string& n : names) {
+    const bool known =
+        std::any_of(std::begin(kDatasets), std::end(kDatasets), [&](const Dataset& d) { return n == d.name; });
+    if (!known) {
+      std::fprintf(stderr, "agvnav-features: unknown dataset %s (intel, fr079, mit-csail)\n", n.c_str());
+      return false;
+    }
+  }
+  for (const Dataset& d : kDatasets) {
+    if (names.empty() || std::find(names.begin(), names.end(), d.name) != names.end()) {
+      out.emplace_back(d.name, dataDir + "/laser2d/" + d.file);
+    }
+  }
+  return true;
+}
+
+int runExport(const std::vector<std::pair<std::string, std::string>>& sets, const agv::features::EvalOptions& options,
+              const std::string& scansPath, const std::string& kpPath, const std::string& pairsPath) {
+  std::ofstream files[3];
+  agv::features::ExportStreams out;
+  // Opens `path` (when given) as files[f] and points `stream` at it; false when it cannot be written.
+  auto open = [&](std::size_t f, const std::string& path, std::ostream*& stream) {
+    if (path.empty()) {
+      return true;
+    }
+    files[f].open(path);
+    if (!files[f]) {
+      std::fprintf(stderr, "agvnav-features: cannot write %s\n", path.c_str());
+      return false;
+    }
+    stream = &files[f];
+    return true;
+  };
+  if (!open(0, scansPath, out.scans) || !open(1, kpPath, out.keypoints) || !open(2, pairsPath, out.pairs)) {
+    return 1;
+  }
+  if (out.scans == nullptr && out.keypoints == nullptr && out.pairs == nullptr) {
+    std::fprintf(stderr, "agvnav-features: export needs --scans, --keypoints or --pairs\n");
+    return 2;
+  }
+  if (out.scans != nullptr) {
+    *out.scans << "# <dataset> <variant> <scan> <angle_min> <angle_increment> <range_min> <range_max> <n> <ranges>\n";
+  }
+  if (out.keypoints != nullptr) {
+    *out.keypoints << "# <dataset> <variant> <scan> <k> <x_1> <y_1> ... <x_k> <y_k>  ("
+                   << agv::features::paramsLine(options.falko) << ")\n";
+  }
+  if (out.pairs != nullptr) {
+    *out.pairs << "# <dataset> <scan i> <scan j> <ground-truth distance [m]> <viewpoint bin>\n";
+  }
+  for (const auto& set : sets) {
+    std::string err;
+    if (!agv::features::exportLog(set.first, set.second, options, out, err)) {
+      std::fprintf(stderr, "agvnav-features: %s\n", err.c_str());
+      return 1;
+    }
+    std::printf("%s: exported\n", set.first.c_str());
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -145,8 +215,27 @@ int main(int argc, char** argv) {
   eval->add_option("--json", jsonPath, "write the results as JSON");
   eval->add_option("--svg-dir", svgDir, "write repeatability curves (SVG) into this folder");
   eval->add_option("--match-distance", options.matchDistance, "[m] repeated keypoint tolerance");
+  std::string keypointsIn;
+  eval->add_option("--keypoints", keypointsIn,
+                   "score the keypoints in this file (another detector's, see export) instead of detecting")
+      ->check(CLI::ExistingFile);
   FalkoCli evalParams;
   evalParams.addTo(eval);
+
+  std::string exportScans;
+  std::string exportKeypoints;
+  std::string exportPairs;
+  CLI::App* exportCmd =
+      app.add_subcommand("export", "the scans eval uses, for another detector; this detector's keypoints; the pairs");
+  exportCmd->add_option("--data", dataDir, "folder holding laser2d/");
+  exportCmd->add_option("--datasets", names, "subset of intel, fr079, mit-csail (default: all)");
+  exportCmd->add_option("--max-scans", options.maxScans, "scans per dataset (0: all)");
+  exportCmd->add_option("--scans", exportScans, "write every scan of every variant here");
+  exportCmd->add_option("--keypoints", exportKeypoints,
+                        "write this detector's keypoints here (eval --keypoints format)");
+  exportCmd->add_option("--pairs", exportPairs, "write the viewpoint scan pairs here");
+  FalkoCli exportParams;
+  exportParams.addTo(exportCmd);
 
   CLI11_PARSE(app, argc, argv);
 
@@ -157,33 +246,44 @@ int main(int argc, char** argv) {
     }
     return runDetect(logPath, index, svgPath, params);
   }
+  std::vector<std::pair<std::string, std::string>> sets;
+  if (!selectDatasets(names, dataDir, sets)) {
+    return 2;
+  }
+  if (*exportCmd) {
+    if (!exportParams.resolve(options.falko)) {
+      return 2;
+    }
+    return runExport(sets, options, exportScans, exportKeypoints, exportPairs);
+  }
   if (!evalParams.resolve(options.falko)) {
     return 2;
   }
-  std::printf("%s\n", agv::features::paramsLine(options.falko).c_str());
+  agv::features::KeypointTable external;
+  if (!keypointsIn.empty()) {
+    std::ifstream in(keypointsIn);
+    std::string err;
+    if (!in || !agv::features::readKeypointTable(in, external, err)) {
+      std::fprintf(stderr, "agvnav-features: %s: %s\n", keypointsIn.c_str(), in ? err.c_str() : "cannot read");
+      return 1;
+    }
+    std::printf("keypoints from %s (the detector is not run)\n", keypointsIn.c_str());
+  } else {
+    std::printf("%s\n", agv::features::paramsLine(options.falko).c_str());
+  }
   std::vector<agv::features::DatasetResult> results;
-  for (const Dataset& d : kDatasets) {
-    bool wanted = names.empty();
-    for (const std::string& n : names) {
-      wanted = wanted || n == d.name;
-    }
-    if (!wanted) {
-      continue;
-    }
+  for (const auto& set : sets) {
     agv::features::DatasetResult r;
     std::string err;
-    if (!agv::features::evaluateLog(d.name, dataDir + "/laser2d/" + d.file, options, r, err)) {
+    if (!agv::features::evaluateLog(set.first, set.second, options, r, err,
+                                    keypointsIn.empty() ? nullptr : &external)) {
       std::fprintf(stderr, "agvnav-features: %s\n", err.c_str());
       return 1;
     }
     results.push_back(std::move(r));
   }
-  if (results.empty()) {
-    std::fprintf(stderr, "agvnav-features: no dataset selected\n");
-    return 1;
-  }
   std::fputs(agv::features::resultsToTables(results).c_str(), stdout);
-  if (!jsonPath.empty() && !writeFile(jsonPath, agv::features::resultsToJson(results, options.falko))) {
+  if (!jsonPath.empty() && !writeFile(jsonPath, agv::features::resultsToJson(results, options.falko, keypointsIn))) {
     std::fprintf(stderr, "agvnav-features: cannot write %s\n", jsonPath.c_str());
     return 1;
   }

@@ -1,7 +1,10 @@
 // The keypoint evaluation of agvnav-features on the real logs (reduced scan count) and its tools.
 #include <cmath>
+#include <cstdlib>
 #include <memory>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "agv_test.hpp"
 #include "eval.hpp"
@@ -86,4 +89,192 @@ TEST_CASE("features eval: resampling keeps the geometry", "[features]") {
   }
   CHECK(std::sqrt(sq / 100.0) == Approx(0.01).epsilon(0.3));
   CHECK(noisy->ranges[50] == 60.0F);  // invalid readings stay as they are
+}
+
+namespace {
+
+/// Reads back one line of the scan file `export` writes (the reader another detector would have).
+bool parseScanLine(const std::string& line, std::string& dataset, std::string& variant, std::size_t& index,
+                   agv::LaserScan& s) {
+  std::istringstream in(line);
+  std::size_t n = 0;
+  std::string tok[5];
+  if (!(in >> dataset >> variant >> index)) {
+    return false;
+  }
+  for (std::string& t : tok) {
+    in >> t;
+  }
+  s.angleMin = std::strtof(tok[0].c_str(), nullptr);
+  s.angleIncrement = std::strtof(tok[1].c_str(), nullptr);
+  s.rangeMin = std::strtof(tok[2].c_str(), nullptr);
+  s.rangeMax = std::strtof(tok[3].c_str(), nullptr);
+  n = std::strtoul(tok[4].c_str(), nullptr, 10);
+  s.ranges.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    std::string r;
+    if (!(in >> r) || s.ranges.push_back(std::strtof(r.c_str(), nullptr)) != agv::Status::Ok) {
+      return false;
+    }
+  }
+  std::string extra;
+  return !(in >> extra);
+}
+
+std::vector<std::string> lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) {
+    out.push_back(l);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("features eval: another detector's keypoints are scored exactly like its own", "[features][realdata]") {
+  f::EvalOptions o;
+  o.maxScans = 40;
+  const std::string log = kData + "fr079/fr079.log.gz";
+  f::DatasetResult own;
+  std::string err;
+  REQUIRE(f::evaluateLog("fr079", log, o, own, err));
+  std::ostringstream kp;
+  f::ExportStreams out;
+  out.keypoints = &kp;
+  REQUIRE(f::exportLog("fr079", log, o, out, err));
+  // One line per scan and variant: clean, 6 noise levels, 3 resampling factors.
+  CHECK(lines(kp.str()).size() == 40U * 10U);
+
+  f::KeypointTable table;
+  std::istringstream in(kp.str());
+  REQUIRE(f::readKeypointTable(in, table, err));
+  f::DatasetResult ext;
+  REQUIRE(f::evaluateLog("fr079", log, o, ext, err, &table));
+  CHECK(ext.repeatability == own.repeatability);
+  CHECK(ext.samples == own.samples);
+  CHECK(ext.keypointsPerScan == own.keypointsPerScan);
+  CHECK(ext.pairs == own.pairs);
+  CHECK(ext.bsc.empty());
+  CHECK(ext.cgh.empty());
+  CHECK(f::resultsToJson({ext}, agv::FalkoParams{}, "kp.txt").find("\"keypoints_file\": \"kp.txt\"") !=
+        std::string::npos);
+
+  // The scores come from the table: the clean keypoints as the 1 cm noise ones repeat all of
+  // themselves; no keypoint at all in the oversampled scans repeats none.
+  const double before = own.repeatability.at("noise").at("0.01");
+  REQUIRE(before < 1.0);
+  table["fr079"]["noise-0.01"] = table["fr079"]["clean"];
+  for (auto& scan : table["fr079"]["sampling-x2"]) {
+    scan.second.clear();
+  }
+  REQUIRE(f::evaluateLog("fr079", log, o, ext, err, &table));
+  CHECK(ext.repeatability.at("noise").at("0.01") == 1.0);
+  CHECK(ext.repeatability.at("sampling").at("x2") == 0.0);
+  CHECK(ext.repeatability.at("viewpoint") == own.repeatability.at("viewpoint"));
+  CHECK(ext.repeatability.at("noise").at("0.03") == own.repeatability.at("noise").at("0.03"));
+
+  // A table that does not cover the run is refused, naming what is missing.
+  f::KeypointTable bad = table;
+  bad["fr079"]["noise-0.3"].erase(3);
+  CHECK_FALSE(f::evaluateLog("fr079", log, o, ext, err, &bad));
+  CHECK(err.find("noise-0.3: no line for scan 3") != std::string::npos);
+  bad = table;
+  bad["fr079"].erase("sampling-x1/4");
+  CHECK_FALSE(f::evaluateLog("fr079", log, o, ext, err, &bad));
+  CHECK(err.find("no line for variant sampling-x1/4") != std::string::npos);
+  bad = table;
+  bad["fr079"]["noise-0.5"] = table["fr079"]["clean"];
+  CHECK_FALSE(f::evaluateLog("fr079", log, o, ext, err, &bad));
+  CHECK(err.find("unknown variant noise-0.5") != std::string::npos);
+  bad = table;
+  bad["fr079"]["clean"][40] = {};
+  CHECK_FALSE(f::evaluateLog("fr079", log, o, ext, err, &bad));
+  CHECK(err.find("scan 40 beyond the 40 scans") != std::string::npos);
+  CHECK_FALSE(f::evaluateLog("intel", kData + "intel/intel-lab.log.gz", o, ext, err, &table));
+  CHECK(err.find("no line for dataset intel") != std::string::npos);
+}
+
+TEST_CASE("features export: the scans written are the scans evaluated, to the bit", "[features][realdata]") {
+  f::EvalOptions o;
+  o.maxScans = 6;
+  std::ostringstream scans;
+  std::ostringstream kp;
+  std::ostringstream pairs;
+  f::ExportStreams out{&scans, &kp, &pairs};
+  std::string err;
+  REQUIRE(f::exportLog("mit-csail", kData + "mit-csail/mit-cscail.log.gz", o, out, err));
+  const std::vector<std::string> scanLines = lines(scans.str());
+  const std::vector<std::string> kpLines = lines(kp.str());
+  REQUIRE(scanLines.size() == 6U * f::scanVariants(o).size());
+  REQUIRE(kpLines.size() == scanLines.size());
+  // A detector reading the scan file finds exactly the keypoints written for each scan.
+  auto scan = std::make_unique<agv::LaserScan>();
+  auto detector = std::make_unique<agv::FalkoDetector>();
+  agv::FalkoKeypoints kps;
+  std::size_t withKeypoints = 0;
+  std::size_t halfBeams = 0;
+  for (std::size_t l = 0; l < scanLines.size(); ++l) {
+    std::string dataset;
+    std::string variant;
+    std::size_t index = 0;
+    REQUIRE(parseScanLine(scanLines[l], dataset, variant, index, *scan));
+    CHECK(dataset == "mit-csail");
+    CHECK(index == l % 6U);
+    (void)detector->detect(*scan, kps);
+    CHECK(f::keypointLine(dataset, variant, index, {kps.begin(), kps.end()}) == kpLines[l] + "\n");
+    withKeypoints += kps.empty() ? 0U : 1U;
+    halfBeams += variant == "sampling-x1/2" ? scan->size() : 0U;
+  }
+  CHECK(withKeypoints > scanLines.size() / 2U);
+  CHECK(halfBeams == 6U * 181U);  // 361 beams, every second one kept
+  // Pairs: scan i < j, within 1 m, labelled with their distance bin.
+  for (const std::string& p : lines(pairs.str())) {
+    std::istringstream in(p);
+    std::string name;
+    std::size_t i = 0;
+    std::size_t j = 0;
+    double d = 0.0;
+    double bin = 0.0;
+    REQUIRE(in >> name >> i >> j >> d >> bin);
+    CHECK(i < j);
+    CHECK(j < 6U);
+    CHECK(d <= bin);
+    CHECK(d > bin - 0.25 - 1e-9);
+  }
+}
+
+TEST_CASE("features eval: a malformed keypoint file is refused with its line number", "[features]") {
+  const struct {
+    const char* text;
+    const char* message;
+  } cases[] = {
+      {"fr079 clean 0 1 1.0\n", "line 1: 1 keypoints need 2 coordinates, found 1"},
+      {"fr079 clean 0 1 1.0 2.0 3.0\n", "line 1: 1 keypoints need 2 coordinates, found 3"},
+      {"# header\n\nfr079 clean 0 1 1.0 nan\n", "line 3: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0 1 1e400 0\n", "line 1: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0 1 1.0 2.0x\n", "line 1: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0 -1\n", "line 1: negative scan index or count"},
+      {"fr079 clean x 0\n", "line 1: expected <dataset> <variant> <scan> <count>"},
+      {"fr079 clean 0\n", "line 1: expected"},
+      {"fr079 clean 0 0\nfr079 clean 1 0\nfr079 clean 0 0\n", "line 3: fr079 clean scan 0 is listed twice"},
+  };
+  for (const auto& c : cases) {
+    INFO(c.text);
+    std::istringstream in(c.text);
+    f::KeypointTable t;
+    std::string err;
+    CHECK_FALSE(f::readKeypointTable(in, t, err));
+    CHECK(err.find(c.message) != std::string::npos);
+  }
+  std::istringstream good("# comment\n\nfr079 clean 0 2 1 2 -3.5 4e-1\nfr079 clean 1 0\n");
+  f::KeypointTable t;
+  std::string err;
+  REQUIRE(f::readKeypointTable(good, t, err));
+  const auto& scans = t.at("fr079").at("clean");
+  REQUIRE(scans.size() == 2U);
+  REQUIRE(scans.at(0).size() == 2U);
+  CHECK(scans.at(0)[1].x == -3.5F);
+  CHECK(scans.at(0)[1].y == 0.4F);
+  CHECK(scans.at(1).empty());
 }
