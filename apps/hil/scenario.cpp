@@ -10,6 +10,7 @@
 #include "agv/falko/falko_detector.hpp"
 #include "agv/hal/plc_messages.hpp"
 #include "agv/localization/localizer.hpp"
+#include "agv/localization/sweep_motion.hpp"
 #include "agv/sim/path_follower.hpp"
 #include "agv/sim/ray_caster.hpp"
 #include "agv/sim/sim_clock.hpp"
@@ -112,44 +113,6 @@ std::size_t CornerMapper::freeze(int minSightings, double maxScatter, LandmarkMa
 
 namespace {
 
-/// Calibrated dead-reckoning poses of the last half second, for the motion compensation of a
-/// sweep (the navigation's own odometry, never the truth).
-class PoseHistory {
- public:
-  void add(Timestamp stamp, const Pose2d& pose) {
-    samples_.push_back({stamp, pose});
-    while (samples_.size() > 2 && (stamp - samples_.front().stamp).seconds() > 0.5) {
-      samples_.erase(samples_.begin());
-    }
-  }
-  /// Linear interpolation at `t` (clamped to the stored interval).
-  Pose2d at(Timestamp t) const {
-    if (samples_.empty()) {
-      return Pose2d{};
-    }
-    if (!(samples_.front().stamp < t)) {
-      return samples_.front().pose;
-    }
-    for (std::size_t k = 1; k < samples_.size(); ++k) {
-      if (!(samples_[k].stamp < t)) {
-        const Sample& a = samples_[k - 1];
-        const Sample& b = samples_[k];
-        const double f = (t - a.stamp).seconds() / (b.stamp - a.stamp).seconds();
-        return Pose2d{a.pose.x + f * (b.pose.x - a.pose.x), a.pose.y + f * (b.pose.y - a.pose.y),
-                      normalizeAngle(a.pose.theta + f * angleDiff(b.pose.theta, a.pose.theta))};
-      }
-    }
-    return samples_.back().pose;
-  }
-
- private:
-  struct Sample {
-    Timestamp stamp;
-    Pose2d pose;
-  };
-  std::vector<Sample> samples_;
-};
-
 /// The localizer side of the navigation: odometry increments from the encoder samples, point
 /// observations (reflectors and/or FALKO corners) from the laser, motion-compensated to the end
 /// of the sweep with the calibrated odometry, corrected against the map.
@@ -162,8 +125,7 @@ class Navigation {
         detector_(std::make_unique<FalkoDetector>()),
         keypoints_(std::make_unique<FalkoKeypoints>()),
         observations_(std::make_unique<ScanObservations>()),
-        mount_(cfg.estimate.laserMount),
-        fieldOfView_(cfg.laser.fieldOfView) {}
+        mount_(cfg.estimate.laserMount) {}
 
   bool usesReflectors() const noexcept {
     return mode_ == LocalizationMode::Reflectors || mode_ == LocalizationMode::Mapping;
@@ -178,7 +140,7 @@ class Navigation {
     cov(0, 0) = cov(1, 1) = 0.005 * 0.005;
     cov(2, 2) = deg2rad(0.05) * deg2rad(0.05);
     static_cast<void>(localizer_->reset(sample.stamp, start, cov));
-    history_.add(sample.stamp, deadReckoning);
+    static_cast<void>(history_.add(sample.stamp, deadReckoning));
   }
 
   /// One encoder sample; `deadReckoning` is the calibrated odometry pose after it.
@@ -188,7 +150,7 @@ class Navigation {
     if (inc.ok()) {
       static_cast<void>(localizer_->predict(inc.value()));
     }
-    history_.add(sample.stamp, deadReckoning);
+    static_cast<void>(history_.add(sample.stamp, deadReckoning));
   }
 
   /// One laser sweep. In Mapping mode the localizer corrects on the reflectors against `map`
@@ -196,24 +158,15 @@ class Navigation {
   const LocalizerHealth& correct(const hal::LaserMeasurement& m, LandmarkMap& map, CornerMapper* cornerMap) {
     ScanObservations& obs = *observations_;
     obs.points.clear();
-    const Timestamp tRef = m.scan.stamp + m.scan.sweepDuration;
+    const SweepCompensation sweep(history_, m.scan, mount_);
+    const Timestamp tRef = sweep.referenceStamp();
     obs.stamp = tRef;
     obs.kindsDetected = 0;
-    const Pose2d laserRef = history_.at(tRef) * mount_;
-    const double sweep = m.scan.sweepDuration.seconds();
-    // A point seen at sweep fraction f, expressed in the sensor frame at the end of the sweep.
-    auto compensate = [&](double f, double x, double y) {
-      const Timestamp tf = m.scan.stamp + Duration::fromSeconds(std::clamp(f, 0.0, 1.0) * sweep);
-      const Pose2d rel = between(laserRef, history_.at(tf) * mount_);
-      return rel.transformPoint(Pose2d::Vector2(x, y));
-    };
     if (usesReflectors() && m.hasReflectors) {
       obs.kindsDetected |= landmarkKindBit(LandmarkKind::Reflector);
       for (std::size_t i = 0; i < m.reflectors.size(); ++i) {
-        const double x = static_cast<double>(m.reflectors[i].x);
-        const double y = static_cast<double>(m.reflectors[i].y);
-        const double f = (std::atan2(y, x) - static_cast<double>(m.scan.angleMin)) / fieldOfView_;
-        const Pose2d::Vector2 p = compensate(f, x, y);
+        const Pose2d::Vector2 p =
+            sweep.atBearing(static_cast<double>(m.reflectors[i].x), static_cast<double>(m.reflectors[i].y));
         static_cast<void>(obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Reflector}));
       }
     }
@@ -222,15 +175,13 @@ class Navigation {
     if (usesCorners()) {
       keypoints_->clear();
       if (detector_->detect(m.scan, *keypoints_) == Status::Ok) {
-        const double last = static_cast<double>(std::max<std::size_t>(1, m.scan.size() - 1));
         for (std::size_t i = 0; i < keypoints_->size(); ++i) {
           const FalkoKeypoint& k = (*keypoints_)[i];
           if (!k.refined) {
             continue;  // the apex of an unrefined keypoint is only the nearest beam point
           }
           ++keypointCount_;
-          corners_.push_back(
-              compensate(static_cast<double>(k.beamIndex) / last, static_cast<double>(k.x), static_cast<double>(k.y)));
+          corners_.push_back(sweep.atBeam(k.beamIndex, static_cast<double>(k.x), static_cast<double>(k.y)));
         }
         if (mode_ != LocalizationMode::Mapping) {
           obs.kindsDetected |= landmarkKindBit(LandmarkKind::Corner);
@@ -244,7 +195,8 @@ class Navigation {
     if (mode_ == LocalizationMode::Mapping && cornerMap != nullptr && !localizer_->lost() &&
         !hasFlag(h.flags, LocalizerFlag::NoFix)) {
       // The corrected pose at the end of the sweep, from the newest one and the odometry between.
-      const Pose2d poseRef = localizer_->pose() * between(history_.at(localizer_->stamp()), history_.at(tRef));
+      const Pose2d poseRef =
+          localizer_->pose() * between(history_.at(localizer_->stamp()).value(), history_.at(tRef).value());
       const Pose2d laserWorld = poseRef * mount_;
       for (const Pose2d::Vector2& p : corners_) {
         const Pose2d::Vector2 w = laserWorld.transformPoint(p);
@@ -293,8 +245,7 @@ class Navigation {
   std::unique_ptr<FalkoKeypoints> keypoints_;
   std::unique_ptr<ScanObservations> observations_;
   Pose2d mount_;
-  double fieldOfView_;
-  PoseHistory history_;
+  MotionHistory history_;
   std::size_t keypointCount_ = 0;
   std::vector<Pose2d::Vector2> corners_;
 };

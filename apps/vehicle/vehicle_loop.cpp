@@ -7,6 +7,7 @@
 #include "agv/localization/landmark_map_io.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/odometry.hpp"
+#include "agv/localization/sweep_motion.hpp"
 
 namespace agv::vehicle {
 namespace {
@@ -142,6 +143,10 @@ struct VehicleLoop::Impl {
   drivers::SickLaserSource& laser;
   hal::PlcLink& plc;
   TricycleOdometry odometry;
+  /// Dead reckoning of the odometry increments, for the motion within a sweep (its origin is
+  /// arbitrary: only the motion between two instants of a sweep is used).
+  Pose2d deadReckoning{};
+  std::unique_ptr<MotionHistory> motion = std::make_unique<MotionHistory>();
   std::unique_ptr<Localizer> localizer;
   std::unique_ptr<FalkoDetector> detector;
   std::unique_ptr<FalkoKeypoints> keypoints;
@@ -200,9 +205,13 @@ void VehicleLoop::cycle() noexcept {
     }
     ++counters.encoderSamples;
     const Result<OdometryIncrement> inc = m.odometry.step(TricycleSample{s.stamp, s.driveTicks, s.steeringAngle});
-    if (inc.ok() && m.active) {
-      (void)m.localizer->predict(inc.value());
+    if (inc.ok()) {
+      m.deadReckoning = m.deadReckoning * inc.value().delta;
+      if (m.active) {
+        (void)m.localizer->predict(inc.value());
+      }
     }
+    (void)m.motion->add(s.stamp, m.deadReckoning);
     m.haveSample = true;
     m.lastSample = s;
   }
@@ -242,17 +251,19 @@ void VehicleLoop::cycle() noexcept {
     ++counters.sweeps;
     ScanObservations& obs = *m.observations;
     obs.points.clear();
-    // No per-beam motion compensation: the observations are taken at mid-sweep.
-    obs.stamp = meas.scan.stamp + Duration{meas.scan.sweepDuration.ns / 2};
+    // Every point is moved to the sensor frame at the end of the sweep with the motion the
+    // odometry saw during the sweep (per beam for the corners, per bearing for the reflectors).
+    const SweepCompensation sweep(*m.motion, meas.scan, m.calibration.laserPose);
+    obs.stamp = sweep.referenceStamp();
     obs.kindsDetected = 0;
     m.visibleReflectors = 0;
     if (meas.hasReflectors) {
       obs.kindsDetected |= landmarkKindBit(LandmarkKind::Reflector);
       m.visibleReflectors = static_cast<std::uint16_t>(meas.reflectors.size());
       for (std::size_t i = 0; i < meas.reflectors.size(); ++i) {
-        (void)obs.points.push_back(PointObservation{static_cast<double>(meas.reflectors[i].x),
-                                                    static_cast<double>(meas.reflectors[i].y),
-                                                    LandmarkKind::Reflector});
+        const Pose2d::Vector2 p =
+            sweep.atBearing(static_cast<double>(meas.reflectors[i].x), static_cast<double>(meas.reflectors[i].y));
+        (void)obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Reflector});
       }
     }
     if (m.config.useCorners) {
@@ -262,8 +273,8 @@ void VehicleLoop::cycle() noexcept {
         for (std::size_t i = 0; i < m.keypoints->size(); ++i) {
           const FalkoKeypoint& k = (*m.keypoints)[i];
           if (k.refined) {
-            (void)obs.points.push_back(
-                PointObservation{static_cast<double>(k.x), static_cast<double>(k.y), LandmarkKind::Corner});
+            const Pose2d::Vector2 p = sweep.atBeam(k.beamIndex, static_cast<double>(k.x), static_cast<double>(k.y));
+            (void)obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Corner});
           }
         }
       }
