@@ -72,7 +72,9 @@ class MotionHistory {
 class SweepCompensation {
  public:
   /// For the sweep of `scan`: beam 0 at `scan.stamp`, beam n-1 at `scan.stamp +
-  /// scan.sweepDuration`, the beams in between evenly spaced in time.
+  /// scan.sweepDuration`, the beams in between evenly spaced in time. `history` is kept by
+  /// reference and must outlive this object and not change while it is used (one sweep); `scan`
+  /// is read here only.
   SweepCompensation(const MotionHistory& history, const LaserScan& scan, const Pose2d& mount) noexcept;
 
   /// End of the sweep: the stamp of the compensated observations.
