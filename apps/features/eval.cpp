@@ -406,14 +406,16 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
   if (external != nullptr && !checkExternal(*external, name, variants, data.size(), error)) {
     return false;
   }
-  auto engine = std::make_unique<Engine>(o);
+  // The external keypoints of this dataset (checked complete above), or the detector.
+  const auto* table = external != nullptr ? &external->at(name) : nullptr;
+  const std::unique_ptr<Engine> engine = table == nullptr ? std::make_unique<Engine>(o) : nullptr;
   result = DatasetResult{};
   result.name = name;
   result.scans = data.size();
   std::size_t total = 0;
   for (std::size_t i = 0; i < data.size(); ++i) {
-    if (external != nullptr) {
-      data[i].keypoints = external->at(name).at(variants.front().name).at(i);
+    if (table != nullptr) {
+      data[i].keypoints = table->at(variants.front().name).at(i);
     } else {
       engine->detectDescribe(data[i]);
     }
@@ -432,7 +434,7 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
     ++result.pairs;
     repeat(data[i].keypoints, data[i].pose, data[j].keypoints, data[j].pose, *data[j].scan, o, vp[p.bin]);
     repeat(data[j].keypoints, data[j].pose, data[i].keypoints, data[i].pose, *data[i].scan, o, vp[p.bin]);
-    if (external != nullptr) {
+    if (table != nullptr) {
       continue;  // the descriptors need this describer's keypoints
     }
     // Descriptors: nearest neighbour in j of each keypoint of i seen by j.
@@ -480,7 +482,7 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
     result.repeatability["viewpoint"][l] =
         vp[b].visible > 0 ? static_cast<double>(vp[b].matched) / static_cast<double>(vp[b].visible) : 0.0;
   }
-  if (external == nullptr) {
+  if (table == nullptr) {
     result.bsc = precisionRecall(bscRec, withTruth, {2, 4, 6, 8, 10, 12, 16, 20, 24, 32, 48, 64, 128});
     result.cgh = precisionRecall(cghRec, withTruth, {0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0});
   }
@@ -494,8 +496,8 @@ bool evaluateLog(const std::string& name, const std::string& path, const EvalOpt
     Counts c;
     for (std::size_t i = 0; i < data.size(); ++i) {
       makeVariant(var, i, *data[i].scan, o, *modified);
-      if (external != nullptr) {
-        kp = external->at(name).at(var.name).at(i);
+      if (table != nullptr) {
+        kp = table->at(var.name).at(i);
       } else {
         engine->detect(*modified, kp);
       }
@@ -516,7 +518,7 @@ bool exportLog(const std::string& name, const std::string& path, const EvalOptio
     return false;
   }
   if (out.scans != nullptr || out.keypoints != nullptr) {
-    auto engine = std::make_unique<Engine>(o);
+    const std::unique_ptr<Engine> engine = out.keypoints != nullptr ? std::make_unique<Engine>(o) : nullptr;
     auto modified = std::make_unique<LaserScan>();
     std::vector<FalkoKeypoint> kp;
     for (const ScanVariant& v : scanVariants(o)) {
