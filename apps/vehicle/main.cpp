@@ -77,9 +77,10 @@ int main(int argc, char** argv) {
   const agv::vehicle::RuntimeCounters& c = runtime.counters();
   std::fprintf(stderr,
                "agvnav-vehicle: stopped after %llu cycles (%llu encoder samples, %llu sweeps, %llu corrections, "
-               "%llu publications, %llu PLC commands)\n",
+               "%llu publications, %llu PLC commands, %llu refused)\n",
                static_cast<unsigned long long>(c.cycles), static_cast<unsigned long long>(c.encoderSamples),
                static_cast<unsigned long long>(c.sweeps), static_cast<unsigned long long>(c.corrections),
-               static_cast<unsigned long long>(c.publications), static_cast<unsigned long long>(c.commands));
+               static_cast<unsigned long long>(c.publications), static_cast<unsigned long long>(c.commands),
+               static_cast<unsigned long long>(c.refusedCommands));
   return 0;
 }

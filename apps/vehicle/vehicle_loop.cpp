@@ -154,6 +154,9 @@ struct VehicleLoop::Impl {
   std::unique_ptr<hal::LaserMeasurement> measurement;
 
   bool active = false;  ///< localizing (reset from a set-pose, no Stop since)
+  /// The last PLC command was one this program does not carry out (Calibrate): published as
+  /// health bit 8 until the next command it carries out.
+  bool commandRefused = false;
   bool haveSample = false;
   hal::EncoderSample lastSample{};
   bool pendingInitialPose = false;
@@ -224,9 +227,20 @@ void VehicleLoop::cycle() noexcept {
     if (cmd.kind == hal::PlcCommandKind::Localize) {
       m.pendingInitialPose = true;
       m.pendingPose = cmd.initialPose;
+      m.commandRefused = false;
     } else if (cmd.kind == hal::PlcCommandKind::Stop) {
       m.pendingInitialPose = false;
       m.active = false;  // idle until the next Localize command
+      m.commandRefused = false;
+    } else {
+      // Calibrate: the routine drives the vehicle, which this program cannot do (no drive
+      // command driver, docs/calibration.md). Refused visibly; localization goes on unchanged.
+      ++counters.refusedCommands;
+      m.commandRefused = true;
+      std::fprintf(stderr,
+                   "agvnav-vehicle: PLC command %u (calibrate) refused: this program does not drive the vehicle; "
+                   "health bit 8 stays set until the next command\n",
+                   static_cast<unsigned>(cmd.kind));
     }
   }
   if (m.pendingInitialPose) {
@@ -320,6 +334,7 @@ void VehicleLoop::cycle() noexcept {
       encHealth == Status::DeviceFault || m.laserStatus == Status::DeviceFault);
   set(drivers::plc::PlcHealthBit::MapLoaded, m.map->size() > 0U);
   set(drivers::plc::PlcHealthBit::CalibrationValid, true);  // the program refuses to start without one
+  set(drivers::plc::PlcHealthBit::CommandRejected, m.commandRefused);
   m.healthBits = bits;  // read by the PLC link that carries them (VehicleDevices::plc)
 
   Status last = Status::Ok;
@@ -329,6 +344,8 @@ void VehicleLoop::cycle() noexcept {
     last = laserHealth;
   } else if (m.active && m.localizer->health().status != Status::Ok) {
     last = m.localizer->health().status;
+  } else if (m.commandRefused) {
+    last = Status::Unsupported;
   }
   hal::PoseReport r;
   r.stamp = m.active ? m.localizer->stamp() : now;

@@ -43,7 +43,8 @@ struct RuntimeCounters {
   std::uint64_t sweeps = 0;
   std::uint64_t corrections = 0;
   std::uint64_t publications = 0;
-  std::uint64_t commands = 0;
+  std::uint64_t commands = 0;         ///< PLC commands read
+  std::uint64_t refusedCommands = 0;  ///< of which not carried out (Calibrate)
 };
 
 /// The devices the loop reads and publishes to; the caller owns them, opens them and keeps them

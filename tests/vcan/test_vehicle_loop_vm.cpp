@@ -56,9 +56,18 @@ class RecordingPlcLink final : public agv::hal::PlcLink {
     ++count;
     return Status::Ok;
   }
-  Status readCommand(agv::hal::PlcCommand& /*out*/) noexcept override { return Status::NotFound; }
+  /// Hands out `pending` once (a PLC writing one command), then nothing.
+  Status readCommand(agv::hal::PlcCommand& out) noexcept override {
+    if (pending.kind == agv::hal::PlcCommandKind::None) {
+      return Status::NotFound;
+    }
+    out = pending;
+    pending = agv::hal::PlcCommand{};
+    return Status::Ok;
+  }
 
   const agv::vehicle::VehicleLoop* loop = nullptr;
+  agv::hal::PlcCommand pending{};
   agv::hal::PoseReport last{};
   std::uint16_t bits = 0;  ///< plc::PlcHealthBit
   std::uint64_t count = 0;
@@ -426,5 +435,32 @@ TEST_CASE(
   INFO("cycles " << loop.counters().cycles << ", samples " << loop.counters().encoderSamples << ", sweeps "
                  << loop.counters().sweeps << ", publications " << loop.counters().publications);
   CHECK(loop.counters().publications == plc.count);
+
+  // --- 6. The PLC asks for a calibration: refused (bit 8, last status `unsupported`), the
+  // localization goes on; a Stop is carried out and clears the refusal (idle: the sweeps
+  // that follow correct nothing, so this comes after the counts above).
+  const auto awaitPublications = [&](std::uint64_t more) {
+    const std::uint64_t target = plc.count + more;
+    for (int i = 0; i < 3000 && plc.count < target; ++i) {
+      pump();
+    }
+    return plc.count >= target;
+  };
+  REQUIRE(awaitPublications(1));
+  CHECK_FALSE(hasBit(plc.bits, PlcHealthBit::CommandRejected));
+  CHECK(plc.last.health.lastStatus == Status::Ok);
+  plc.pending.kind = agv::hal::PlcCommandKind::Calibrate;
+  REQUIRE(awaitPublications(2));
+  CHECK(hasBit(plc.bits, PlcHealthBit::CommandRejected));
+  CHECK(plc.last.health.lastStatus == Status::Unsupported);
+  CHECK(plc.last.health.mode == NavMode::Localizing);
+  CHECK(loop.counters().refusedCommands == 1U);
+  plc.pending.kind = agv::hal::PlcCommandKind::Stop;
+  REQUIRE(awaitPublications(2));
+  CHECK_FALSE(hasBit(plc.bits, PlcHealthBit::CommandRejected));
+  CHECK(plc.last.health.lastStatus == Status::Ok);
+  CHECK(plc.last.health.mode == NavMode::Idle);
+  CHECK(loop.counters().commands == 2U);
+  CHECK(allocations == 0U);  // the commands, the refusal and its log line included
   encoders.close();
 }
