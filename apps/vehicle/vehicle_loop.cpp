@@ -266,7 +266,8 @@ void VehicleLoop::cycle() noexcept {
     ScanObservations& obs = *m.observations;
     obs.points.clear();
     // Every point is moved to the sensor frame at the end of the sweep with the motion the
-    // odometry saw during the sweep (per beam for the corners, per bearing for the reflectors).
+    // odometry saw during the sweep (per beam for the corners; for the reflectors at the time the
+    // device stamped, the NAV350's, else per bearing).
     const SweepCompensation sweep(*m.motion, meas.scan, m.calibration.laserPose);
     obs.stamp = sweep.referenceStamp();
     obs.kindsDetected = 0;
@@ -275,8 +276,10 @@ void VehicleLoop::cycle() noexcept {
       obs.kindsDetected |= landmarkKindBit(LandmarkKind::Reflector);
       m.visibleReflectors = static_cast<std::uint16_t>(meas.reflectors.size());
       for (std::size_t i = 0; i < meas.reflectors.size(); ++i) {
-        const Pose2d::Vector2 p =
-            sweep.atBearing(static_cast<double>(meas.reflectors[i].x), static_cast<double>(meas.reflectors[i].y));
+        const hal::ReflectorObservation& r = meas.reflectors[i];
+        const auto x = static_cast<double>(r.x);
+        const auto y = static_cast<double>(r.y);
+        const Pose2d::Vector2 p = r.stamped ? sweep.atStamp(r.stamp, x, y) : sweep.atBearing(x, y);
         (void)obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Reflector});
       }
     }

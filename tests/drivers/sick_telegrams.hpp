@@ -114,6 +114,7 @@ struct NavReflectorFields {
   std::int32_t xMm = 0, yMm = 0;
   std::uint32_t distMm = 0, phiMdeg = 0;
   std::uint16_t localId = 0, globalId = 0, quality = 0, sizeMm = 80;
+  std::uint32_t timestampMs = 123450;  // device clock
 };
 
 /// NAV350 `sAN mNPOSGetData` payload in device units (mm, mdeg).
@@ -123,6 +124,7 @@ struct NavReplyFields {
   std::int32_t xMm = 0, yMm = 0;
   std::uint32_t phiMdeg = 0;
   bool poseDetails = true;
+  std::uint32_t poseTimestampMs = 123456;  // device clock
   std::int32_t meanDevMm = 12;
   std::uint8_t usedReflectors = 0;
   bool landmarks = true;
@@ -131,6 +133,7 @@ struct NavReplyFields {
   bool angleChannel = false;  // also send ANGL1 before DIST1
   std::int32_t startMdeg = 0;
   std::uint16_t stepMdeg = 250;
+  std::uint32_t scanTimestampMs = 123400;  // device clock
   std::vector<std::uint32_t> distMm;
   bool remission = false;
 };
@@ -149,8 +152,8 @@ inline std::vector<std::uint8_t> buildNavReply(const NavReplyFields& f) {
     w.u32(f.phiMdeg);
     w.u16(f.poseDetails ? 1 : 0);
     if (f.poseDetails) {
-      w.u8(0);        // output mode
-      w.u32(123456);  // timestamp ms
+      w.u8(0);  // output mode
+      w.u32(f.poseTimestampMs);
       w.i32(f.meanDevMm);
       w.u8(4);   // navigation mode
       w.u32(0);  // info state
@@ -174,7 +177,7 @@ inline std::vector<std::uint8_t> buildNavReply(const NavReplyFields& f) {
       w.u8(1);   // type
       w.u16(2);  // subtype
       w.u16(r.quality);
-      w.u32(123450);  // timestamp
+      w.u32(r.timestampMs);
       w.u16(r.sizeMm);
       w.u16(7);    // hit count
       w.u16(200);  // mean echo
@@ -190,7 +193,7 @@ inline std::vector<std::uint8_t> buildNavReply(const NavReplyFields& f) {
     w.f32(0.0F);
     w.i32(f.startMdeg);
     w.u16(f.stepMdeg);
-    w.u32(123400);
+    w.u32(f.scanTimestampMs);
     w.u16(static_cast<std::uint32_t>(n));
   };
   if (f.scan && f.angleChannel) {

@@ -97,6 +97,63 @@ TEST_CASE("NAV350 reply: pose, reflectors and details in SI units", "[drivers][l
   CHECK_FALSE(r.scanValid);
 }
 
+TEST_CASE("NAV350: the device's timestamps on the vehicle clock, across the clock's wrap", "[drivers][laser]") {
+  static Nav350PoseReply r;
+  const Timestamp received = Timestamp::fromSeconds(5.0);  // what parse() stamps
+  auto f = scene();
+  // Reflectors seen 40 and 60 ms apart during the turn, the pose 20 ms after the last of them.
+  f.reflectors[0].timestampMs = 1000;
+  f.reflectors[1].timestampMs = 1040;
+  f.reflectors[2].timestampMs = 1100;
+  f.poseTimestampMs = 1120;
+  REQUIRE(parse(agv::test::buildNavReply(f), r) == Status::Ok);
+  CHECK(r.receivedAt == received);
+  REQUIRE(r.hasDeviceTime);
+  CHECK(r.newestDeviceMs == 1120U);
+  Timestamp t;
+  const std::int64_t beforeMs[3] = {120, 80, 20};
+  for (std::size_t i = 0; i < 3; ++i) {
+    REQUIRE(nav350VehicleTime(r, r.reflectors[i].timestampMs, t));
+    CHECK(t == received - agv::Duration::fromMilliseconds(beforeMs[i]));
+  }
+  // Not mappable, `out` unchanged: after the newest instant, more than kNav350MaxSpanMs before it.
+  const Timestamp sentinel = Timestamp::fromSeconds(77.0);
+  t = sentinel;
+  CHECK_FALSE(nav350VehicleTime(r, 1121, t));
+  CHECK_FALSE(nav350VehicleTime(r, 1120 - kNav350MaxSpanMs - 1, t));
+  CHECK(t == sentinel);
+  REQUIRE(nav350VehicleTime(r, 1120 - kNav350MaxSpanMs, t));
+  CHECK(t == received - agv::Duration::fromMilliseconds(kNav350MaxSpanMs));
+
+  // The device clock wraps (u32 ms, 49.7 days) in the middle of the turn; the scan channel's
+  // instant is the newest here.
+  f.reflectors[0].timestampMs = 0xFFFFFFFFU - 49U;  // 50 ms before the wrap
+  f.reflectors[1].timestampMs = 0xFFFFFFFFU;
+  f.reflectors[2].timestampMs = 10;
+  f.poseTimestampMs = 0xFFFFFFF0U;
+  f.scan = true;
+  f.distMm.assign(1440, 5000U);
+  f.scanTimestampMs = 25;
+  REQUIRE(parse(agv::test::buildNavReply(f), r) == Status::Ok);
+  CHECK(r.newestDeviceMs == 25U);
+  const std::int64_t wrappedMs[3] = {75, 26, 15};
+  for (std::size_t i = 0; i < 3; ++i) {
+    REQUIRE(nav350VehicleTime(r, r.reflectors[i].timestampMs, t));
+    CHECK(t == received - agv::Duration::fromMilliseconds(wrappedMs[i]));
+  }
+  REQUIRE(nav350VehicleTime(r, r.poseTimestampMs, t));
+  CHECK(t == received - agv::Duration::fromMilliseconds(41));
+
+  // A reply with no device instant (no pose, no reflectors, no scan) maps nothing, and does not
+  // keep the previous reply's clock.
+  agv::test::NavReplyFields bare;
+  bare.pose = false;
+  bare.landmarks = false;
+  REQUIRE(parse(agv::test::buildNavReply(bare), r) == Status::Ok);
+  CHECK_FALSE(r.hasDeviceTime);
+  CHECK_FALSE(nav350VehicleTime(r, 25, t));
+}
+
 TEST_CASE("NAV350 reply with ANGL1 + DIST1 + RSSI1: the scan is the DIST1 channel", "[drivers][laser]") {
   auto f = scene();
   f.scan = true;

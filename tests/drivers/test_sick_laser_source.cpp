@@ -232,7 +232,11 @@ TEST_CASE("SICK laser source: NAV350 replies give scan and reflectors in the sen
   for (std::size_t i = 0; i < 3; ++i) {
     f.reflectors[i].distMm = static_cast<std::uint32_t>(4000 + 500 * i);
     f.reflectors[i].phiMdeg = static_cast<std::uint32_t>(30000 + 60000 * i);  // 30, 90, 150 deg
+    // Seen a sixth of a turn (125 ms / 6) apart; the pose follows 20 ms after the last one.
+    f.reflectors[i].timestampMs = static_cast<std::uint32_t>(50000 + 21 * i);
   }
+  f.poseTimestampMs = 50000 + 42 + 20;
+  f.scanTimestampMs = 50000;
   f.scan = true;
   f.startMdeg = 0;
   f.stepMdeg = 250;
@@ -269,6 +273,10 @@ TEST_CASE("SICK laser source: NAV350 replies give scan and reflectors in the sen
     const double bearing = agv::deg2rad(30.0 + 60.0 * static_cast<double>(i));
     AGV_CHECK_NEAR(m.reflectors[i].x, range * std::cos(bearing), 1e-5);
     AGV_CHECK_NEAR(m.reflectors[i].y, range * std::sin(bearing), 1e-5);
+    // Stamped on the vehicle clock: the reply's newest device instant (the pose) at its
+    // reception, which stamps the sweep.
+    REQUIRE(m.reflectors[i].stamped);
+    CHECK(m.scan.stamp - m.reflectors[i].stamp == agv::Duration::fromMilliseconds(62 - 21 * static_cast<int>(i)));
   }
   REQUIRE(m.scan.size() == 1440U);
   AGV_CHECK_NEAR(m.scan.ranges[100], 5.0, 1e-6);

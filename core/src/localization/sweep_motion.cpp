@@ -67,8 +67,11 @@ SweepCompensation::SweepCompensation(const MotionHistory& history, const LaserSc
       lastBeam_(scan.size() > 1 ? static_cast<double>(scan.size() - 1) : 0.0) {
   const Result<Pose2d> ref = history.at(reference_);
   const Result<Pose2d> first = history.at(start_);
-  if (ref.ok() && first.ok() && sweepSeconds_ > 0.0 && std::isfinite(sweepSeconds_)) {
+  if (ref.ok()) {
     referencePose_ = ref.value() * mount_;
+    haveReference_ = true;
+  }
+  if (haveReference_ && first.ok() && sweepSeconds_ > 0.0 && std::isfinite(sweepSeconds_)) {
     const Pose2d d = between(first.value(), ref.value());
     moves_ = d.x != 0.0 || d.y != 0.0 || d.theta != 0.0;
   }
@@ -92,6 +95,14 @@ Pose2d::Vector2 SweepCompensation::atFraction(double f, double x, double y) cons
   }
   const double c = std::clamp(f, 0.0, 1.0);
   const Timestamp t = start_ + Duration::fromSeconds(c * sweepSeconds_);
+  const Pose2d rel = between(referencePose_, history_.at(t).value() * mount_);
+  return rel.transformPoint(Pose2d::Vector2(x, y));
+}
+
+Pose2d::Vector2 SweepCompensation::atStamp(Timestamp t, double x, double y) const noexcept {
+  if (!haveReference_) {
+    return Pose2d::Vector2(x, y);
+  }
   const Pose2d rel = between(referencePose_, history_.at(t).value() * mount_);
   return rel.transformPoint(Pose2d::Vector2(x, y));
 }

@@ -144,7 +144,7 @@ Status SickLaserSource::readNav(hal::LaserMeasurement& out, Timestamp now) noexc
     out.scan = reply_.scan;
   } else {
     out.scan.ranges.clear();
-    out.scan.stamp = now;
+    out.scan.stamp = reply_.receivedAt;  // the instant the reflectors' stamps are relative to
   }
   out.reflectors.clear();
   out.hasReflectors = reply_.landmarksValid;
@@ -157,6 +157,8 @@ Status SickLaserSource::readNav(hal::LaserMeasurement& out, Timestamp now) noexc
     o.x = static_cast<float>(r.range * std::cos(r.bearing));
     o.y = static_cast<float>(r.range * std::sin(r.bearing));
     o.id = r.hasDetails ? r.localId : std::uint16_t{0};
+    // The device stamps each reflector: its time within the turn, for the motion compensation.
+    o.stamped = r.hasDetails && sick::nav350VehicleTime(reply_, r.timestampMs, o.stamp);
     (void)out.reflectors.push_back(o);  // refusals counted by the list
   }
   counters_.truncatedSweeps += (s == Status::CapacityExceeded || reply_.reflectors.refusedCount() > 0U) ? 1U : 0U;

@@ -109,6 +109,30 @@ Status parseLandmarks(BeReader& r, const Nav350Config& config, Nav350PoseReply& 
   return Status::Ok;
 }
 
+/// Records the newest device instant of a decoded reply (the device clock wraps: "newer" is a
+/// positive difference modulo 2^32).
+void noteDeviceTimes(Nav350PoseReply& reply) noexcept {
+  auto note = [&reply](std::uint32_t ms) {
+    if (!reply.hasDeviceTime || static_cast<std::int32_t>(ms - reply.newestDeviceMs) > 0) {
+      reply.newestDeviceMs = ms;
+    }
+    reply.hasDeviceTime = true;
+  };
+  if (reply.poseValid && reply.poseDetailsValid) {
+    note(reply.poseTimestampMs);
+  }
+  if (reply.landmarksValid) {
+    for (std::size_t i = 0; i < reply.reflectors.size(); ++i) {
+      if (reply.reflectors[i].hasDetails) {
+        note(reply.reflectors[i].timestampMs);
+      }
+    }
+  }
+  if (reply.scanValid) {
+    note(reply.scanTimestampMs);
+  }
+}
+
 /// One scan or remission channel header; `valueBytes` is 4 for DIST1/ANGL1, 2 for RSSI1.
 struct ChannelHead {
   char name[6] = {};
@@ -241,6 +265,9 @@ Status parseNav350PoseReply(Span<const std::uint8_t> payload, const Nav350Config
   reply.scan.ranges.clear();
   reply.scan.ranges.resetRefusedCount();
   reply.scan.sweepDuration = Duration{};
+  reply.receivedAt = receivedAt;
+  reply.hasDeviceTime = false;
+  reply.newestDeviceMs = 0;
 
   BeReader r(payload);
   bool overflow = false;
@@ -277,7 +304,20 @@ Status parseNav350PoseReply(Span<const std::uint8_t> payload, const Nav350Config
     reply.scan.ranges.clear();
     return s;
   }
+  noteDeviceTimes(reply);
   return overflow ? Status::CapacityExceeded : Status::Ok;
+}
+
+bool nav350VehicleTime(const Nav350PoseReply& reply, std::uint32_t deviceMs, Timestamp& out) noexcept {
+  if (!reply.hasDeviceTime) {
+    return false;
+  }
+  const std::uint32_t before = reply.newestDeviceMs - deviceMs;  // modulo 2^32: the clock may wrap
+  if (before > kNav350MaxSpanMs) {
+    return false;  // after the newest instant (a huge difference), or implausibly old
+  }
+  out = reply.receivedAt - Duration::fromMilliseconds(static_cast<std::int64_t>(before));
+  return true;
 }
 
 }  // namespace agv::drivers::sick

@@ -95,6 +95,13 @@ class SweepCompensation {
   /// The point seen along its own bearing (e.g. a reflector the sensor reports as a point).
   Pose2d::Vector2 atBearing(double x, double y) const noexcept { return atFraction(fractionOf(x, y), x, y); }
 
+  /// The point (x, y) seen at time `t`, in the sensor frame at `referenceStamp()`: for sensors
+  /// that stamp each measurement themselves (a NAV350 stamps every reflector). This needs no
+  /// sweep duration: a scan of zero duration (a NAV350 reply, stamped at reception) has its
+  /// reference at `LaserScan::stamp`. `t` may lie outside the history's interval (its end poses
+  /// hold there). With an empty history the point is left as it is.
+  Pose2d::Vector2 atStamp(Timestamp t, double x, double y) const noexcept;
+
  private:
   const MotionHistory& history_;
   Pose2d mount_;
@@ -105,7 +112,8 @@ class SweepCompensation {
   double lastBeamAngle_ = 0.0;  ///< angle of beam n-1 from beam 0 [rad]
   double lastBeam_ = 0.0;       ///< n - 1
   Pose2d referencePose_;        ///< sensor pose at the end of the sweep (history frame)
-  bool moves_ = false;
+  bool haveReference_ = false;  ///< referencePose_ is known (the history is not empty)
+  bool moves_ = false;          ///< ... and the sensor moved between the first beam and the end
 };
 
 }  // namespace agv

@@ -6,6 +6,7 @@
 
 #include "agv/core/capacities.hpp"
 #include "agv/core/fixed_vector.hpp"
+#include "agv/core/timestamp.hpp"
 
 namespace agv::hal {
 
@@ -20,6 +21,11 @@ struct ReflectorObservation {
   float y = 0.0F;               ///< [m] centre, sensor frame
   float positionStdDev = 0.0F;  ///< [m] the device's stated 1-sigma of each coordinate (0 = unknown)
   std::uint16_t id = 0;         ///< device-assigned reflector id (0 = none; not a map association)
+  /// When the sensor saw it (vehicle monotonic clock), for sensors that stamp each reflector (the
+  /// NAV350); `stamped` false: not reported, the reflector's time follows from its bearing within
+  /// the sweep (`LaserScan::stamp`, `sweepDuration`).
+  Timestamp stamp;
+  bool stamped = false;
 };
 
 /// The reflectors of one scan (at most `kMaxReflectors`; a driver that sees more pushes until the

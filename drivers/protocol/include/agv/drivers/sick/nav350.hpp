@@ -93,7 +93,17 @@ struct Nav350PoseReply {
   bool scanValid = false;  ///< a DIST1 channel was present
   std::uint32_t scanTimestampMs = 0;
   LaserScan scan;  ///< DIST1 channel (ANGL1 and RSSI1 are checked and skipped)
+
+  /// Set by the decoder, for `nav350VehicleTime`: when the reply was received (vehicle clock), and
+  /// the newest device instant it carries (pose details, reflector details, scan channel).
+  Timestamp receivedAt;
+  bool hasDeviceTime = false;
+  std::uint32_t newestDeviceMs = 0;
 };
+
+/// How far before the newest device instant of a reply another one may lie and still be mapped
+/// to the vehicle clock: a NAV350 turns at 8 Hz (125 ms a turn); a second is a wrong clock.
+inline constexpr std::uint32_t kNav350MaxSpanMs = 1000;
 
 /// Sensor-frame conventions; defaults keep the device's own angles (0 = the NAV350's x axis).
 struct Nav350Config {
@@ -109,6 +119,15 @@ struct Nav350Config {
 /// counted as refused). A device error code is not a decoding error: check `errorCode`.
 Status parseNav350PoseReply(Span<const std::uint8_t> payload, const Nav350Config& config, Timestamp receivedAt,
                             Nav350PoseReply& reply) noexcept;
+
+/// The vehicle-clock time of the device instant `deviceMs` (e.g. a reflector's timestamp) of a
+/// decoded reply: `receivedAt` minus how long before the reply's newest device instant it lies
+/// (modulo 2^32 ms, so the device clock may wrap within the reply). The delay between that newest
+/// instant and the reception is not known, so every time of a reply is late by it, by the same
+/// amount; their differences keep the device's 1 ms. False, `out` unchanged, when the reply carries
+/// no device time or `deviceMs` lies after the newest instant or more than `kNav350MaxSpanMs`
+/// before it.
+bool nav350VehicleTime(const Nav350PoseReply& reply, std::uint32_t deviceMs, Timestamp& out) noexcept;
 
 /// The inverse of `parseNav350PoseReply`, for the simulator: writes the reply payload of `reply`
 /// (pose if poseValid, with details if poseDetailsValid; reflectors if landmarksValid, each with
