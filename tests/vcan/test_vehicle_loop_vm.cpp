@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdint>
 #include <ctime>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -174,12 +175,81 @@ bool openNodes(EncoderNodes& nodes, const agv::vehicle::VehicleConfig& config) {
   return nodes.bus.open(bc) == Status::Ok;
 }
 
-/// The laser: a CoLa A scan server on 127.0.0.1, served from the test's own thread between loop
-/// cycles (no thread: nothing runs, or allocates, while a cycle is measured).
-struct ScanServer {
+/// The loop as agvnav-vehicle builds it from its files (`vmVehicleConfig`, the calibration and map
+/// of tests/vehicle), with the real encoder and laser sources, a recording PLC link, and the
+/// test's CAN nodes.
+struct VmVehicle {
+  agv::test::TempFolder dir;
+  agv::vehicle::VehicleConfig config;
+  agv::TricycleParams cal{};
+  Pose2d start;                   ///< the initial pose of the configuration
+  Pose2d mount;                   ///< the laser in the vehicle frame (calibration)
+  std::vector<Pose2d> landmarks;  ///< the map's landmarks (x, y)
+  std::unique_ptr<agv::drivers::CanopenEncoderSource> encoders;
+  std::unique_ptr<agv::drivers::SickLaserSource> laser;
+  RecordingPlcLink plc;
+  std::unique_ptr<agv::vehicle::VehicleLoop> loop;
+  EncoderNodes nodes;
+
+  /// Loads the files with the laser `model` at 127.0.0.1:`laserPort`, builds the loop, opens the
+  /// nodes' socket and the encoder source. False when a step fails.
+  bool open(std::uint16_t laserPort, const std::string& model) {
+    const std::string text = vmVehicleConfig(laserPort, model);
+    agv::vehicle::VehicleFiles files;
+    agv::vehicle::ConfigError error;
+    if (!dir.ok() || text.empty() || !agv::test::loadTestVehicle(dir, text, config, files, error) ||
+        !config.haveInitialPose) {
+      return false;
+    }
+    cal = files.calibration.params;
+    start = config.initialPose;
+    mount = files.calibration.laserPose;
+    files.map->forEach([this](agv::LandmarkIndex, const agv::Landmark& l) {
+      landmarks.push_back(Pose2d{l.x, l.y, 0.0});
+    });
+    encoders = std::make_unique<agv::drivers::CanopenEncoderSource>(agv::vehicle::encoderSourceConfig(config));
+    laser = std::make_unique<agv::drivers::SickLaserSource>(config.laser);
+    loop = std::make_unique<agv::vehicle::VehicleLoop>(config, std::move(files),
+                                                       agv::vehicle::VehicleDevices{*encoders, *laser, plc});
+    plc.loop = loop.get();
+    return openNodes(nodes, config) && encoders->open() == Status::Ok;
+  }
+};
+
+/// The connection of a device server that the test plays from its own thread between loop
+/// cycles (no thread: nothing runs, or allocates, while a cycle is measured), on 127.0.0.1.
+struct PeerConnection {
   agv::test::LoopbackServer listener;
-  std::vector<std::vector<std::uint8_t>> telegrams;
   int fd = -1;
+
+  /// Accepts the source's connection while there is none (false then); otherwise reads and drops
+  /// what the source sent and returns true, with `received` telling whether anything came.
+  bool poll(bool& received) {
+    received = false;
+    if (fd < 0) {
+      fd = listener.accept(0);
+      if (fd >= 0) {
+        (void)::fcntl(fd, F_SETFL, O_NONBLOCK);
+      }
+      return false;
+    }
+    char in[256];
+    while (::recv(fd, in, sizeof in, MSG_DONTWAIT) > 0) {
+      received = true;
+    }
+    return true;
+  }
+  ~PeerConnection() {
+    if (fd >= 0) {
+      ::close(fd);
+    }
+  }
+};
+
+/// The laser: a CoLa A scan server (`PeerConnection`).
+struct ScanServer {
+  PeerConnection peer;
+  std::vector<std::vector<std::uint8_t>> telegrams;
   std::size_t sent = 0;
   Timestamp nextAt{};
 
@@ -191,26 +261,15 @@ struct ScanServer {
   }
   /// Accepts the source's connection, drops its subscription request, sends the sweep that is due.
   void serve() {
-    if (fd < 0) {
-      fd = listener.accept(0);
-      if (fd >= 0) {
-        (void)::fcntl(fd, F_SETFL, O_NONBLOCK);
-      }
+    bool received = false;
+    if (!peer.poll(received)) {
       return;
-    }
-    char in[256];
-    while (::recv(fd, in, sizeof in, MSG_DONTWAIT) > 0) {
     }
     const Timestamp now = monotonicNow();
     if (now >= nextAt && sent < telegrams.size()) {
       const auto& t = telegrams[sent++];
-      (void)::send(fd, t.data(), t.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      (void)::send(peer.fd, t.data(), t.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
       nextAt = now + Duration::fromMilliseconds(20);
-    }
-  }
-  ~ScanServer() {
-    if (fd >= 0) {
-      ::close(fd);
     }
   }
 };
@@ -267,35 +326,22 @@ TEST_CASE(
     "heartbeat timeout in the health, pose still while silent",
     "[vcan][vehicle]") {
   // --- Set-up from the configuration file format the vehicle uses.
-  agv::test::TempFolder dir;
-  REQUIRE(dir.ok());
   ScanServer laserPeer;
-  REQUIRE(laserPeer.listener.ok());
-  const std::string text = vmVehicleConfig(laserPeer.listener.port(), "lms1xx");
-  REQUIRE_FALSE(text.empty());
-  agv::vehicle::VehicleConfig config;
-  agv::vehicle::VehicleFiles files;
-  agv::vehicle::ConfigError error;
-  REQUIRE(agv::test::loadTestVehicle(dir, text, config, files, error));
-  const agv::TricycleParams cal = files.calibration.params;
-  REQUIRE(config.haveInitialPose);
-  const Pose2d start = config.initialPose;
-
-  agv::drivers::CanopenEncoderSource encoders(agv::vehicle::encoderSourceConfig(config));
-  agv::drivers::SickLaserSource laser(config.laser);
-  RecordingPlcLink plc;
-  agv::vehicle::VehicleLoop loop(config, std::move(files), agv::vehicle::VehicleDevices{encoders, laser, plc});
-  plc.loop = &loop;
-
-  EncoderNodes nodes;
-  REQUIRE(openNodes(nodes, config));
-  REQUIRE(encoders.open() == Status::Ok);
+  REQUIRE(laserPeer.peer.listener.ok());
+  VmVehicle v;
+  REQUIRE(v.open(laserPeer.peer.listener.port(), "lms1xx"));
+  agv::drivers::CanopenEncoderSource& encoders = *v.encoders;
+  agv::vehicle::VehicleLoop& loop = *v.loop;
+  RecordingPlcLink& plc = v.plc;
+  EncoderNodes& nodes = v.nodes;
+  const agv::TricycleParams cal = v.cal;
+  const Pose2d start = v.start;
 
   // The allocation counter must see an allocation, or the zero below would prove nothing.
   const std::uint64_t probe = agv::test::vmAllocationCalls();
   {
-    std::vector<int> v(16, 1);
-    CHECK(v.size() == 16U);
+    std::vector<int> sample(16, 1);
+    CHECK(sample.size() == 16U);
   }
   REQUIRE(agv::test::vmAllocationCalls() > probe);
 
@@ -492,8 +538,7 @@ namespace {
 /// the pose carry the device's millisecond clock (the vehicle clock in ms, truncated to 32 bits).
 /// Served from the test's thread between loop cycles.
 struct NavServer {
-  agv::test::LoopbackServer listener;
-  int fd = -1;
+  PeerConnection peer;
   bool requested = false;
   Timestamp nextAt{};
   const agv::MotionHistory* truth = nullptr;
@@ -506,17 +551,11 @@ struct NavServer {
   static std::uint32_t deviceMs(Timestamp t) { return static_cast<std::uint32_t>(t.ns / 1000000); }
 
   void serve() {
-    if (fd < 0) {
-      fd = listener.accept(0);
-      if (fd >= 0) {
-        (void)::fcntl(fd, F_SETFL, O_NONBLOCK);
-      }
+    bool received = false;
+    if (!peer.poll(received)) {
       return;
     }
-    char in[256];
-    while (::recv(fd, in, sizeof in, MSG_DONTWAIT) > 0) {
-      requested = true;  // the source has one request outstanding at a time
-    }
+    requested = requested || received;  // the source has one request outstanding at a time
     const Timestamp now = monotonicNow();
     if (!requested || now < nextAt) {
       return;
@@ -555,13 +594,8 @@ struct NavServer {
       f.reflectors.push_back(r);
     }
     const auto t = agv::test::colaB(agv::test::buildNavReply(f));
-    if (::send(fd, t.data(), t.size(), MSG_NOSIGNAL | MSG_DONTWAIT) == static_cast<ssize_t>(t.size())) {
+    if (::send(peer.fd, t.data(), t.size(), MSG_NOSIGNAL | MSG_DONTWAIT) == static_cast<ssize_t>(t.size())) {
       ++replies;
-    }
-  }
-  ~NavServer() {
-    if (fd >= 0) {
-      ::close(fd);
     }
   }
 };
@@ -572,52 +606,32 @@ TEST_CASE(
     "vehicle loop: NAV350 reflectors seen during the turn are moved by the odometry's motion to the "
     "reply; the pose follows the vehicle at 0.5 m/s",
     "[vcan][vehicle]") {
-  agv::test::TempFolder dir;
-  REQUIRE(dir.ok());
   NavServer nav;
-  REQUIRE(nav.listener.ok());
-  const std::string text = vmVehicleConfig(nav.listener.port(), "nav350");
-  REQUIRE_FALSE(text.empty());
-  agv::vehicle::VehicleConfig config;
-  agv::vehicle::VehicleFiles files;
-  agv::vehicle::ConfigError error;
-  REQUIRE(agv::test::loadTestVehicle(dir, text, config, files, error));
-  const agv::TricycleParams cal = files.calibration.params;
-  REQUIRE(config.haveInitialPose);
-  const Pose2d start = config.initialPose;
-  nav.mount = files.calibration.laserPose;
-  files.map->forEach([&nav](agv::LandmarkIndex, const agv::Landmark& l) {
-    nav.reflectors.push_back(Pose2d{l.x, l.y, 0.0});
-  });
+  REQUIRE(nav.peer.listener.ok());
+  VmVehicle v;
+  REQUIRE(v.open(nav.peer.listener.port(), "nav350"));
+  nav.mount = v.mount;
+  nav.reflectors = v.landmarks;  // the map holds reflectors only
   REQUIRE(nav.reflectors.size() == 3U);
-
-  agv::drivers::CanopenEncoderSource encoders(agv::vehicle::encoderSourceConfig(config));
-  agv::drivers::SickLaserSource laser(config.laser);
-  RecordingPlcLink plc;
-  agv::vehicle::VehicleLoop loop(config, std::move(files), agv::vehicle::VehicleDevices{encoders, laser, plc});
-  plc.loop = &loop;
-  EncoderNodes nodes;
-  REQUIRE(openNodes(nodes, config));
-  REQUIRE(encoders.open() == Status::Ok);
 
   // The true motion: the vehicle stands at the initial pose, then rolls straight at 0.5 m/s; the
   // truth is the tricycle model of what was sent, at the time it was sent (the vcan frames reach
   // the source at once).
   agv::MotionHistory truth(Duration::fromSeconds(2.0));
   nav.truth = &truth;
-  const double radPerCount = nodes.c.steering.radiansPerCount;
-  const auto straightCounts = static_cast<std::int64_t>(std::lround(-cal.steerOffsetForward / radPerCount));
-  const double alpha = static_cast<double>(straightCounts) * radPerCount + cal.steerOffsetForward;
+  const double radPerCount = v.nodes.c.steering.radiansPerCount;
+  const auto straightCounts = static_cast<std::int64_t>(std::lround(-v.cal.steerOffsetForward / radPerCount));
+  const double alpha = static_cast<double>(straightCounts) * radPerCount + v.cal.steerOffsetForward;
   std::int64_t ticks = 0;
-  Pose2d pose = start;
+  Pose2d pose = v.start;
   Timestamp nextHeartbeat{};
   auto pump = [&]() {
     nav.serve();
     if (monotonicNow() >= nextHeartbeat) {
-      REQUIRE(nodes.sendHeartbeats());
+      REQUIRE(v.nodes.sendHeartbeats());
       nextHeartbeat = monotonicNow() + Duration::fromMilliseconds(50);
     }
-    loop.cycle();
+    v.loop->cycle();
     sleepMs(1);
   };
   // One TPDO pair every 10 ms (the nodes send continuously, as on SYNC), `ticksPerStep` further
@@ -628,8 +642,8 @@ TEST_CASE(
     for (int step = 0; step < steps;) {
       if (monotonicNow() >= nextStep) {
         ticks += ticksPerStep;
-        REQUIRE(nodes.sendPositions(ticks, straightCounts));
-        pose = pose * agv::tricycleArc(static_cast<double>(ticksPerStep) * cal.driveScale, alpha, cal.wheelbase);
+        REQUIRE(v.nodes.sendPositions(ticks, straightCounts));
+        pose = pose * agv::tricycleArc(static_cast<double>(ticksPerStep) * v.cal.driveScale, alpha, v.cal.wheelbase);
         REQUIRE(truth.add(monotonicNow(), pose) == Status::Ok);
         nextStep = nextStep + Duration::fromMilliseconds(10);
         ++step;
@@ -638,37 +652,38 @@ TEST_CASE(
       afterPump();
     }
   };
-  REQUIRE(nodes.sendHeartbeats());
-  REQUIRE(truth.add(monotonicNow() - Duration::fromSeconds(1.0), start) == Status::Ok);
+  REQUIRE(v.nodes.sendHeartbeats());
+  REQUIRE(truth.add(monotonicNow() - Duration::fromSeconds(1.0), v.start) == Status::Ok);
   // Standing for 1 s: the replies come, the reflectors are matched.
   run(100, 0, []() {});
   REQUIRE(nav.replies >= 6U);
-  REQUIRE(plc.last.health.mode == NavMode::Localizing);
-  CHECK(plc.last.health.matchedLandmarks == 3U);
-  CHECK(poseDifference(plc.last.pose, start) < 2e-3);  // mm and mdeg rounding of the replies
+  REQUIRE(v.plc.last.health.mode == NavMode::Localizing);
+  CHECK(v.plc.last.health.matchedLandmarks == 3U);
+  CHECK(poseDifference(v.plc.last.pose, v.start) < 2e-3);  // mm and mdeg rounding of the replies
 
   // Rolling 1.5 m at 0.5 m/s (5 mm a pair). After each publication that follows a reply of the
   // rolling phase: the published pose against the truth at its stamp.
   const std::uint64_t repliesBefore = nav.replies;
-  const std::uint64_t correctionsBefore = loop.counters().corrections;
+  const std::uint64_t correctionsBefore = v.loop->counters().corrections;
   std::uint64_t checked = 0;
   std::uint64_t allMatched = 0;
   double worst = 0.0;
   double worstLag = 0.0;
-  std::uint64_t lastCount = plc.count;
+  std::uint64_t lastCount = v.plc.count;
   run(300, 10, [&]() {
     worstLag = std::max(worstLag, nav.latestLagMs);
-    if (plc.count != lastCount && nav.replies > repliesBefore + 1U) {
-      lastCount = plc.count;
-      const Pose2d want = truth.at(plc.last.stamp).value();
-      worst = std::max(worst, std::hypot(plc.last.pose.x - want.x, plc.last.pose.y - want.y));
+    if (v.plc.count != lastCount && nav.replies > repliesBefore + 1U) {
+      lastCount = v.plc.count;
+      const Pose2d want = truth.at(v.plc.last.stamp).value();
+      worst = std::max(worst, std::hypot(v.plc.last.pose.x - want.x, v.plc.last.pose.y - want.y));
       ++checked;
-      allMatched += plc.last.health.matchedLandmarks == 3U ? 1U : 0U;
+      allMatched += v.plc.last.health.matchedLandmarks == 3U ? 1U : 0U;
     }
   });
-  INFO("replies " << nav.replies - repliesBefore << ", corrections " << loop.counters().corrections - correctionsBefore
-                  << ", publications checked " << checked << ", with all 3 reflectors matched " << allMatched
-                  << ", worst position error " << worst << " m, largest reflector lag " << worstLag << " ms");
+  INFO("replies " << nav.replies - repliesBefore << ", corrections "
+                  << v.loop->counters().corrections - correctionsBefore << ", publications checked " << checked
+                  << ", with all 3 reflectors matched " << allMatched << ", worst position error " << worst
+                  << " m, largest reflector lag " << worstLag << " ms");
   // At 0.5 m/s the reflectors are seen 60-185 ms before the reply: 3-9 cm of motion, against a
   // gate of about 1.5 cm (5 mm range noise). Moved by the odometry, they are matched, and the pose
   // stays on the truth within the timing of the emulated machine (a 10 ms late CAN sample or reply
@@ -678,6 +693,6 @@ TEST_CASE(
   CHECK(worstLag > 60.0);
   CHECK(static_cast<double>(allMatched) >= 0.9 * static_cast<double>(checked));
   CHECK(worst < 0.015);
-  CHECK(plc.last.health.mode == NavMode::Localizing);
-  encoders.close();
+  CHECK(v.plc.last.health.mode == NavMode::Localizing);
+  v.encoders->close();
 }
