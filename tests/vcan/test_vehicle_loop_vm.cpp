@@ -606,13 +606,16 @@ struct NavServer {
 
 /// The vehicle `v` driven straight by its nodes, one TPDO pair every 10 ms (the nodes send
 /// continuously, as on SYNC; the localizer needs the samples while standing too, a sweep newer
-/// than the odometry being refused), with the true motion in `truth`: the tricycle model of what
-/// was sent, at the time it was sent (the vcan frames reach the source at once). `serve()` plays
-/// the laser between loop cycles.
+/// than the odometry being refused), with the true motion in `truth()`: the tricycle model of
+/// what was sent, at the time it was sent (the vcan frames reach the source at once). The laser
+/// `peer` sees the vehicle through that truth and the laser mounting, and is served between loop
+/// cycles.
 template <typename Peer>
 class StraightRun {
  public:
-  StraightRun(VmVehicle& v, Peer& peer, agv::MotionHistory& truth) : v_(v), peer_(peer), truth_(truth), pose_(v.start) {
+  StraightRun(VmVehicle& v, Peer& peer) : v_(v), peer_(peer), pose_(v.start) {
+    peer.truth = &truth_;
+    peer.mount = v.mount;
     const double radPerCount = v.nodes.c.steering.radiansPerCount;
     counts_ = static_cast<std::int64_t>(std::lround(-v.cal.steerOffsetForward / radPerCount));
     alpha_ = static_cast<double>(counts_) * radPerCount + v.cal.steerOffsetForward;
@@ -622,6 +625,7 @@ class StraightRun {
     next_ = monotonicNow();
     return v_.nodes.sendHeartbeats() && truth_.add(next_ - Duration::fromSeconds(1.0), v_.start) == Status::Ok;
   }
+  const agv::MotionHistory& truth() const { return truth_; }
   /// `steps` pairs of `ticksPerStep` more ticks each (0: standing); `afterCycle()` after every cycle.
   template <typename After>
   void run(int steps, std::int64_t ticksPerStep, const After& afterCycle) {
@@ -649,7 +653,7 @@ class StraightRun {
  private:
   VmVehicle& v_;
   Peer& peer_;
-  agv::MotionHistory& truth_;
+  agv::MotionHistory truth_{Duration::fromSeconds(2.0)};
   Pose2d pose_;
   std::int64_t counts_ = 0;
   double alpha_ = 0.0;
@@ -661,10 +665,12 @@ class StraightRun {
 /// What the published poses of a rolling run showed, checked at each publication once `armed()`.
 struct PoseFigures {
   std::uint64_t checked = 0;
-  std::uint64_t matched = 0;  ///< publications whose correction matched at least `minMatched` landmarks
-  double worst = 0.0;         ///< [m] largest position error against the truth at the report's stamp
-  std::uint64_t lastCount = 0;
+  std::uint64_t matched = 0;    ///< publications whose correction matched at least `minMatched` landmarks
+  double worst = 0.0;           ///< [m] largest position error against the truth at the report's stamp
+  std::uint64_t lastCount = 0;  ///< the publication count last checked
 
+  /// Starts with the publications `plc` already made.
+  explicit PoseFigures(const RecordingPlcLink& plc) : lastCount(plc.count) {}
   void check(const RecordingPlcLink& plc, const agv::MotionHistory& truth, std::uint16_t minMatched) {
     if (plc.count == lastCount) {
       return;
@@ -744,12 +750,9 @@ TEST_CASE(
   REQUIRE(nav.peer.listener.ok());
   VmVehicle v;
   REQUIRE(v.open(nav.peer.listener.port(), "nav350"));
-  nav.mount = v.mount;
   nav.reflectors = v.landmarks;  // the map holds reflectors only
   REQUIRE(nav.reflectors.size() == 3U);
-  agv::MotionHistory truth(Duration::fromSeconds(2.0));
-  nav.truth = &truth;
-  StraightRun<NavServer> drive(v, nav, truth);
+  StraightRun<NavServer> drive(v, nav);
   REQUIRE(drive.start());
 
   // Standing for 1 s: the replies come, the reflectors are matched.
@@ -762,13 +765,12 @@ TEST_CASE(
   // Rolling 1.5 m at 0.5 m/s (5 mm a pair). After each publication that follows a reply of the
   // rolling phase: the published pose against the truth at its stamp.
   const std::uint64_t repliesBefore = nav.replies;
-  PoseFigures fig;
-  fig.lastCount = v.plc.count;
+  PoseFigures fig(v.plc);
   double worstLag = 0.0;
   drive.run(300, 10, [&]() {
     worstLag = std::max(worstLag, nav.latestLagMs);
     if (nav.replies > repliesBefore + 1U) {
-      fig.check(v.plc, truth, 3);
+      fig.check(v.plc, drive.truth(), 3);
     }
   });
   INFO("replies " << nav.replies - repliesBefore << ", publications checked " << fig.checked
@@ -809,10 +811,7 @@ TEST_CASE(
   VmVehicle v;
   REQUIRE(v.open(lms.peer.listener.port(), "lms1xx", "localization.corners = true\n", map));
   REQUIRE(v.landmarks.size() == 4U);
-  lms.mount = v.mount;
-  agv::MotionHistory truth(Duration::fromSeconds(2.0));
-  lms.truth = &truth;
-  StraightRun<RoomScanServer> drive(v, lms, truth);
+  StraightRun<RoomScanServer> drive(v, lms);
   REQUIRE(drive.start());
 
   drive.run(100, 0, []() {});
@@ -823,11 +822,10 @@ TEST_CASE(
 
   // Rolling 1.5 m at 1.5 m/s (15 mm a pair).
   const std::uint32_t scansBefore = lms.counter;
-  PoseFigures fig;
-  fig.lastCount = v.plc.count;
+  PoseFigures fig(v.plc);
   drive.run(100, 30, [&]() {
     if (lms.counter > scansBefore + 1U) {
-      fig.check(v.plc, truth, 3);
+      fig.check(v.plc, drive.truth(), 3);
     }
   });
   INFO("scans " << lms.counter - scansBefore << ", publications checked " << fig.checked << ", with 3 corners matched "

@@ -94,9 +94,7 @@ Pose2d::Vector2 SweepCompensation::atFraction(double f, double x, double y) cons
     return Pose2d::Vector2(x, y);
   }
   const double c = std::clamp(f, 0.0, 1.0);
-  const Timestamp t = start_ + Duration::fromSeconds(c * sweepSeconds_);
-  const Pose2d rel = between(referencePose_, history_.at(t).value() * mount_);
-  return rel.transformPoint(Pose2d::Vector2(x, y));
+  return atStamp(start_ + Duration::fromSeconds(c * sweepSeconds_), x, y);
 }
 
 Pose2d::Vector2 SweepCompensation::atStamp(Timestamp t, double x, double y) const noexcept {
