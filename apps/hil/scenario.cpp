@@ -6,11 +6,11 @@
 #include <cstdlib>
 #include <memory>
 #include <random>
+#include <utility>
 
-#include "agv/falko/falko_detector.hpp"
 #include "agv/hal/plc_messages.hpp"
 #include "agv/localization/localizer.hpp"
-#include "agv/localization/sweep_motion.hpp"
+#include "agv/nav/pipeline.hpp"
 #include "agv/sim/path_follower.hpp"
 #include "agv/sim/ray_caster.hpp"
 #include "agv/sim/sim_clock.hpp"
@@ -113,158 +113,85 @@ std::size_t CornerMapper::freeze(int minSightings, double maxScatter, LandmarkMa
 
 namespace {
 
-/// The localizer side of the navigation: odometry increments from the encoder samples, point
-/// observations (reflectors and/or FALKO corners) from the laser, motion-compensated to the end
-/// of the sweep with the calibrated odometry, corrected against the map.
-class Navigation {
+/// The encoder source the pipeline reads, tapped: every sample it hands out is also kept for the
+/// dead-reckoning comparisons of the run (true, nominal and calibrated parameters).
+class EncoderTap final : public hal::EncoderSource {
  public:
-  Navigation(const ScenarioConfig& cfg, LocalizationMode mode)
-      : mode_(mode),
-        odometry_(cfg.estimate.kinematics, noiseParams(cfg)),
-        localizer_(std::make_unique<Localizer>(localizerParams(cfg, mode))),
-        detector_(std::make_unique<FalkoDetector>()),
-        keypoints_(std::make_unique<FalkoKeypoints>()),
-        observations_(std::make_unique<ScanObservations>()),
-        mount_(cfg.estimate.laserMount) {}
-
-  bool usesReflectors() const noexcept {
-    return mode_ == LocalizationMode::Reflectors || mode_ == LocalizationMode::Mapping;
-  }
-  bool usesCorners() const noexcept { return mode_ != LocalizationMode::Reflectors; }
-
-  /// Starts at the known pose `start` with `sample` as the odometry reference.
-  void reset(const Pose2d& start, const hal::EncoderSample& sample, const Pose2d& deadReckoning) {
-    odometry_.reset();
-    static_cast<void>(odometry_.step(TricycleSample{sample.stamp, sample.driveTicks, sample.steeringAngle}));
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    cov(0, 0) = cov(1, 1) = 0.005 * 0.005;
-    cov(2, 2) = deg2rad(0.05) * deg2rad(0.05);
-    static_cast<void>(localizer_->reset(sample.stamp, start, cov));
-    static_cast<void>(history_.add(sample.stamp, deadReckoning));
-  }
-
-  /// One encoder sample; `deadReckoning` is the calibrated odometry pose after it.
-  void predict(const hal::EncoderSample& sample, const Pose2d& deadReckoning) {
-    const Result<OdometryIncrement> inc =
-        odometry_.step(TricycleSample{sample.stamp, sample.driveTicks, sample.steeringAngle});
-    if (inc.ok()) {
-      static_cast<void>(localizer_->predict(inc.value()));
+  explicit EncoderTap(hal::EncoderSource& source) : source_(source) {}
+  Status read(hal::EncoderSample& out) noexcept override {
+    const Status s = source_.read(out);
+    if (s == Status::Ok) {
+      taken_.push_back(out);
     }
-    static_cast<void>(history_.add(sample.stamp, deadReckoning));
+    return s;
   }
-
-  /// One laser sweep. In Mapping mode the localizer corrects on the reflectors against `map`
-  /// and the FALKO corners are accumulated into `cornerMap` at the corrected pose.
-  const LocalizerHealth& correct(const hal::LaserMeasurement& m, LandmarkMap& map, CornerMapper* cornerMap) {
-    ScanObservations& obs = *observations_;
-    obs.points.clear();
-    const SweepCompensation sweep(history_, m.scan, mount_);
-    const Timestamp tRef = sweep.referenceStamp();
-    obs.stamp = tRef;
-    obs.kindsDetected = 0;
-    if (usesReflectors() && m.hasReflectors) {
-      obs.kindsDetected |= landmarkKindBit(LandmarkKind::Reflector);
-      for (std::size_t i = 0; i < m.reflectors.size(); ++i) {
-        const Pose2d::Vector2 p =
-            sweep.atBearing(static_cast<double>(m.reflectors[i].x), static_cast<double>(m.reflectors[i].y));
-        static_cast<void>(obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Reflector}));
-      }
-    }
-    keypointCount_ = 0;
-    corners_.clear();
-    if (usesCorners()) {
-      keypoints_->clear();
-      if (detector_->detect(m.scan, *keypoints_) == Status::Ok) {
-        for (std::size_t i = 0; i < keypoints_->size(); ++i) {
-          const FalkoKeypoint& k = (*keypoints_)[i];
-          if (!k.refined) {
-            continue;  // the apex of an unrefined keypoint is only the nearest beam point
-          }
-          ++keypointCount_;
-          corners_.push_back(sweep.atBeam(k.beamIndex, static_cast<double>(k.x), static_cast<double>(k.y)));
-        }
-        if (mode_ != LocalizationMode::Mapping) {
-          obs.kindsDetected |= landmarkKindBit(LandmarkKind::Corner);
-          for (const Pose2d::Vector2& p : corners_) {
-            static_cast<void>(obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Corner}));
-          }
-        }
-      }
-    }
-    const LocalizerHealth& h = localizer_->correct(obs, m.scan, map);
-    if (mode_ == LocalizationMode::Mapping && cornerMap != nullptr && !localizer_->lost() &&
-        !hasFlag(h.flags, LocalizerFlag::NoFix)) {
-      // The corrected pose at the end of the sweep, from the newest one and the odometry between.
-      const Pose2d poseRef =
-          localizer_->pose() * between(history_.at(localizer_->stamp()).value(), history_.at(tRef).value());
-      const Pose2d laserWorld = poseRef * mount_;
-      for (const Pose2d::Vector2& p : corners_) {
-        const Pose2d::Vector2 w = laserWorld.transformPoint(p);
-        cornerMap->add(w.x(), w.y());
-      }
-    }
-    return h;
-  }
-
-  const Localizer& localizer() const noexcept { return *localizer_; }
-  std::size_t keypointCount() const noexcept { return keypointCount_; }
+  Status health() const noexcept override { return source_.health(); }
+  /// The samples handed out since the last call, oldest first.
+  std::vector<hal::EncoderSample> take() { return std::exchange(taken_, {}); }
 
  private:
-  static TricycleNoiseParams noiseParams(const ScenarioConfig& cfg) {
-    TricycleNoiseParams n;
-    // Encoder samples per laser correction (100 Hz encoders, 12.5 Hz sweeps by default).
-    n.samplesPerCorrection = std::max(1.0, cfg.laser.scanRate > 0.0 ? 100.0 / cfg.laser.scanRate : 1.0);
-    return n;
-  }
-  static LocalizerParams localizerParams(const ScenarioConfig& cfg, LocalizationMode mode) {
-    LocalizerParams p;
-    p.laser.mounting = cfg.estimate.laserMount;  // calibrated, never the true mount
-    p.laser.rangeMin = std::max(0.3, cfg.laser.rangeMin);
-    p.laser.rangeMax = std::min(cfg.laser.rangeMax, cfg.laser.reflectorMaxRange);
-    p.laser.angleMin = -0.5 * cfg.laser.fieldOfView;
-    p.laser.angleMax = 0.5 * cfg.laser.fieldOfView;
-    // The laser reports reflector centres with isotropic noise (1 cm per coordinate by default):
-    // mostly a per-kind term on top of the default range/bearing model.
-    p.laser.kindSigma[static_cast<std::size_t>(LandmarkKind::Reflector)] =
-        std::sqrt(std::max(0.0, cfg.laser.reflectorNoiseStdDev * cfg.laser.reflectorNoiseStdDev - 0.005 * 0.005));
-    // The matched/expected check runs with the library defaults in every mode: `correct` gets the
-    // sweep's ranges, so landmarks hidden behind pallets and racks are not expected.
-    // Dynamic map from an empty start: a corner corrects the pose only after 10 matches (about
-    // 1.3 s of travel at the warehouse's 0.8 re-detection rate), when its position is an average
-    // over several viewpoints rather than one detection taken from the pose it would correct.
-    if (mode == LocalizationMode::Dynamic) {
-      p.minHitsToCorrect = cfg.dynamicMinHitsToCorrect;
-    }
-    return p;
-  }
-
-  LocalizationMode mode_;
-  TricycleOdometry odometry_;
-  std::unique_ptr<Localizer> localizer_;
-  std::unique_ptr<FalkoDetector> detector_;
-  std::unique_ptr<FalkoKeypoints> keypoints_;
-  std::unique_ptr<ScanObservations> observations_;
-  Pose2d mount_;
-  MotionHistory history_;
-  std::size_t keypointCount_ = 0;
-  std::vector<Pose2d::Vector2> corners_;
+  hal::EncoderSource& source_;
+  std::vector<hal::EncoderSample> taken_;
 };
 
-/// Publishes the localizer's newest pose to the PLC peer.
-void publish(const Localizer& loc, std::uint16_t visibleReflectors, hal::PlcLink& plc) {
-  hal::PoseReport report;
-  report.stamp = loc.stamp();
-  report.pose = loc.pose();
-  report.covariance = loc.covariance();
-  report.health.mode = loc.lost() ? hal::NavMode::Lost : hal::NavMode::Localizing;
-  report.health.lastStatus = loc.health().status;
-  report.health.matchedLandmarks = loc.health().used;
-  report.health.visibleReflectors = visibleReflectors;
-  static_cast<void>(plc.publish(report));
+/// The navigation pipeline's parameters for `mode` (docs/hil.md, "Localization modes"): the
+/// calibrated vehicle, never the truth.
+nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode mode) {
+  nav::PipelineParams p;
+  p.kinematics = cfg.estimate.kinematics;
+  // Encoder samples per laser correction (100 Hz encoders, 12.5 Hz sweeps by default).
+  p.odometryNoise.samplesPerCorrection = std::max(1.0, cfg.laser.scanRate > 0.0 ? 100.0 / cfg.laser.scanRate : 1.0);
+  LocalizerParams& l = p.localizer;
+  l.laser.mounting = cfg.estimate.laserMount;  // calibrated, never the true mount
+  l.laser.rangeMin = std::max(0.3, cfg.laser.rangeMin);
+  l.laser.rangeMax = std::min(cfg.laser.rangeMax, cfg.laser.reflectorMaxRange);
+  l.laser.angleMin = -0.5 * cfg.laser.fieldOfView;
+  l.laser.angleMax = 0.5 * cfg.laser.fieldOfView;
+  // The laser reports reflector centres with isotropic noise (1 cm per coordinate by default):
+  // mostly a per-kind term on top of the default range/bearing model.
+  l.laser.kindSigma[static_cast<std::size_t>(LandmarkKind::Reflector)] =
+      std::sqrt(std::max(0.0, cfg.laser.reflectorNoiseStdDev * cfg.laser.reflectorNoiseStdDev - 0.005 * 0.005));
+  // The matched/expected check runs with the library defaults in every mode: `correct` gets the
+  // sweep's ranges, so landmarks hidden behind pallets and racks are not expected.
+  // Dynamic map from an empty start: a corner corrects the pose only after 10 matches (about
+  // 1.3 s of travel at the warehouse's 0.8 re-detection rate), when its position is an average
+  // over several viewpoints rather than one detection taken from the pose it would correct.
+  if (mode == LocalizationMode::Dynamic) {
+    l.minHitsToCorrect = cfg.dynamicMinHitsToCorrect;
+  }
+  const bool reflectors = mode == LocalizationMode::Reflectors || mode == LocalizationMode::Mapping;
+  p.observations.reflectors = reflectors;
+  p.observations.corners = !reflectors;
+  p.observations.detectCorners = mode == LocalizationMode::Mapping;  // collected, not corrected with
+  // The vehicle is placed at the path start to within a few millimetres (startPositionStdDev).
+  p.setPosePositionStdDev = 0.005;
+  p.setPoseHeadingStdDev = deg2rad(0.05);
+  p.publishPeriod = cfg.controlPeriod;  // one report per control step
+  return p;
 }
 
-/// One run of `path`: place the vehicle near the start, steer at rest, follow the path to its end
-/// and stop; the navigation side integrates the encoders and publishes to the PLC peer.
+/// Mapping runs: the corners of the sweep just corrected with, in the world frame at the corrected
+/// pose (at the end of the sweep), into `cornerMap`; nothing while the localizer is lost or the
+/// sweep gave no fix.
+void collectCorners(const nav::Pipeline& pipeline, CornerMapper& cornerMap) {
+  const Localizer& loc = pipeline.localizer();
+  if (!pipeline.lastCycle().corrected || loc.lost() || hasFlag(loc.health().flags, LocalizerFlag::NoFix)) {
+    return;
+  }
+  const Result<Pose2d> pose = pipeline.poseAt(pipeline.lastCycle().sweepReference);
+  if (!pose.ok()) {
+    return;
+  }
+  const Pose2d laserWorld = pose.value() * loc.params().laser.mounting;
+  for (const Pose2d::Vector2& p : pipeline.sweepCorners()) {
+    const Pose2d::Vector2 w = laserWorld.transformPoint(p);
+    cornerMap.add(w.x(), w.y());
+  }
+}
+
+/// One run of `path`: place the vehicle near the start, steer at rest, set the pose through the
+/// PLC, follow the path to its end and stop. The navigation is the vehicle's pipeline on the
+/// simulated devices (encoders through CAN frames, laser, PLC peer, clock).
 RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, const ScenarioConfig& cfg,
                  LocalizationMode mode, LandmarkMap& map, CornerMapper* cornerMap, std::uint64_t seed) {
   RunResult r;
@@ -275,7 +202,6 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
     map.clear();
     map.setMode(MapMode::Dynamic);
   }
-  Navigation nav(cfg, mode);
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal(0.0, 1.0);
 
@@ -284,10 +210,12 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   sim::SimPlcPeer plc;
   sim::SimClock clock;
   sim::CanEncoderSource canEncoders(vehicle, cfg.can);  // encoder samples only through CAN frames
-  hal::EncoderSource& encoders = canEncoders;
+  EncoderTap encoders(canEncoders);
   hal::DriveControl& drive = vehicle;
-  hal::LaserSource& laserSource = laser;
-  hal::PlcLink& plcLink = plc;
+  nav::Pipeline pipeline(pipelineParams(cfg, mode), map, nav::PipelineDevices{encoders, laser, plc, clock});
+  if (pipeline.configure() != Status::Ok || pipeline.activate() != Status::Ok) {
+    return r;
+  }
 
   const Pose2d start{path.start.x + cfg.startPositionStdDev * normal(rng),
                      path.start.y + cfg.startPositionStdDev * normal(rng),
@@ -299,34 +227,38 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   fp.steerOffset = cfg.estimate.kinematics.steerOffsetForward;
   sim::PathFollower follower(path, fp);
 
-  // At rest: turn the steering to the first command, take the reference encoder sample.
+  // At rest: turn the steering to the first command; the pipeline reads every sample of that
+  // second (idle), then the PLC sets the pose at the newest one.
   hal::DriveCommand first = follower.update(vehicle.truePose());
   first.speed = 0.0;
   static_cast<void>(drive.command(first));
   t = t + Duration::fromSeconds(1.0);
   vehicle.advanceTo(t);
   clock.set(t);
-  hal::EncoderSample sample;
-  hal::EncoderSample latest;
-  bool have = false;
-  while (encoders.read(sample) == Status::Ok) {
-    latest = sample;
-    have = true;
+  for (int i = 0; i < 1000 && (pipeline.cycle() == Status::Ok && pipeline.lastCycle().encoderSamples > 0); ++i) {
+  }
+  std::vector<hal::EncoderSample> atRest = encoders.take();
+  if (atRest.empty()) {
+    return r;
+  }
+  hal::PlcCommand localize;
+  localize.stamp = t;
+  localize.kind = hal::PlcCommandKind::Localize;
+  localize.initialPose = vehicle.truePose();
+  plc.send(localize);
+  static_cast<void>(pipeline.cycle());
+  if (!pipeline.localizing()) {
+    return r;
   }
   DeadReckoning withTruth(cfg.vehicle.truth);
   DeadReckoning withNominal(cfg.nominal.kinematics);
   DeadReckoning withEstimate(cfg.estimate.kinematics);
-  if (!have) {
-    return r;
-  }
-  withTruth.reset(vehicle.truePose(), latest);
-  withNominal.reset(vehicle.truePose(), latest);
-  withEstimate.reset(vehicle.truePose(), latest);
-  nav.reset(vehicle.truePose(), latest, withEstimate.pose());
+  withTruth.reset(vehicle.truePose(), atRest.back());
+  withNominal.reset(vehicle.truePose(), atRest.back());
+  withEstimate.reset(vehicle.truePose(), atRest.back());
   double usedSum = 0.0;
   double keypointSum = 0.0;
 
-  static hal::LaserMeasurement scan;  // ~8.5 KiB, reused
   const Duration scanPeriod = laser.period();
   Timestamp nextScan = t;
   Pose2d laserPoseAtScanStart = vehicle.trueLaserPose();
@@ -335,7 +267,6 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   r.minReflectorsPerScan = static_cast<std::size_t>(-1);
   const Timestamp tStart = t;
   const Timestamp deadline = t + Duration::fromSeconds(cfg.maxRunSeconds);
-  std::uint16_t lastReflectors = 0;
 
   while (t < deadline) {
     const hal::DriveCommand cmd = follower.update(vehicle.truePose());
@@ -347,40 +278,41 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
     vehicle.advanceTo(t);
     clock.set(t);
     r.distance += positionError(vehicle.truePose(), before);
-
-    while (encoders.read(sample) == Status::Ok) {
-      withTruth.update(sample);
-      withNominal.update(sample);
-      withEstimate.update(sample);
-      nav.predict(sample, withEstimate.pose());
-      publish(nav.localizer(), lastReflectors, plcLink);
-    }
-    // Laser sweeps: the pose is interpolated between the control steps around the sweep (the
-    // sweep ends one beam before the next starts; the pose difference is sub-millimetre).
+    // A laser sweep since the last one: the pose is interpolated between the control steps around
+    // the sweep (the sweep ends one beam before the next starts; the difference is sub-millimetre).
     if (t >= nextScan + scanPeriod) {
       const Pose2d laserPoseNow = vehicle.trueLaserPose();
-      if (laser.capture(laserPoseAtScanStart, laserPoseNow, nextScan) == Status::Ok &&
-          laserSource.read(scan) == Status::Ok) {
-        ++r.scans;
-        lastReflectors = static_cast<std::uint16_t>(scan.reflectors.size());
-        reflectorSum += static_cast<double>(scan.reflectors.size());
-        r.minReflectorsPerScan = std::min(r.minReflectorsPerScan, scan.reflectors.size());
-        std::size_t valid = 0;
-        for (std::size_t i = 0; i < scan.scan.size(); ++i) {
-          valid += scan.scan.isValid(i) ? 1U : 0U;
-        }
-        validSum += static_cast<double>(valid) / static_cast<double>(std::max<std::size_t>(1, scan.scan.size()));
-        const LocalizerHealth& h = nav.correct(scan, map, cornerMap);
-        usedSum += static_cast<double>(h.used);
-        keypointSum += static_cast<double>(nav.keypointCount());
-        r.scansWithoutFix += hasFlag(h.flags, LocalizerFlag::NoFix) ? 1U : 0U;
-        publish(nav.localizer(), lastReflectors, plcLink);
-      }
+      static_cast<void>(laser.capture(laserPoseAtScanStart, laserPoseNow, nextScan));
       laserPoseAtScanStart = laserPoseNow;
       nextScan = t;
     }
+    static_cast<void>(pipeline.cycle());
+    for (const hal::EncoderSample& sample : encoders.take()) {
+      withTruth.update(sample);
+      withNominal.update(sample);
+      withEstimate.update(sample);
+    }
+    const nav::CycleReport& c = pipeline.lastCycle();
+    if (c.sweep) {
+      const hal::LaserMeasurement& scan = pipeline.lastMeasurement();
+      ++r.scans;
+      reflectorSum += static_cast<double>(scan.reflectors.size());
+      r.minReflectorsPerScan = std::min(r.minReflectorsPerScan, scan.reflectors.size());
+      std::size_t valid = 0;
+      for (std::size_t i = 0; i < scan.scan.size(); ++i) {
+        valid += scan.scan.isValid(i) ? 1U : 0U;
+      }
+      validSum += static_cast<double>(valid) / static_cast<double>(std::max<std::size_t>(1, scan.scan.size()));
+      const LocalizerHealth& h = pipeline.localizer().health();
+      usedSum += static_cast<double>(h.used);
+      keypointSum += static_cast<double>(c.corners);
+      r.scansWithoutFix += hasFlag(h.flags, LocalizerFlag::NoFix) ? 1U : 0U;
+      if (mode == LocalizationMode::Mapping && cornerMap != nullptr) {
+        collectCorners(pipeline, *cornerMap);
+      }
+    }
     r.history.push_back(TrajectorySample{r.distance, vehicle.truePose(), withTruth.pose(), withNominal.pose(),
-                                         withEstimate.pose(), nav.localizer().pose()});
+                                         withEstimate.pose(), pipeline.localizer().pose()});
     if (follower.finished() && drive.isStandstill()) {
       r.finished = true;
       break;
@@ -393,8 +325,8 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   r.finalWithNominal = withNominal.pose();
   r.plcReports = plc.reports().size();
   r.finalWithEstimate = withEstimate.pose();
-  r.finalLocalized = plc.reports().empty() ? nav.localizer().pose() : plc.reports().back().pose;
-  r.localizerLost = nav.localizer().lost();
+  r.finalLocalized = plc.reports().empty() ? pipeline.localizer().pose() : plc.reports().back().pose;
+  r.localizerLost = pipeline.localizer().lost();
   if (r.scans > 0) {
     r.meanUsedPerScan = usedSum / static_cast<double>(r.scans);
     r.meanKeypointsPerScan = keypointSum / static_cast<double>(r.scans);

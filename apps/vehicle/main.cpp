@@ -74,7 +74,7 @@ int main(int argc, char** argv) {
                config.modbus.role == agv::drivers::PlcLinkRole::Server ? "server" : "client", config.modbus.address,
                static_cast<unsigned>(config.modbus.port));
   runtime.run(gStop);
-  const agv::vehicle::RuntimeCounters& c = runtime.counters();
+  const agv::nav::PipelineCounters& c = runtime.counters();
   std::fprintf(stderr,
                "agvnav-vehicle: stopped after %llu cycles (%llu encoder samples, %llu sweeps, %llu corrections, "
                "%llu publications, %llu PLC commands, %llu refused)\n",

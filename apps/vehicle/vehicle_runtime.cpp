@@ -4,6 +4,7 @@
 #include <ctime>
 
 #include "agv/drivers/linux/modbus_plc_link.hpp"
+#include "agv/drivers/linux/monotonic_clock.hpp"
 
 namespace agv::vehicle {
 namespace {
@@ -18,25 +19,6 @@ void sleepFor(Duration d) {
   (void)nanosleep(&t, nullptr);  // a signal ends it early: the loop then sees the stop flag
 }
 
-/// The Modbus link as the loop's `hal::PlcLink`: every report goes out with the loop's health bits
-/// (the status block carries them; `hal::PoseReport` does not).
-class ModbusStatusLink final : public hal::PlcLink {
- public:
-  explicit ModbusStatusLink(drivers::ModbusPlcLink& link) noexcept : link_(link) {}
-  void healthFrom(const VehicleLoop& loop) noexcept { loop_ = &loop; }
-  Status publish(const hal::PoseReport& report) noexcept override {
-    if (loop_ != nullptr) {
-      link_.setHealthBits(loop_->healthBits());
-    }
-    return link_.publish(report);
-  }
-  Status readCommand(hal::PlcCommand& out) noexcept override { return link_.readCommand(out); }
-
- private:
-  drivers::ModbusPlcLink& link_;
-  const VehicleLoop* loop_ = nullptr;
-};
-
 }  // namespace
 
 struct VehicleRuntime::Impl {
@@ -45,22 +27,19 @@ struct VehicleRuntime::Impl {
         encoders(encoderSourceConfig(config)),
         laser(config.laser),
         modbus(config.modbus),
-        plc(modbus),
-        loop(config, std::move(f), VehicleDevices{encoders, laser, plc}) {
-    plc.healthFrom(loop);
-  }
+        navigation(config, std::move(f), nav::PipelineDevices{encoders, laser, modbus, clock}) {}
 
   VehicleConfig config;
   drivers::CanopenEncoderSource encoders;
   drivers::SickLaserSource laser;
   drivers::ModbusPlcLink modbus;
-  ModbusStatusLink plc;
-  VehicleLoop loop;
+  drivers::MonotonicClock clock;
+  VehicleNavigation navigation;
 };
 
 VehicleRuntime::VehicleRuntime(const VehicleConfig& config, VehicleFiles&& files)
     : impl_(std::make_unique<Impl>(config, std::move(files))) {
-  const VehicleCalibration& cal = impl_->loop.calibration();
+  const VehicleCalibration& cal = impl_->navigation.calibration();
   drivers::plc::PlcCalibration pc;
   pc.driveScale = cal.params.driveScale;
   pc.steerOffsetForward = cal.params.steerOffsetForward;
@@ -74,6 +53,10 @@ VehicleRuntime::~VehicleRuntime() = default;
 
 bool VehicleRuntime::open(std::string& error) {
   Impl& m = *impl_;
+  if (m.navigation.status() != Status::Ok) {
+    error = std::string("navigation pipeline: configuration refused (") + toString(m.navigation.status()) + ")";
+    return false;
+  }
   const Status p = m.modbus.open();
   if (p != Status::Ok) {
     error = std::string("modbus: cannot set up the PLC link on ") + m.config.modbus.address + ":" +
@@ -89,23 +72,24 @@ bool VehicleRuntime::open(std::string& error) {
 }
 
 void VehicleRuntime::cycle() {
-  impl_->loop.cycle();
+  (void)impl_->navigation.pipeline().cycle();
 }
 
-const RuntimeCounters& VehicleRuntime::counters() const noexcept {
-  return impl_->loop.counters();
+const nav::PipelineCounters& VehicleRuntime::counters() const noexcept {
+  return impl_->navigation.pipeline().counters();
 }
 
 std::uint16_t VehicleRuntime::healthBits() const noexcept {
-  return impl_->loop.healthBits();
+  return impl_->navigation.pipeline().healthBits();
 }
 
 void VehicleRuntime::run(const volatile std::sig_atomic_t& stop) {
   const Duration period = impl_->config.cyclePeriod;
   while (stop == 0) {
-    impl_->loop.cycle();
+    (void)impl_->navigation.pipeline().cycle();
     sleepFor(period);
   }
+  (void)impl_->navigation.pipeline().deactivate();  // one last report: idle
   impl_->encoders.close();
 }
 

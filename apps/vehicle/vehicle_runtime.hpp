@@ -1,8 +1,8 @@
 #pragma once
 /// @file vehicle_runtime.hpp
 /// The vehicle's navigation on the real drivers: owns the CANopen encoder source (SocketCAN), the
-/// SICK laser source (TCP) and the Modbus TCP PLC link, and runs `VehicleLoop` (vehicle_loop.hpp)
-/// on them until a signal.
+/// SICK laser source (TCP), the Modbus TCP PLC link and the monotonic clock, and cycles the
+/// navigation pipeline (`VehicleNavigation`, vehicle_navigation.hpp) on them until a signal.
 ///
 /// Everything is allocated by the constructor; the loop itself does not allocate. Not thread-safe.
 
@@ -11,7 +11,7 @@
 #include <memory>
 #include <string>
 
-#include "vehicle_loop.hpp"
+#include "vehicle_navigation.hpp"
 
 namespace agv::vehicle {
 
@@ -34,8 +34,8 @@ class VehicleRuntime {
   /// One cycle at most: reads encoders and laser, corrects, publishes when due (no sleep).
   void cycle();
 
-  const RuntimeCounters& counters() const noexcept;
-  /// PlcHealthBit bits of the last publication.
+  const nav::PipelineCounters& counters() const noexcept;
+  /// `hal::HealthBit` bits of the last publication.
   std::uint16_t healthBits() const noexcept;
 
  private:

@@ -69,6 +69,7 @@ class EncoderRamp final : public agv::hal::EncoderSource {
     out = s_;
     return agv::Status::Ok;
   }
+  agv::Status health() const noexcept override { return agv::Status::Ok; }
 
  private:
   bool pending_ = false;

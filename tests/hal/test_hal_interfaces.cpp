@@ -25,6 +25,7 @@ class ReplayEncoders final : public agv::hal::EncoderSource {
     ++next_;
     return agv::Status::Ok;
   }
+  agv::Status health() const noexcept override { return next_ > 0 ? agv::Status::Ok : agv::Status::NotInitialized; }
 
  private:
   int next_ = 0;

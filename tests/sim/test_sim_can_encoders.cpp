@@ -51,6 +51,7 @@ class ScriptedEncoders final : public agv::hal::EncoderSource {
     queue_.pop_front();
     return Status::Ok;
   }
+  Status health() const noexcept override { return Status::Ok; }
   /// Every measurement pushed, by stamp order.
   const std::vector<EncoderSample>& sent() const { return sent_; }
   /// The measurement with stamp `t` (REQUIREs it exists).
@@ -81,6 +82,7 @@ class Tee final : public agv::hal::EncoderSource {
     }
     return s;
   }
+  Status health() const noexcept override { return src_.health(); }
   std::vector<EncoderSample> seen;
 
  private:

@@ -1,4 +1,5 @@
-// agvnav-vehicle's loop (apps/vehicle, VehicleLoop) end to end inside the vcan test VM: the real
+// agvnav-vehicle's navigation (the one pipeline, agv::nav::Pipeline, as apps/vehicle sets it up from
+// its files: VehicleNavigation) end to end inside the vcan test VM: the real
 // CanopenEncoderSource on vcan0, the real SickLaserSource connected to a CoLa A scan server (or a
 // NAV350 server, last case) on the VM's loopback interface, and a PLC link that records what the
 // loop publishes (the Modbus link
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "agv/drivers/linux/canopen_encoder_source.hpp"
+#include "agv/drivers/linux/monotonic_clock.hpp"
 #include "agv/drivers/linux/sick_laser_source.hpp"
 #include "agv/drivers/plc/plc_register_map.hpp"
 #include "agv/drivers/socketcan_bus.hpp"
@@ -34,7 +36,7 @@
 #include "loopback_server.hpp"
 #include "sick_telegrams.hpp"
 #include "vcan_peer.hpp"
-#include "vehicle_loop.hpp"
+#include "vehicle_navigation.hpp"
 #include "vehicle_setup.hpp"
 #include "vm_alloc_count.hpp"
 
@@ -45,18 +47,19 @@ using agv::Timestamp;
 using agv::drivers::CanFrame;
 using agv::drivers::monotonicNow;
 using agv::drivers::plc::PlcHealthBit;
+using agv::hal::hasBit;
 using agv::hal::NavMode;
 
 namespace {
 
-/// A `hal::PlcLink` that keeps the last report published, with the loop's health bits at that
-/// moment (as the Modbus link of `VehicleRuntime` takes them for its status block), and has no
-/// commands: the loop's publication without the Modbus transport. Allocates nothing.
+/// A `hal::PlcLink` that keeps the last report published with its health bits (as the Modbus link
+/// of `VehicleRuntime` takes them for its status block), and has no commands: the pipeline's
+/// publication without the Modbus transport. Allocates nothing.
 class RecordingPlcLink final : public agv::hal::PlcLink {
  public:
   Status publish(const agv::hal::PoseReport& report) noexcept override {
     last = report;
-    bits = loop != nullptr ? loop->healthBits() : 0U;
+    bits = report.health.bits;
     ++count;
     return Status::Ok;
   }
@@ -70,16 +73,11 @@ class RecordingPlcLink final : public agv::hal::PlcLink {
     return Status::Ok;
   }
 
-  const agv::vehicle::VehicleLoop* loop = nullptr;
   agv::hal::PlcCommand pending{};
   agv::hal::PoseReport last{};
-  std::uint16_t bits = 0;  ///< plc::PlcHealthBit
+  std::uint16_t bits = 0;  ///< hal::HealthBit
   std::uint64_t count = 0;
 };
-
-bool hasBit(std::uint16_t bits, PlcHealthBit b) {
-  return (bits & static_cast<std::uint16_t>(b)) != 0U;
-}
 
 /// Largest difference of the components of two poses (angles wrapped).
 double poseDifference(const Pose2d& a, const Pose2d& b) {
@@ -176,7 +174,7 @@ bool openNodes(EncoderNodes& nodes, const agv::vehicle::VehicleConfig& config) {
   return nodes.bus.open(bc) == Status::Ok;
 }
 
-/// The loop as agvnav-vehicle builds it from its files (`vmVehicleConfig`, the calibration and map
+/// The navigation as agvnav-vehicle builds it from its files (`vmVehicleConfig`, the calibration and map
 /// of tests/vehicle), with the real encoder and laser sources, a recording PLC link, and the
 /// test's CAN nodes.
 struct VmVehicle {
@@ -189,7 +187,8 @@ struct VmVehicle {
   std::unique_ptr<agv::drivers::CanopenEncoderSource> encoders;
   std::unique_ptr<agv::drivers::SickLaserSource> laser;
   RecordingPlcLink plc;
-  std::unique_ptr<agv::vehicle::VehicleLoop> loop;
+  agv::drivers::MonotonicClock clock;
+  std::unique_ptr<agv::vehicle::VehicleNavigation> navigation;
   EncoderNodes nodes;
 
   /// Loads the files with the laser `model` at 127.0.0.1:`laserPort` (`extraConfig` appended to
@@ -213,10 +212,9 @@ struct VmVehicle {
     });
     encoders = std::make_unique<agv::drivers::CanopenEncoderSource>(agv::vehicle::encoderSourceConfig(config));
     laser = std::make_unique<agv::drivers::SickLaserSource>(config.laser);
-    loop = std::make_unique<agv::vehicle::VehicleLoop>(config, std::move(files),
-                                                       agv::vehicle::VehicleDevices{*encoders, *laser, plc});
-    plc.loop = loop.get();
-    return openNodes(nodes, config) && encoders->open() == Status::Ok;
+    navigation = std::make_unique<agv::vehicle::VehicleNavigation>(
+        config, std::move(files), agv::nav::PipelineDevices{*encoders, *laser, plc, clock});
+    return navigation->status() == Status::Ok && openNodes(nodes, config) && encoders->open() == Status::Ok;
   }
 };
 
@@ -335,7 +333,7 @@ TEST_CASE(
   VmVehicle v;
   REQUIRE(v.open(laserPeer.peer.listener.port(), "lms1xx"));
   agv::drivers::CanopenEncoderSource& encoders = *v.encoders;
-  agv::vehicle::VehicleLoop& loop = *v.loop;
+  agv::nav::Pipeline& loop = v.navigation->pipeline();
   RecordingPlcLink& plc = v.plc;
   EncoderNodes& nodes = v.nodes;
   const agv::TricycleParams cal = v.cal;
@@ -363,7 +361,7 @@ TEST_CASE(
       nextHeartbeat = monotonicNow() + Duration::fromMilliseconds(50);
     }
     const std::uint64_t before = agv::test::vmAllocationCalls();
-    loop.cycle();
+    (void)loop.cycle();
     if (counting) {
       allocations += agv::test::vmAllocationCalls() - before;
       ++countedCycles;
@@ -644,7 +642,7 @@ class StraightRun {
         REQUIRE(v_.nodes.sendHeartbeats());
         nextHeartbeat_ = monotonicNow() + Duration::fromMilliseconds(50);
       }
-      v_.loop->cycle();
+      (void)v_.navigation->pipeline().cycle();
       sleepMs(1);
       afterCycle();
     }

@@ -4,7 +4,7 @@
 #include <string>
 
 #include "vehicle_files.hpp"
-#include "vehicle_loop.hpp"
+#include "vehicle_navigation.hpp"
 
 namespace agv::test {
 

@@ -138,7 +138,7 @@ Status ModbusPlcLink::publish(const hal::PoseReport& report) noexcept {
   plc::PlcStatus s;
   s.heartbeat = publishCount_++;
   s.mode = report.health.mode;
-  s.health = healthBits_;
+  s.health = report.health.bits;
   s.lastStatus = report.health.lastStatus;
   s.pose = report.pose;
   const Eigen::Matrix3d& c = report.covariance;

@@ -73,10 +73,6 @@ Status fromErrno(int err) noexcept {
 
 }  // namespace
 
-Timestamp monotonicNow() noexcept {
-  return clockNow(CLOCK_MONOTONIC);
-}
-
 SocketCanBus::~SocketCanBus() {
   closeSocket();
 }

@@ -106,10 +106,11 @@ Status SimLaser::scan(const Pose2d& poseFirstBeam, const Pose2d& poseLastBeam, T
     }
     // Pose when the beam sweeps over the reflector: bearing from the first-beam pose, refined once.
     Pose2d p = poseFirstBeam;
+    double sweptAt = 0.0;  // fraction of the sweep
     for (int iter = 0; iter < 2; ++iter) {
       const Pose2d::Vector2 v = p.inverseTransformPoint(Pose2d::Vector2(c.centre.x, c.centre.y));
-      const double f = (std::atan2(v.y(), v.x()) - angleMin) / params_.fieldOfView;
-      p = poseAt(poseFirstBeam, poseLastBeam, std::clamp(f, 0.0, 1.0));
+      sweptAt = std::clamp((std::atan2(v.y(), v.x()) - angleMin) / params_.fieldOfView, 0.0, 1.0);
+      p = poseAt(poseFirstBeam, poseLastBeam, sweptAt);
     }
     const Pose2d::Vector2 v = p.inverseTransformPoint(Pose2d::Vector2(c.centre.x, c.centre.y));
     const double bearing = std::atan2(v.y(), v.x());
@@ -129,6 +130,10 @@ Status SimLaser::scan(const Pose2d& poseFirstBeam, const Pose2d& poseLastBeam, T
     o.x = static_cast<float>(v.x() + params_.reflectorNoiseStdDev * normal_(rng_));
     o.y = static_cast<float>(v.y() + params_.reflectorNoiseStdDev * normal_(rng_));
     o.positionStdDev = static_cast<float>(params_.reflectorNoiseStdDev);
+    if (params_.stampsReflectors) {  // the instant of the pose the reflector was seen from
+      o.stamp = stamp + Duration::fromSeconds(sweptAt * sweepDuration().seconds());
+      o.stamped = true;
+    }
     static_cast<void>(out.reflectors.push_back(o));  // a full list counts the refusal
   }
   return Status::Ok;

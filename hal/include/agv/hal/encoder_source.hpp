@@ -16,6 +16,12 @@ class EncoderSource {
   /// - `Timeout`: the device has been silent longer than its configured deadline.
   /// - `DeviceFault`, `Malformed`: the device or bus reported a problem; `out` untouched.
   virtual Status read(EncoderSample& out) noexcept = 0;
+  /// The device's state between reads, for the health bits and the logs (no I/O, never blocks):
+  /// - `Ok`: delivering in time;
+  /// - `NotInitialized`: not ready yet (starting, connecting, no first sample);
+  /// - `Timeout`: silent longer than the device's deadline;
+  /// - `DeviceFault`: the device or its link reported a fault (EMCY, bus-off, error replies, link down).
+  virtual Status health() const noexcept = 0;
 
  protected:
   EncoderSource() = default;

@@ -16,6 +16,12 @@ class LaserSource {
   /// - `Timeout`, `DeviceFault`, `Malformed`, `Truncated`: device or link problem; `out` may
   ///   have been partly written and must not be used.
   virtual Status read(LaserMeasurement& out) noexcept = 0;
+  /// The device's state between reads, for the health bits and the logs (no I/O, never blocks):
+  /// - `Ok`: delivering in time;
+  /// - `NotInitialized`: not ready yet (starting, connecting, no first sweep);
+  /// - `Timeout`: silent longer than the device's deadline;
+  /// - `DeviceFault`: the device or its link reported a fault (EMCY, bus-off, error replies, link down).
+  virtual Status health() const noexcept = 0;
 
  protected:
   LaserSource() = default;

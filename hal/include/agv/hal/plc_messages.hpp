@@ -19,9 +19,35 @@ enum class NavMode : std::uint8_t {
   Lost = 3,         ///< the localizer does not trust its pose; the PLC must stop the vehicle
 };
 
+/// Health bits of a pose report (`NavHealth::bits`), published as they are in the PLC link's status
+/// block (register 2 of the Modbus map). The navigation pipeline sets the device and state bits;
+/// the PLC link ORs in what only it knows (`PlcHeartbeatLost`, and `CommandRejected` for a write it
+/// refused itself).
+enum class HealthBit : std::uint16_t {
+  LaserOk = 1U << 0U,           ///< sweeps arriving in time
+  EncodersOk = 1U << 1U,        ///< encoder samples arriving in time, heartbeats ok
+  MapLoaded = 1U << 2U,         ///< the landmark map holds at least one landmark
+  CalibrationValid = 1U << 3U,  ///< the navigation runs with a checked calibration
+  LaserTimeout = 1U << 4U,      ///< the laser has been silent longer than its deadline
+  EncoderTimeout = 1U << 5U,    ///< CANopen heartbeat or PDO timeout
+  DeviceFault = 1U << 6U,       ///< a device reported a fault (EMCY, bus-off, error replies)
+  PlcHeartbeatLost = 1U << 7U,  ///< the PLC's heartbeat register stopped changing (set by the link)
+  CommandRejected = 1U << 8U,   ///< the last PLC command or write was refused
+};
+
+/// `bits` with `bit` set when `on`.
+constexpr std::uint16_t withBit(std::uint16_t bits, HealthBit bit, bool on) noexcept {
+  return on ? static_cast<std::uint16_t>(bits | static_cast<std::uint16_t>(bit)) : bits;
+}
+/// True when `bit` is set in `bits`.
+constexpr bool hasBit(std::uint16_t bits, HealthBit bit) noexcept {
+  return (bits & static_cast<std::uint16_t>(bit)) != 0U;
+}
+
 /// Health of the localization: enough for a PLC to decide whether to trust the pose.
 struct NavHealth {
   NavMode mode = NavMode::Idle;
+  std::uint16_t bits = 0;               ///< OR of `HealthBit`
   Status lastStatus = Status::Ok;       ///< last non-Ok status of the pipeline (Ok when none)
   std::uint16_t matchedLandmarks = 0;   ///< landmarks used by the last correction
   std::uint16_t visibleReflectors = 0;  ///< reflectors reported by the laser in the last scan

@@ -25,6 +25,7 @@
 #include "agv/core/timestamp.hpp"
 #include "agv/drivers/can_error.hpp"
 #include "agv/drivers/can_frame.hpp"
+#include "agv/drivers/linux/monotonic_clock.hpp"
 
 namespace agv::drivers {
 
@@ -180,8 +181,5 @@ class SocketCanBus {
   Timestamp busOffSince_{};
   SocketCanHealth health_{};
 };
-
-/// Current CLOCK_MONOTONIC time (the clock of `CanFrame::stamp` by default).
-Timestamp monotonicNow() noexcept;
 
 }  // namespace agv::drivers

@@ -58,6 +58,8 @@ class CanEncoderSource final : public hal::EncoderSource {
   Status validate() const noexcept;
 
   Status read(hal::EncoderSample& out) noexcept override;
+  /// The decoder's health (`CanopenEncoders::health`), as the real source reports it.
+  Status health() const noexcept override { return decoder_.health(); }
 
   void setFilter(FrameFilter filter) { filter_ = std::move(filter); }
 

@@ -28,6 +28,9 @@ struct SimLaserParams {
   bool reportsReflectors = true;             ///< a navigation laser reports reflector centres
   double reflectorNoiseStdDev = 0.01;        ///< [m] Gaussian noise on each centre coordinate
   double reflectorMaxRange = 30.0;           ///< [m] reflectors farther (to the surface) are not detected
+  /// Each reflector carries the instant the beam swept over it (`ReflectorObservation::stamp`,
+  /// `stamped`), as a NAV350 reports it; false: unstamped, its time follows from its bearing.
+  bool stampsReflectors = true;
 
   /// `Ok` or the first problem: `InvalidArgument` / `NonFiniteInput` for a value out of its domain,
   /// `CapacityExceeded` when the beam count exceeds kMaxScanBeams.
@@ -64,6 +67,8 @@ class SimLaser final : public hal::LaserSource {
   Status capture(const Pose2d& poseFirstBeam, const Pose2d& poseLastBeam, Timestamp stamp) noexcept;
   /// hal::LaserSource: the captured sweep once (`NotFound` until the next capture).
   Status read(hal::LaserMeasurement& out) noexcept override;
+  /// `Ok`, or `DeviceFault` when the parameters were refused (no sweep can be taken).
+  Status health() const noexcept override { return status_ == Status::Ok ? Status::Ok : Status::DeviceFault; }
 
  private:
   Pose2d poseAt(const Pose2d& a, const Pose2d& b, double f) const noexcept;

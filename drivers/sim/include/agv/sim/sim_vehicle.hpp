@@ -74,6 +74,9 @@ class SimVehicle final : public hal::DriveControl, public hal::EncoderSource {
   bool isStandstill() const noexcept override;
   // hal::EncoderSource
   Status read(hal::EncoderSample& out) noexcept override;
+  /// Always `Ok`: the raw measurements of the simulated vehicle do not fail (faults are injected
+  /// on the CAN bus, `CanEncoderSource`).
+  Status health() const noexcept override { return Status::Ok; }
 
  private:
   void substep(double dt) noexcept;

@@ -79,7 +79,7 @@ class CanopenEncoderSource final : public hal::EncoderSource {
 
   /// Current state without reading: `Ok`, or the fault `read()` would report when it has no sample
   /// (`NotInitialized` until both positions arrived).
-  Status health() const noexcept;
+  Status health() const noexcept override;
 
   /// Oldest unreported EMCY, once (see `CanopenEncoders::takeEmcy`).
   bool takeEmcy(canopen::EmcyRecord& record) noexcept { return decoder_.takeEmcy(record); }

@@ -76,15 +76,14 @@ class ModbusPlcLink final : public hal::PlcLink {
   /// reachable, retried later); NotInitialized (open() not called or failed).
   Status cycle(const plc::PlcStatus& status, Timestamp now, Duration budget) noexcept;
 
-  /// hal::PlcLink: publishes `report` (heartbeat counted here, health bits and calibration from
-  /// setHealthBits()/setCalibration()) with one cycle of `publishBudget` on the monotonic clock.
+  /// hal::PlcLink: publishes `report` (heartbeat counted here; health bits `report.health.bits`
+  /// ORed with the link's own; calibration from setCalibration()) with one cycle of
+  /// `publishBudget` on the monotonic clock.
   /// Ok; Timeout when the PLC cannot be reached (client role; retried later); NotInitialized.
   Status publish(const hal::PoseReport& report) noexcept override;
   /// hal::PlcLink: the newest new command (Localize with its initial pose, Calibrate, Stop);
   /// NotFound when there is none.
   Status readCommand(hal::PlcCommand& out) noexcept override;
-  /// Health bits (PlcHealthBit) published with the next reports.
-  void setHealthBits(std::uint16_t bits) noexcept { healthBits_ = bits; }
   /// Calibration values published with the next reports.
   void setCalibration(const plc::PlcCalibration& calibration) noexcept { calibration_ = calibration; }
 
@@ -126,7 +125,6 @@ class ModbusPlcLink final : public hal::PlcLink {
   bool lastRejected_ = false;
   Timestamp commandStamp_{};
   std::uint16_t publishCount_ = 0;
-  std::uint16_t healthBits_ = 0;
   plc::PlcCalibration calibration_{};
   PlcLinkCounters counters_{};
 };

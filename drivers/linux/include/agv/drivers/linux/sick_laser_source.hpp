@@ -78,7 +78,7 @@ class SickLaserSource final : public hal::LaserSource {
 
   /// `Ok` when a sweep arrived within `scanTimeout`, `NotInitialized` before the first one
   /// (within `scanTimeout` of the first `read()`), `Timeout` otherwise.
-  Status health() const noexcept;
+  Status health() const noexcept override;
 
   bool connected() const noexcept;
   const SickLaserSourceCounters& counters() const noexcept { return counters_; }

@@ -12,12 +12,9 @@
 #include "agv/core/span.hpp"
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
+#include "agv/drivers/linux/monotonic_clock.hpp"
 
 namespace agv::drivers {
-
-/// Reads CLOCK_MONOTONIC, the vehicle clock of the Linux drivers (defined with the SocketCAN
-/// transport, declared in agv/drivers/socketcan_bus.hpp too).
-Timestamp monotonicNow() noexcept;
 
 /// Address and timing of a TCP peer.
 struct TcpStreamConfig {

@@ -44,18 +44,9 @@
 
 namespace agv::drivers::plc {
 
-/// Bits of the health word (register 2); a set bit means the condition holds.
-enum class PlcHealthBit : std::uint16_t {
-  LaserOk = 1U << 0U,     ///< scans arriving in time
-  EncodersOk = 1U << 1U,  ///< encoder samples arriving in time, heartbeats ok
-  MapLoaded = 1U << 2U,
-  CalibrationValid = 1U << 3U,
-  LaserTimeout = 1U << 4U,
-  EncoderTimeout = 1U << 5U,    ///< CANopen heartbeat or PDO timeout
-  DeviceFault = 1U << 6U,       ///< EMCY received, bus-off
-  PlcHeartbeatLost = 1U << 7U,  ///< the PLC's heartbeat register stopped changing
-  CommandRejected = 1U << 8U,   ///< the last PLC write was refused (whitelist or bounds)
-};
+/// Bits of the health word (register 2); a set bit means the condition holds. The status block's health bits: the HAL's
+/// (one definition, agv/hal/plc_messages.hpp).
+using PlcHealthBit = hal::HealthBit;
 
 /// Calibration values published read-only.
 struct PlcCalibration {

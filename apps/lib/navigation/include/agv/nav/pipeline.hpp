@@ -1,0 +1,197 @@
+#pragma once
+/// @file pipeline.hpp
+/// The vehicle's navigation cycle, once, written against the HAL only: every program that
+/// navigates a vehicle (`agvnav-vehicle` on the real drivers, `agvnav-hil` on the simulated ones,
+/// the vcan VM test) constructs this class and calls `cycle()`.
+///
+/// One cycle, in this order:
+///   1. encoders -> `TricycleOdometry` (RK2) -> EKF prediction, and the motion history;
+///   2. PLC commands (Localize from a set-pose, Stop, Calibrate: refused, see below);
+///   3. one laser sweep -> reflectors (each at its own stamp when the device stamps them, else at
+///      its bearing) and FALKO corners (at their beam) moved to the end of the sweep with the
+///      odometry's motion (`SweepCompensation`) -> association with the `LandmarkMap`, EKF
+///      correction, map lifecycle (`Localizer::correct`);
+///   4. when due on the `hal::Clock`, one `hal::PoseReport` with the health bits to the PLC link.
+///
+/// Lifecycle (in the spirit of ros2_control's hardware-interface split: the devices are opened
+/// and closed by their owner; the pipeline only reads and writes them):
+///
+///   Unconfigured --configure()--> Inactive --activate()--> Active --deactivate()--> Inactive
+///         any state --fault(why)--> Fault --configure()--> Inactive
+///
+/// `configure()` checks the parameters and the map; only an Active pipeline touches the devices.
+/// A device whose `read()` reports `InvalidArgument` (it was given a configuration it refuses) can
+/// never deliver: the pipeline enters Fault by itself. In Fault it publishes `NavMode::Lost` with
+/// the reason every `publishPeriod` and reads nothing else.
+///
+/// Being Active is not localizing: the pose is tracked from a set-pose (PLC `Localize`, or
+/// `setPose()`) until a PLC `Stop` or `deactivate()`; meanwhile reports say `NavMode::Idle`.
+///
+/// Everything is allocated by the constructor; `cycle()` does not allocate and never blocks (it
+/// only polls the devices, which never block by the HAL's contract). Not thread-safe.
+
+#include <cstdint>
+#include <memory>
+
+#include "agv/core/pose2.hpp"
+#include "agv/core/result.hpp"
+#include "agv/core/span.hpp"
+#include "agv/core/status.hpp"
+#include "agv/core/timestamp.hpp"
+#include "agv/falko/falko_params.hpp"
+#include "agv/hal/clock.hpp"
+#include "agv/hal/encoder_source.hpp"
+#include "agv/hal/laser_measurement.hpp"
+#include "agv/hal/laser_source.hpp"
+#include "agv/hal/plc_link.hpp"
+#include "agv/kinematics/tricycle.hpp"
+#include "agv/localization/landmark_map.hpp"
+#include "agv/localization/localizer.hpp"
+#include "agv/localization/odometry.hpp"
+
+namespace agv::nav {
+
+/// Which observations a sweep gives and which of them correct the pose.
+struct ObservationParams {
+  /// Reflector centres reported by the laser correct the pose (when the laser reports them).
+  bool reflectors = true;
+  /// FALKO corners correct the pose.
+  bool corners = false;
+  /// Detect FALKO corners even when they do not correct the pose (a mapping run collects them
+  /// from `Pipeline::sweepCorners()`). Implied by `corners`.
+  bool detectCorners = false;
+};
+
+/// Everything the pipeline needs besides the devices and the map. Defaults are those of a vehicle.
+struct PipelineParams {
+  TricycleParams kinematics{};          ///< the calibrated vehicle (wheelbase, s_w, alpha_F/B)
+  TricycleNoiseParams odometryNoise{};  ///< odometry noise model of the EKF prediction
+  LocalizerParams localizer{};          ///< EKF, association, map lifecycle; `laser.mounting` = calibrated l
+  ObservationParams observations{};     ///< what corrects the pose
+  FalkoParams falko{};                  ///< corner detector (thesis defaults)
+  /// One report per period on the `hal::Clock` (a late cycle publishes once and the schedule
+  /// restarts from it: no burst). Zero: every cycle publishes.
+  Duration publishPeriod = Duration::fromMilliseconds(20);
+  /// Encoder samples handled per cycle at most (the rest wait in the device for the next cycle).
+  std::uint32_t maxSamplesPerCycle = 32;
+  /// PLC commands handled per cycle at most.
+  std::uint32_t maxCommandsPerCycle = 8;
+  double setPosePositionStdDev = 0.05;  ///< [m] 1-sigma of a set-pose, per coordinate
+  double setPoseHeadingStdDev = 0.02;   ///< [rad] 1-sigma of a set-pose heading
+  /// Published as `HealthBit::CalibrationValid` (the owner loaded and checked a calibration).
+  bool calibrationValid = true;
+
+  /// `Ok`, or the first problem: `NonFiniteInput` for a NaN / infinite value, `InvalidArgument`
+  /// for a value outside its domain (non-positive wheelbase or scale, negative sigma or period,
+  /// zero per-cycle bounds, empty laser range or field of view, non-positive gate).
+  Status validate() const noexcept;
+};
+
+/// Lifecycle state (see the file comment).
+enum class PipelineState : std::uint8_t { Unconfigured, Inactive, Active, Fault };
+/// Stable lower-case name of a state. Never null.
+const char* toString(PipelineState state) noexcept;
+
+/// Running totals.
+struct PipelineCounters {
+  std::uint64_t cycles = 0;
+  std::uint64_t encoderSamples = 0;   ///< samples read
+  std::uint64_t sweeps = 0;           ///< laser sweeps read
+  std::uint64_t corrections = 0;      ///< sweeps that corrected the pose (localizing)
+  std::uint64_t publications = 0;     ///< reports given to the PLC link
+  std::uint64_t publishFailures = 0;  ///< of those, refused by the link (not queued: the next one follows)
+  std::uint64_t commands = 0;         ///< PLC commands read
+  std::uint64_t refusedCommands = 0;  ///< of which not carried out (Calibrate)
+  std::uint64_t setPoses = 0;         ///< set-poses applied
+};
+
+/// What the last cycle did: enough for a caller to collect figures without touching the devices.
+struct CycleReport {
+  std::uint32_t encoderSamples = 0;             ///< samples read in this cycle
+  Status encoderRead = Status::NotInitialized;  ///< status of the last encoder read
+  Status laserRead = Status::NotInitialized;    ///< status of the laser read
+  bool sweep = false;                           ///< a sweep was read (see `lastMeasurement()`, `sweepCorners()`)
+  bool corrected = false;                       ///< ... and it corrected the pose (`localizer().health()`)
+  Timestamp sweepReference;                     ///< end of that sweep: the stamp of its compensated points
+  std::uint16_t reflectors = 0;                 ///< reflectors the laser reported in that sweep
+  std::uint16_t corners = 0;                    ///< refined FALKO corners detected in that sweep
+  bool published = false;                       ///< a report went to the PLC link
+};
+
+/// Receives one line per noteworthy event (device state changes, refused commands, lifecycle
+/// transitions); rare, never in the steady state. `context` is the pointer given with it.
+using PipelineLogSink = void (*)(void* context, const char* line);
+
+/// The devices the pipeline reads and publishes to; the caller owns them, opens and closes them,
+/// and keeps them alive as long as the pipeline.
+struct PipelineDevices {
+  hal::EncoderSource& encoders;
+  hal::LaserSource& laser;
+  hal::PlcLink& plc;
+  const hal::Clock& clock;
+};
+
+class Pipeline {
+ public:
+  /// Capacity of `sweepCorners()`.
+  static constexpr std::size_t kMaxCorners = kMaxKeypoints;
+
+  /// Builds the odometry, the localizer and the detector (allocates here, once). `map` is kept by
+  /// reference (the dynamic map is updated in place). State: Unconfigured.
+  Pipeline(const PipelineParams& params, LandmarkMap& map, const PipelineDevices& devices);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  /// Unconfigured / Inactive / Fault -> Inactive: checks the parameters (`PipelineParams::validate`)
+  /// and resets the odometry, the localizer, the counters and the schedule. The map is kept.
+  /// The parameters' status when refused (state unchanged); `InvalidArgument` while Active.
+  Status configure() noexcept;
+  /// Inactive -> Active. `NotInitialized` unless Inactive.
+  Status activate() noexcept;
+  /// Active -> Inactive: stops localizing and publishes one Idle report. `NotInitialized` unless Active.
+  Status deactivate() noexcept;
+  /// Any state -> Fault, with `why` published as the last status (a non-Ok value; `Ok` is taken
+  /// as `DeviceFault`). Localizing stops.
+  void fault(Status why) noexcept;
+  PipelineState state() const noexcept;
+  /// The reason of the Fault state (`Ok` otherwise).
+  Status faultReason() const noexcept;
+
+  /// Starts localizing at `pose` (map frame, logical point) with the set-pose sigmas of the
+  /// parameters: exactly as a PLC `Localize`, applied in the next active cycle after its encoder
+  /// samples (the pose holds at the newest one). `NonFiniteInput` for a non-finite pose;
+  /// `NotInitialized` in Unconfigured or Fault.
+  Status setPose(const Pose2d& pose) noexcept;
+
+  /// One cycle (see the file comment). Returns `Ok` when Active, else the state's status
+  /// (`NotInitialized`, or the fault reason in Fault, where only the report is published).
+  Status cycle() noexcept;
+
+  /// True while the pose is tracked (from a set-pose until Stop / deactivate / fault).
+  bool localizing() const noexcept;
+  const Localizer& localizer() const noexcept;
+  const LandmarkMap& map() const noexcept;
+  const PipelineCounters& counters() const noexcept;
+  const CycleReport& lastCycle() const noexcept;
+  /// `hal::HealthBit`s of the last report.
+  std::uint16_t healthBits() const noexcept;
+  /// The last sweep read (valid when a cycle reported `sweep`; kept until the next sweep).
+  const hal::LaserMeasurement& lastMeasurement() const noexcept;
+  /// Refined FALKO corners of the last sweep, in the sensor frame at `lastCycle().sweepReference`
+  /// (empty unless corners are detected, see `ObservationParams`).
+  Span<const Pose2d::Vector2> sweepCorners() const noexcept;
+  /// The localizer's pose carried to `t` with the odometry's motion between its stamp and `t`
+  /// (within the motion history's reach, 0.5 s). `NotEnoughData` without a history, `Lost` when not
+  /// localizing.
+  Result<Pose2d> poseAt(Timestamp t) const noexcept;
+
+  /// Where the log lines go (none by default).
+  void setLogSink(PipelineLogSink sink, void* context) noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace agv::nav

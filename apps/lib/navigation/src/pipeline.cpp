@@ -1,0 +1,557 @@
+#include "agv/nav/pipeline.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+#include "agv/core/fixed_vector.hpp"
+#include "agv/falko/falko_detector.hpp"
+#include "agv/localization/sweep_motion.hpp"
+
+namespace agv::nav {
+namespace {
+
+bool finite(double v) noexcept {
+  return std::isfinite(v);
+}
+
+Status validateKinematics(const TricycleParams& k) noexcept {
+  if (!finite(k.wheelbase) || !finite(k.driveScale) || !finite(k.steerOffsetForward) ||
+      !finite(k.steerOffsetBackward)) {
+    return Status::NonFiniteInput;
+  }
+  return k.wheelbase > 0.0 && k.driveScale > 0.0 ? Status::Ok : Status::InvalidArgument;
+}
+
+Status validateLaser(const LaserModel& l) noexcept {
+  const double v[] = {l.mounting.x, l.mounting.y, l.mounting.theta, l.rangeMin,    l.rangeMax,
+                      l.angleMin,   l.angleMax,   l.rangeSigma,     l.bearingSigma};
+  for (double x : v) {
+    if (!finite(x)) {
+      return Status::NonFiniteInput;
+    }
+  }
+  if (l.rangeMin < 0.0 || l.rangeMax <= l.rangeMin || l.angleMax <= l.angleMin || l.rangeSigma < 0.0 ||
+      l.bearingSigma < 0.0) {
+    return Status::InvalidArgument;
+  }
+  return Status::Ok;
+}
+
+}  // namespace
+
+Status PipelineParams::validate() const noexcept {
+  Status s = validateKinematics(kinematics);
+  if (s != Status::Ok) {
+    return s;
+  }
+  s = validateLaser(localizer.laser);
+  if (s != Status::Ok) {
+    return s;
+  }
+  if (!finite(localizer.gate) || !finite(setPosePositionStdDev) || !finite(setPoseHeadingStdDev)) {
+    return Status::NonFiniteInput;
+  }
+  if (localizer.gate <= 0.0 || setPosePositionStdDev < 0.0 || setPoseHeadingStdDev < 0.0 || publishPeriod.ns < 0 ||
+      maxSamplesPerCycle == 0 || maxCommandsPerCycle == 0) {
+    return Status::InvalidArgument;
+  }
+  return Status::Ok;
+}
+
+const char* toString(PipelineState state) noexcept {
+  switch (state) {
+    case PipelineState::Unconfigured:
+      return "unconfigured";
+    case PipelineState::Inactive:
+      return "inactive";
+    case PipelineState::Active:
+      return "active";
+    case PipelineState::Fault:
+      return "fault";
+  }
+  return "?";
+}
+
+struct Pipeline::Impl {
+  Impl(const PipelineParams& p, LandmarkMap& m, const PipelineDevices& d)
+      : params(p),
+        map(m),
+        encoders(d.encoders),
+        laser(d.laser),
+        plc(d.plc),
+        clock(d.clock),
+        odometry(p.kinematics, p.odometryNoise),
+        localizer(std::make_unique<Localizer>(p.localizer)),
+        detector(std::make_unique<FalkoDetector>(p.falko)),
+        keypoints(std::make_unique<FalkoKeypoints>()),
+        observations(std::make_unique<ScanObservations>()),
+        measurement(std::make_unique<hal::LaserMeasurement>()),
+        corners(std::make_unique<FixedVector<Pose2d::Vector2, kMaxCorners>>()) {}
+
+  // Stages of one cycle, in order.
+  void readEncoders() noexcept;
+  void readCommands() noexcept;
+  void applySetPose() noexcept;
+  void readSweep() noexcept;
+  void observe(const SweepCompensation& sweep) noexcept;
+  void watchDevices() noexcept;
+  void publishIfDue() noexcept;
+
+  void publish(Timestamp now) noexcept;
+  std::uint16_t healthBits() const noexcept;
+  Status lastStatus() const noexcept;
+  hal::NavMode mode() const noexcept;
+  void log(const char* line) const noexcept {
+    if (logSink != nullptr) {
+      logSink(logContext, line);
+    }
+  }
+  void resetTracking() noexcept;
+  void logRefused(hal::PlcCommandKind kind) const noexcept {
+    char line[160];
+    (void)std::snprintf(line, sizeof line,
+                        "PLC command %u (%s) refused: the navigation cycle does not drive the vehicle; health bit 8 "
+                        "stays set until the next command",
+                        static_cast<unsigned>(kind), kind == hal::PlcCommandKind::Calibrate ? "calibrate" : "none");
+    log(line);
+  }
+
+  PipelineParams params;
+  LandmarkMap& map;
+  hal::EncoderSource& encoders;
+  hal::LaserSource& laser;
+  hal::PlcLink& plc;
+  const hal::Clock& clock;
+
+  TricycleOdometry odometry;
+  /// Dead reckoning of the odometry increments, for the motion within a sweep (its origin is
+  /// arbitrary: only the motion between two instants is used).
+  Pose2d deadReckoning{};
+  std::unique_ptr<MotionHistory> motion = std::make_unique<MotionHistory>();
+  std::unique_ptr<Localizer> localizer;
+  std::unique_ptr<FalkoDetector> detector;
+  std::unique_ptr<FalkoKeypoints> keypoints;
+  std::unique_ptr<ScanObservations> observations;
+  std::unique_ptr<hal::LaserMeasurement> measurement;
+  std::unique_ptr<FixedVector<Pose2d::Vector2, kMaxCorners>> corners;
+
+  PipelineState state = PipelineState::Unconfigured;
+  Status faultReason = Status::Ok;
+  bool localizing = false;
+  /// The last PLC command was one this pipeline does not carry out (Calibrate): published as
+  /// `HealthBit::CommandRejected` until the next command it carries out.
+  bool commandRefused = false;
+  bool haveSample = false;
+  hal::EncoderSample lastSample{};
+  bool pendingSetPose = false;
+  Pose2d pendingPose{};
+  Status encoderHealth = Status::NotInitialized;
+  Status laserHealth = Status::NotInitialized;
+  Status loggedEncoder = Status::NotInitialized;
+  Status loggedLaser = Status::NotInitialized;
+  std::uint16_t visibleReflectors = 0;
+  bool havePublished = false;
+  Timestamp nextPublish{};
+  std::uint16_t bits = 0;
+  PipelineCounters counters{};
+  CycleReport report{};
+  PipelineLogSink logSink = nullptr;
+  void* logContext = nullptr;
+};
+
+// --- 1. Encoders -> odometry -> prediction ---------------------------------------------------
+void Pipeline::Impl::readEncoders() noexcept {
+  for (std::uint32_t i = 0; i < params.maxSamplesPerCycle; ++i) {
+    hal::EncoderSample s;
+    report.encoderRead = encoders.read(s);
+    if (report.encoderRead != Status::Ok) {
+      break;
+    }
+    ++report.encoderSamples;
+    ++counters.encoderSamples;
+    const Result<OdometryIncrement> inc = odometry.step(TricycleSample{s.stamp, s.driveTicks, s.steeringAngle});
+    if (inc.ok()) {
+      deadReckoning = deadReckoning * inc.value().delta;
+      if (localizing) {
+        (void)localizer->predict(inc.value());
+      }
+    }
+    (void)motion->add(s.stamp, deadReckoning);  // a refused stamp leaves the history as it was
+    haveSample = true;
+    lastSample = s;
+  }
+}
+
+// --- 2. PLC commands ----------------------------------------------------------------------
+void Pipeline::Impl::readCommands() noexcept {
+  hal::PlcCommand cmd;
+  for (std::uint32_t i = 0; i < params.maxCommandsPerCycle && plc.readCommand(cmd) == Status::Ok; ++i) {
+    ++counters.commands;
+    switch (cmd.kind) {
+      case hal::PlcCommandKind::Localize:
+        pendingSetPose = true;
+        pendingPose = cmd.initialPose;
+        commandRefused = false;
+        break;
+      case hal::PlcCommandKind::Stop:
+        pendingSetPose = false;
+        localizing = false;  // idle until the next Localize
+        commandRefused = false;
+        break;
+      case hal::PlcCommandKind::Calibrate:
+      case hal::PlcCommandKind::None:
+        // The calibration routine drives the vehicle, which the navigation cycle does not do:
+        // refused visibly (health bit), localization goes on unchanged.
+        ++counters.refusedCommands;
+        commandRefused = true;
+        logRefused(cmd.kind);
+        break;
+    }
+  }
+}
+
+void Pipeline::Impl::applySetPose() noexcept {
+  if (!pendingSetPose) {
+    return;
+  }
+  pendingSetPose = false;
+  const Timestamp t = haveSample ? lastSample.stamp : clock.now();
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  cov(0, 0) = cov(1, 1) = params.setPosePositionStdDev * params.setPosePositionStdDev;
+  cov(2, 2) = params.setPoseHeadingStdDev * params.setPoseHeadingStdDev;
+  if (localizer->reset(t, pendingPose, cov) != Status::Ok) {
+    log("set-pose refused by the localizer (non-finite pose or covariance)");
+    return;
+  }
+  localizing = true;
+  ++counters.setPoses;
+  // The odometry restarts at the newest sample: the set-pose holds at its instant.
+  odometry.reset();
+  if (haveSample) {
+    (void)odometry.step(TricycleSample{lastSample.stamp, lastSample.driveTicks, lastSample.steeringAngle});
+  }
+}
+
+// --- 3. Laser -> observations -> correction -------------------------------------------------
+void Pipeline::Impl::readSweep() noexcept {
+  hal::LaserMeasurement& meas = *measurement;
+  report.laserRead = laser.read(meas);
+  if (report.laserRead != Status::Ok) {
+    return;
+  }
+  ++counters.sweeps;
+  report.sweep = true;
+  // Every point is moved to the sensor frame at the end of the sweep with the motion the odometry
+  // saw during the sweep: per beam for the corners; for the reflectors at the instant the device
+  // stamped, else at their bearing.
+  const SweepCompensation sweep(*motion, meas.scan, params.localizer.laser.mounting);
+  report.sweepReference = sweep.referenceStamp();
+  observe(sweep);
+  if (localizing) {
+    // The sweep's ranges let the localizer tell hidden landmarks from missed ones.
+    (void)localizer->correct(*observations, meas.scan, map);
+    ++counters.corrections;
+    report.corrected = true;
+  }
+}
+
+void Pipeline::Impl::observe(const SweepCompensation& sweep) noexcept {
+  const hal::LaserMeasurement& meas = *measurement;
+  ScanObservations& obs = *observations;
+  obs.points.clear();
+  obs.stamp = sweep.referenceStamp();
+  obs.kindsDetected = 0;
+  visibleReflectors = meas.hasReflectors ? static_cast<std::uint16_t>(meas.reflectors.size()) : 0U;
+  report.reflectors = visibleReflectors;
+  if (params.observations.reflectors && meas.hasReflectors) {
+    obs.kindsDetected |= landmarkKindBit(LandmarkKind::Reflector);
+    for (std::size_t i = 0; i < meas.reflectors.size(); ++i) {
+      const hal::ReflectorObservation& r = meas.reflectors[i];
+      const auto x = static_cast<double>(r.x);
+      const auto y = static_cast<double>(r.y);
+      const Pose2d::Vector2 p = r.stamped ? sweep.atStamp(r.stamp, x, y) : sweep.atBearing(x, y);
+      (void)obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Reflector});  // full: counted
+    }
+  }
+  corners->clear();
+  const ObservationParams& o = params.observations;
+  if (!(o.corners || o.detectCorners)) {
+    return;
+  }
+  keypoints->clear();
+  if (detector->detect(meas.scan, *keypoints) != Status::Ok) {
+    return;
+  }
+  for (std::size_t i = 0; i < keypoints->size(); ++i) {
+    const FalkoKeypoint& k = (*keypoints)[i];
+    if (k.refined) {  // the apex of an unrefined keypoint is only the nearest beam point
+      (void)corners->push_back(sweep.atBeam(k.beamIndex, static_cast<double>(k.x), static_cast<double>(k.y)));
+    }
+  }
+  report.corners = static_cast<std::uint16_t>(corners->size());
+  if (o.corners) {
+    obs.kindsDetected |= landmarkKindBit(LandmarkKind::Corner);
+    for (const Pose2d::Vector2& p : *corners) {
+      (void)obs.points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Corner});
+    }
+  }
+}
+
+// --- Device state -----------------------------------------------------------------------
+void Pipeline::Impl::watchDevices() noexcept {
+  encoderHealth = encoders.health();
+  laserHealth = laser.health();
+  char line[96];
+  if (encoderHealth != loggedEncoder) {
+    (void)std::snprintf(line, sizeof line, "encoders: %s", toString(encoderHealth));
+    log(line);
+    loggedEncoder = encoderHealth;
+  }
+  if (laserHealth != loggedLaser) {
+    (void)std::snprintf(line, sizeof line, "laser: %s", toString(laserHealth));
+    log(line);
+    loggedLaser = laserHealth;
+  }
+}
+
+// --- 4. Publication -------------------------------------------------------------------------
+std::uint16_t Pipeline::Impl::healthBits() const noexcept {
+  using hal::HealthBit;
+  std::uint16_t b = 0;
+  b = hal::withBit(b, HealthBit::LaserOk, laserHealth == Status::Ok);
+  b = hal::withBit(b, HealthBit::LaserTimeout, laserHealth == Status::Timeout);
+  b = hal::withBit(b, HealthBit::EncodersOk, encoderHealth == Status::Ok);
+  b = hal::withBit(b, HealthBit::EncoderTimeout, encoderHealth == Status::Timeout);
+  b = hal::withBit(b, HealthBit::DeviceFault,
+                   encoderHealth == Status::DeviceFault || laserHealth == Status::DeviceFault ||
+                       report.laserRead == Status::DeviceFault || state == PipelineState::Fault);
+  b = hal::withBit(b, HealthBit::MapLoaded, map.size() > 0U);
+  b = hal::withBit(b, HealthBit::CalibrationValid, params.calibrationValid);
+  b = hal::withBit(b, HealthBit::CommandRejected, commandRefused);
+  return b;
+}
+
+Status Pipeline::Impl::lastStatus() const noexcept {
+  if (state == PipelineState::Fault) {
+    return faultReason;
+  }
+  if (encoderHealth != Status::Ok && encoderHealth != Status::NotInitialized) {
+    return encoderHealth;
+  }
+  if (laserHealth != Status::Ok && laserHealth != Status::NotInitialized) {
+    return laserHealth;
+  }
+  if (localizing && localizer->health().status != Status::Ok) {
+    return localizer->health().status;
+  }
+  return commandRefused ? Status::Unsupported : Status::Ok;
+}
+
+hal::NavMode Pipeline::Impl::mode() const noexcept {
+  if (state == PipelineState::Fault) {
+    return hal::NavMode::Lost;
+  }
+  if (!localizing) {
+    return hal::NavMode::Idle;
+  }
+  // Without encoder samples the pose cannot follow the vehicle: published as lost (the PLC must
+  // stop) until the encoders are back.
+  const bool encodersFailed = encoderHealth == Status::Timeout || encoderHealth == Status::DeviceFault;
+  return localizer->lost() || encodersFailed ? hal::NavMode::Lost : hal::NavMode::Localizing;
+}
+
+void Pipeline::Impl::publish(Timestamp now) noexcept {
+  bits = healthBits();
+  hal::PoseReport r;
+  r.stamp = localizing ? localizer->stamp() : now;
+  r.pose = localizer->pose();
+  r.covariance = localizer->covariance();
+  r.health.mode = mode();
+  r.health.bits = bits;
+  r.health.lastStatus = lastStatus();
+  r.health.matchedLandmarks = localizer->health().used;
+  r.health.visibleReflectors = visibleReflectors;
+  if (plc.publish(r) != Status::Ok) {
+    ++counters.publishFailures;
+  }
+  ++counters.publications;
+  report.published = true;
+}
+
+void Pipeline::Impl::publishIfDue() noexcept {
+  const Timestamp now = clock.now();
+  if (havePublished && now < nextPublish) {
+    return;
+  }
+  const Duration period = params.publishPeriod;
+  nextPublish = havePublished ? nextPublish + period : now + period;
+  if (now - nextPublish > period) {
+    nextPublish = now + period;  // late: no burst
+  }
+  havePublished = true;
+  publish(now);
+}
+
+void Pipeline::Impl::resetTracking() noexcept {
+  localizing = false;
+  pendingSetPose = false;
+  commandRefused = false;
+  haveSample = false;
+  odometry.reset();
+  motion->clear();
+  deadReckoning = Pose2d{};
+  corners->clear();
+  visibleReflectors = 0;
+  havePublished = false;
+  counters = PipelineCounters{};
+  report = CycleReport{};
+}
+
+// --- Public interface -------------------------------------------------------------------------
+Pipeline::Pipeline(const PipelineParams& params, LandmarkMap& map, const PipelineDevices& devices)
+    : impl_(std::make_unique<Impl>(params, map, devices)) {}
+
+Pipeline::~Pipeline() = default;
+
+Status Pipeline::configure() noexcept {
+  Impl& m = *impl_;
+  if (m.state == PipelineState::Active) {
+    return Status::InvalidArgument;
+  }
+  const Status s = m.params.validate();
+  if (s != Status::Ok) {
+    return s;
+  }
+  m.resetTracking();
+  m.faultReason = Status::Ok;
+  m.state = PipelineState::Inactive;
+  return Status::Ok;
+}
+
+Status Pipeline::activate() noexcept {
+  Impl& m = *impl_;
+  if (m.state != PipelineState::Inactive) {
+    return Status::NotInitialized;
+  }
+  m.state = PipelineState::Active;
+  return Status::Ok;
+}
+
+Status Pipeline::deactivate() noexcept {
+  Impl& m = *impl_;
+  if (m.state != PipelineState::Active) {
+    return Status::NotInitialized;
+  }
+  m.localizing = false;
+  m.pendingSetPose = false;
+  m.state = PipelineState::Inactive;
+  m.publish(m.clock.now());
+  return Status::Ok;
+}
+
+void Pipeline::fault(Status why) noexcept {
+  Impl& m = *impl_;
+  m.faultReason = why == Status::Ok ? Status::DeviceFault : why;
+  m.state = PipelineState::Fault;
+  m.localizing = false;
+  m.pendingSetPose = false;
+  char line[96];
+  (void)std::snprintf(line, sizeof line, "fault: %s; publishing lost until reconfigured", toString(m.faultReason));
+  m.log(line);
+}
+
+PipelineState Pipeline::state() const noexcept {
+  return impl_->state;
+}
+
+Status Pipeline::faultReason() const noexcept {
+  return impl_->faultReason;
+}
+
+Status Pipeline::setPose(const Pose2d& pose) noexcept {
+  Impl& m = *impl_;
+  if (m.state != PipelineState::Active && m.state != PipelineState::Inactive) {
+    return Status::NotInitialized;
+  }
+  if (!pose.isFinite()) {
+    return Status::NonFiniteInput;
+  }
+  m.pendingSetPose = true;
+  m.pendingPose = pose;
+  return Status::Ok;
+}
+
+Status Pipeline::cycle() noexcept {
+  Impl& m = *impl_;
+  m.report = CycleReport{};
+  if (m.state == PipelineState::Fault) {
+    m.publishIfDue();
+    return m.faultReason;
+  }
+  if (m.state != PipelineState::Active) {
+    return Status::NotInitialized;
+  }
+  ++m.counters.cycles;
+  m.readEncoders();
+  m.readCommands();
+  m.applySetPose();
+  m.readSweep();
+  m.watchDevices();
+  if (m.report.encoderRead == Status::InvalidArgument || m.report.laserRead == Status::InvalidArgument) {
+    fault(Status::InvalidArgument);  // a device refusing its configuration never delivers
+  }
+  m.publishIfDue();
+  return m.state == PipelineState::Active ? Status::Ok : m.faultReason;
+}
+
+bool Pipeline::localizing() const noexcept {
+  return impl_->localizing;
+}
+
+const Localizer& Pipeline::localizer() const noexcept {
+  return *impl_->localizer;
+}
+
+const LandmarkMap& Pipeline::map() const noexcept {
+  return impl_->map;
+}
+
+const PipelineCounters& Pipeline::counters() const noexcept {
+  return impl_->counters;
+}
+
+const CycleReport& Pipeline::lastCycle() const noexcept {
+  return impl_->report;
+}
+
+std::uint16_t Pipeline::healthBits() const noexcept {
+  return impl_->bits;
+}
+
+const hal::LaserMeasurement& Pipeline::lastMeasurement() const noexcept {
+  return *impl_->measurement;
+}
+
+Span<const Pose2d::Vector2> Pipeline::sweepCorners() const noexcept {
+  return Span<const Pose2d::Vector2>(impl_->corners->data(), impl_->corners->size());
+}
+
+Result<Pose2d> Pipeline::poseAt(Timestamp t) const noexcept {
+  const Impl& m = *impl_;
+  if (!m.localizing) {
+    return Status::Lost;
+  }
+  const Result<Pose2d> from = m.motion->at(m.localizer->stamp());
+  const Result<Pose2d> to = m.motion->at(t);
+  if (!from.ok() || !to.ok()) {
+    return Status::NotEnoughData;
+  }
+  return m.localizer->pose() * between(from.value(), to.value());
+}
+
+void Pipeline::setLogSink(PipelineLogSink sink, void* context) noexcept {
+  impl_->logSink = sink;
+  impl_->logContext = context;
+}
+
+}  // namespace agv::nav

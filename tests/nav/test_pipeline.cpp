@@ -1,0 +1,390 @@
+// The navigation pipeline (apps/lib/navigation) driven through fake HAL devices: encoders of a
+// tricycle rolling a known arc, a navigation laser that stamps each reflector (NAV350-like: seen
+// 20-120 ms before the reply), a PLC link that records every report and hands out commands, and a
+// clock the test sets. The truth is the exact arc (`tricycleArc`) at each instant.
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <deque>
+
+#include "agv/core/angle.hpp"
+#include "agv/hal/plc_messages.hpp"
+#include "agv/kinematics/tricycle.hpp"
+#include "agv/nav/pipeline.hpp"
+#include "agv_test.hpp"
+
+using agv::Duration;
+using agv::Pose2d;
+using agv::Status;
+using agv::Timestamp;
+using agv::hal::HealthBit;
+using agv::hal::NavMode;
+using agv::nav::Pipeline;
+using agv::nav::PipelineParams;
+using agv::nav::PipelineState;
+
+namespace {
+
+constexpr double kWheelbase = 1.5;
+constexpr double kScale = 1e-4;         // [m/tick], the truth
+constexpr double kSteerOffset = 0.01;   // [rad], alpha_F = alpha_B, the truth
+constexpr double kSpeed = 1.0;          // [m/s] while rolling
+constexpr double kTrueSteering = 0.15;  // [rad] true steering angle while rolling
+const Timestamp kStart = Timestamp::fromSeconds(10.0);
+const Timestamp kRollFrom = Timestamp::fromSeconds(10.5);
+const Pose2d kStartPose{2.0, 1.0, 0.3};
+const Pose2d kMount{1.2, 0.1, 0.02};  // laser in the logical-point frame
+const Duration kSamplePeriod = Duration::fromMilliseconds(10);
+const Duration kReplyPeriod = Duration::fromMilliseconds(125);
+
+/// The vehicle's truth: standing until kRollFrom, then an arc at kSpeed and kTrueSteering.
+double travelAt(Timestamp t) {
+  return t > kRollFrom ? kSpeed * (t - kRollFrom).seconds() : 0.0;
+}
+Pose2d truthAt(Timestamp t) {
+  return kStartPose * agv::tricycleArc(travelAt(t), kTrueSteering, kWheelbase);
+}
+
+/// Reflectors around the arc (world frame).
+const std::array<Pose2d, 6> kReflectors = {Pose2d{6.0, 0.0, 0.0},  Pose2d{7.0, 5.0, 0.0},  Pose2d{0.0, 6.0, 0.0},
+                                           Pose2d{-3.0, 1.0, 0.0}, Pose2d{3.0, -4.0, 0.0}, Pose2d{9.0, 9.0, 0.0}};
+
+class FakeClock final : public agv::hal::Clock {
+ public:
+  Timestamp now() const noexcept override { return now_; }
+  void set(Timestamp t) { now_ = t; }
+
+ private:
+  Timestamp now_ = kStart;
+};
+
+/// Encoder samples every 10 ms up to the clock's time: ticks of the true travel, the steering as
+/// the encoder measures it (true angle minus the offset). `health` is what the device reports.
+class FakeEncoders final : public agv::hal::EncoderSource {
+ public:
+  explicit FakeEncoders(const FakeClock& clock) : clock_(clock) {}
+  Status read(agv::hal::EncoderSample& out) noexcept override {
+    if (forcedRead != Status::Ok) {
+      return forcedRead;
+    }
+    if (silent || next_ > clock_.now()) {
+      return Status::NotFound;
+    }
+    out.stamp = next_;
+    out.driveTicks = std::llround(travelAt(next_) / kScale);
+    out.steeringAngle = next_ > kRollFrom ? kTrueSteering - kSteerOffset : -kSteerOffset;
+    next_ = next_ + kSamplePeriod;
+    return Status::Ok;
+  }
+  Status health() const noexcept override { return healthStatus; }
+  bool silent = false;
+  Status forcedRead = Status::Ok;
+  Status healthStatus = Status::Ok;
+
+ private:
+  const FakeClock& clock_;
+  Timestamp next_ = kStart;
+};
+
+/// A NAV350-like reply every 125 ms: no beams, the reflectors in the sensor frame each at its own
+/// instant (20 + 20 k ms before the reply), stamped.
+class FakeLaser final : public agv::hal::LaserSource {
+ public:
+  explicit FakeLaser(const FakeClock& clock) : clock_(clock) {}
+  Status read(agv::hal::LaserMeasurement& out) noexcept override {
+    if (next_ > clock_.now()) {
+      return Status::NotFound;
+    }
+    const Timestamp reply = next_;
+    next_ = next_ + kReplyPeriod;
+    out.scan.stamp = reply;
+    out.scan.sweepDuration = Duration{};
+    out.scan.angleMin = -3.14159265F;
+    out.scan.angleIncrement = 0.01F;
+    out.scan.rangeMin = 0.5F;
+    out.scan.rangeMax = 250.0F;
+    out.scan.ranges.clear();
+    out.reflectors.clear();
+    out.hasReflectors = true;
+    for (std::size_t k = 0; k < kReflectors.size(); ++k) {
+      const Timestamp seen = reply - Duration::fromMilliseconds(20 + 20 * static_cast<std::int64_t>(k));
+      const Pose2d laser = truthAt(seen) * kMount;
+      const Pose2d::Vector2 p = laser.inverseTransformPoint(kReflectors[k].translation());
+      agv::hal::ReflectorObservation o;
+      o.x = static_cast<float>(p.x());
+      o.y = static_cast<float>(p.y());
+      o.positionStdDev = 0.005F;
+      o.stamp = seen;
+      o.stamped = stamped;
+      (void)out.reflectors.push_back(o);
+    }
+    return Status::Ok;
+  }
+  Status health() const noexcept override { return Status::Ok; }
+  bool stamped = true;
+
+ private:
+  const FakeClock& clock_;
+  Timestamp next_ = kStart + kReplyPeriod;
+};
+
+/// Records every report (fixed storage) and hands out queued commands.
+class FakePlc final : public agv::hal::PlcLink {
+ public:
+  Status publish(const agv::hal::PoseReport& report) noexcept override {
+    last = report;
+    ++count;
+    return Status::Ok;
+  }
+  Status readCommand(agv::hal::PlcCommand& out) noexcept override {
+    if (pending.empty()) {
+      return Status::NotFound;
+    }
+    out = pending.front();
+    pending.pop_front();
+    return Status::Ok;
+  }
+  void send(agv::hal::PlcCommandKind kind, const Pose2d& pose = Pose2d{}) {
+    agv::hal::PlcCommand c;
+    c.kind = kind;
+    c.initialPose = pose;
+    pending.push_back(c);
+  }
+  agv::hal::PoseReport last{};
+  std::uint64_t count = 0;
+  std::deque<agv::hal::PlcCommand> pending;
+};
+
+/// The pipeline's parameters: the calibrated vehicle, here with the drive scale 1 % too large (so
+/// that dead reckoning alone drifts 1 cm per metre) and the true steering offset and mounting.
+PipelineParams rigParams() {
+  PipelineParams p;
+  p.kinematics = agv::TricycleParams{kWheelbase, kScale * 1.01, kSteerOffset, kSteerOffset};
+  p.localizer.laser.mounting = kMount;
+  p.localizer.laser.rangeMin = 0.5;
+  p.localizer.laser.rangeMax = 30.0;
+  p.localizer.laser.angleMin = -3.14159265;
+  p.localizer.laser.angleMax = 3.14159265;
+  p.observations.reflectors = true;
+  p.publishPeriod = Duration::fromMilliseconds(20);
+  p.setPosePositionStdDev = 0.01;
+  p.setPoseHeadingStdDev = 0.005;
+  return p;
+}
+
+struct Rig {
+  FakeClock clock;
+  FakeEncoders encoders{clock};
+  FakeLaser laser{clock};
+  FakePlc plc;
+  agv::LandmarkMap map;
+  Pipeline pipeline;
+
+  explicit Rig(const PipelineParams& p = rigParams())
+      : pipeline(p, map, agv::nav::PipelineDevices{encoders, laser, plc, clock}) {
+    std::uint32_t id = 1;
+    for (const Pose2d& r : kReflectors) {
+      REQUIRE(map.addSurveyed(agv::LandmarkKind::Reflector, r.x, r.y, 0.001, id++).ok());
+    }
+    map.setMode(agv::MapMode::Static);
+  }
+  /// Cycles every 5 ms until `until`.
+  void runUntil(Timestamp until) {
+    for (int i = 0; i < 100000 && clock.now() < until; ++i) {
+      clock.set(clock.now() + Duration::fromMilliseconds(5));
+      (void)pipeline.cycle();
+    }
+  }
+};
+
+double positionError(const Pose2d& a, const Pose2d& b) {
+  return std::hypot(a.x - b.x, a.y - b.y);
+}
+
+}  // namespace
+
+TEST_CASE("pipeline: lifecycle transitions and refused parameters", "[nav]") {
+  Rig rig;
+  Pipeline& p = rig.pipeline;
+  CHECK(p.state() == PipelineState::Unconfigured);
+  CHECK(p.cycle() == Status::NotInitialized);  // touches nothing before it is configured
+  CHECK(p.activate() == Status::NotInitialized);
+  CHECK(rig.plc.count == 0U);
+  REQUIRE(p.configure() == Status::Ok);
+  CHECK(p.state() == PipelineState::Inactive);
+  CHECK(p.cycle() == Status::NotInitialized);
+  CHECK(p.deactivate() == Status::NotInitialized);
+  REQUIRE(p.activate() == Status::Ok);
+  CHECK(p.state() == PipelineState::Active);
+  CHECK(p.configure() == Status::InvalidArgument);  // not while active
+  CHECK(p.activate() == Status::NotInitialized);
+  CHECK(p.setPose(Pose2d{NAN, 0.0, 0.0}) == Status::NonFiniteInput);
+  CHECK(p.cycle() == Status::Ok);
+  CHECK(rig.plc.count == 1U);
+  CHECK(rig.plc.last.health.mode == NavMode::Idle);  // active is not localizing
+  REQUIRE(p.deactivate() == Status::Ok);
+  CHECK(p.state() == PipelineState::Inactive);
+  CHECK(rig.plc.count == 2U);  // one last idle report
+
+  // Refused parameters leave the state as it was.
+  const auto refused = [](PipelineParams params) {
+    Rig r(params);
+    return r.pipeline.configure();
+  };
+  PipelineParams bad = rigParams();
+  bad.kinematics.wheelbase = 0.0;
+  CHECK(refused(bad) == Status::InvalidArgument);
+  bad = rigParams();
+  bad.kinematics.driveScale = NAN;
+  CHECK(refused(bad) == Status::NonFiniteInput);
+  bad = rigParams();
+  bad.localizer.laser.rangeMin = 40.0;  // above rangeMax
+  CHECK(refused(bad) == Status::InvalidArgument);
+  bad = rigParams();
+  bad.localizer.gate = 0.0;
+  CHECK(refused(bad) == Status::InvalidArgument);
+  bad = rigParams();
+  bad.maxSamplesPerCycle = 0;
+  CHECK(refused(bad) == Status::InvalidArgument);
+  bad = rigParams();
+  bad.publishPeriod = Duration::fromMilliseconds(-1);
+  CHECK(refused(bad) == Status::InvalidArgument);
+  CHECK(refused(rigParams()) == Status::Ok);
+}
+
+TEST_CASE("pipeline: stamped reflectors correct a drifting odometry; published pose on the truth; no allocation",
+          "[nav]") {
+  Rig rig;
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  // Standing: idle, devices ok, map loaded.
+  rig.runUntil(kStart + Duration::fromMilliseconds(200));
+  CHECK(rig.plc.last.health.mode == NavMode::Idle);
+  const std::uint16_t idleBits = rig.plc.last.health.bits;
+  CHECK(agv::hal::hasBit(idleBits, HealthBit::EncodersOk));
+  CHECK(agv::hal::hasBit(idleBits, HealthBit::LaserOk));
+  CHECK(agv::hal::hasBit(idleBits, HealthBit::MapLoaded));
+  CHECK(agv::hal::hasBit(idleBits, HealthBit::CalibrationValid));
+  CHECK_FALSE(agv::hal::hasBit(idleBits, HealthBit::DeviceFault));
+  CHECK(rig.plc.last.health.visibleReflectors == kReflectors.size());
+
+  // The PLC sets the pose 4 cm / 0.5 deg off the truth; the reflectors pull it in while standing.
+  rig.plc.send(agv::hal::PlcCommandKind::Localize, Pose2d{kStartPose.x + 0.03, kStartPose.y - 0.027, 0.3 + 0.0087});
+  rig.runUntil(kRollFrom);
+  REQUIRE(rig.pipeline.localizing());
+  CHECK(rig.plc.last.health.mode == NavMode::Localizing);
+  CHECK(positionError(rig.plc.last.pose, kStartPose) < 0.002);
+
+  // Rolling 3 m on the arc. Dead reckoning with the pipeline's 1 % scale error drifts 3 cm; the
+  // stamped reflectors (seen up to 12 cm of travel before their reply) hold the pose to the
+  // truth. Bound: 1.25 mm of drift per reply period and a filter lag of a few replies.
+  const std::uint64_t reportsBefore = rig.plc.count;
+  double worst = 0.0;
+  std::uint64_t checked = 0;
+  std::uint64_t allocations = 0;
+  for (int i = 0; i < 600; ++i) {  // 3 s in 5 ms cycles
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    const std::uint64_t before = rig.plc.count;
+    allocations += agv::test::countAllocations([&]() { (void)rig.pipeline.cycle(); });
+    if (rig.plc.count > before && i > 100) {
+      worst = std::max(worst, positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)));
+      CHECK(std::fabs(agv::angleDiff(rig.plc.last.pose.theta, truthAt(rig.plc.last.stamp).theta)) < 0.001);
+      CHECK(rig.plc.last.health.matchedLandmarks >= 4U);
+      ++checked;
+    }
+  }
+  INFO("worst position error " << worst << " m over " << checked << " reports");
+  CHECK(worst < 0.005);
+  CHECK(checked > 100U);
+  CHECK(allocations == 0U);
+  // One report per 20 ms of clock: 3 s -> 150.
+  CHECK(rig.plc.count - reportsBefore == 150U);
+  CHECK(rig.plc.last.health.mode == NavMode::Localizing);
+  const Pose2d dr = kStartPose * agv::tricycleArc(travelAt(rig.plc.last.stamp) * 1.01, kTrueSteering, kWheelbase);
+  CHECK(positionError(dr, truthAt(rig.plc.last.stamp)) > 0.025);  // what the corrections removed
+  const agv::nav::PipelineCounters& c = rig.pipeline.counters();
+  CHECK(c.corrections > 20U);
+  CHECK(c.setPoses == 1U);
+}
+
+TEST_CASE("pipeline: reflectors taken at the reply instead of their stamps are not matched while rolling", "[nav]") {
+  // The same rig with the stamps withheld: the bearing of a reply of zero sweep duration places
+  // every reflector at the reply's instant, up to 12 cm of travel off, outside the gate.
+  Rig rig;
+  rig.laser.stamped = false;
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.setPose(kStartPose) == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  rig.runUntil(kRollFrom + Duration::fromSeconds(2.0));
+  CHECK(rig.plc.last.health.matchedLandmarks < 4U);
+}
+
+TEST_CASE("pipeline: PLC commands, device health and faults reach the report", "[nav]") {
+  Rig rig;
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  rig.plc.send(agv::hal::PlcCommandKind::Localize, kStartPose);
+  rig.runUntil(kStart + Duration::fromMilliseconds(300));
+  REQUIRE(rig.pipeline.localizing());
+
+  // Calibrate: refused visibly, localization goes on.
+  rig.plc.send(agv::hal::PlcCommandKind::Calibrate);
+  rig.runUntil(kStart + Duration::fromMilliseconds(400));
+  CHECK(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::CommandRejected));
+  CHECK(rig.plc.last.health.lastStatus == Status::Unsupported);
+  CHECK(rig.plc.last.health.mode == NavMode::Localizing);
+  CHECK(rig.pipeline.counters().refusedCommands == 1U);
+
+  // Encoders time out: published lost with the timeout, then back.
+  rig.encoders.healthStatus = Status::Timeout;
+  rig.runUntil(kStart + Duration::fromMilliseconds(500));
+  CHECK(rig.plc.last.health.mode == NavMode::Lost);
+  CHECK(rig.plc.last.health.lastStatus == Status::Timeout);
+  CHECK(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::EncoderTimeout));
+  CHECK_FALSE(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::EncodersOk));
+  rig.encoders.healthStatus = Status::Ok;
+  rig.runUntil(kStart + Duration::fromMilliseconds(600));
+  CHECK(rig.plc.last.health.mode == NavMode::Localizing);
+
+  // Stop: idle, the refusal bit cleared.
+  rig.plc.send(agv::hal::PlcCommandKind::Stop);
+  rig.runUntil(kStart + Duration::fromMilliseconds(700));
+  CHECK(rig.plc.last.health.mode == NavMode::Idle);
+  CHECK_FALSE(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::CommandRejected));
+  CHECK(rig.plc.last.health.lastStatus == Status::Ok);
+  CHECK(rig.pipeline.counters().commands == 3U);
+
+  // A device refusing its configuration can never deliver: fault, published as lost.
+  rig.encoders.forcedRead = Status::InvalidArgument;
+  rig.runUntil(kStart + Duration::fromMilliseconds(800));
+  CHECK(rig.pipeline.state() == PipelineState::Fault);
+  CHECK(rig.pipeline.faultReason() == Status::InvalidArgument);
+  CHECK(rig.plc.last.health.mode == NavMode::Lost);
+  CHECK(rig.plc.last.health.lastStatus == Status::InvalidArgument);
+  CHECK(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::DeviceFault));
+  const std::uint64_t reports = rig.plc.count;
+  rig.runUntil(kStart + Duration::fromMilliseconds(900));
+  CHECK(rig.plc.count > reports);  // the fault keeps being published
+  // Reconfigured: inactive, then active again.
+  rig.encoders.forcedRead = Status::Ok;
+  CHECK(rig.pipeline.configure() == Status::Ok);
+  CHECK(rig.pipeline.activate() == Status::Ok);
+  CHECK(rig.pipeline.cycle() == Status::Ok);
+  CHECK(rig.plc.last.health.mode == NavMode::Idle);
+}
+
+TEST_CASE("pipeline: a late cycle publishes once, without a burst", "[nav]") {
+  Rig rig;
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  rig.runUntil(kStart + Duration::fromMilliseconds(100));
+  const std::uint64_t before = rig.plc.count;
+  rig.clock.set(rig.clock.now() + Duration::fromSeconds(1.0));  // the cycle was held up for 1 s
+  (void)rig.pipeline.cycle();
+  (void)rig.pipeline.cycle();
+  (void)rig.pipeline.cycle();
+  CHECK(rig.plc.count == before + 1U);
+  rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(20));
+  (void)rig.pipeline.cycle();
+  CHECK(rig.plc.count == before + 2U);
+}
