@@ -7,11 +7,11 @@
 #include <vector>
 
 #include "agv/calib/calibration_file.hpp"
+#include "agv/calibration/calibration_routine.hpp"
+#include "agv/calibration/sim_calibration_vehicle.hpp"
 #include "agv/core/angle.hpp"
 #include "agv/sim/ray_caster.hpp"
 #include "agv/sim/world.hpp"
-#include "calibration_routine.hpp"
-#include "sim_calibration_vehicle.hpp"
 
 namespace agv::calibration {
 namespace {

@@ -21,12 +21,12 @@
 #include <utility>
 #include <vector>
 
+#include "agv/calibration/calibration_routine.hpp"
+#include "agv/calibration/sim_calibration_vehicle.hpp"
 #include "agv/core/angle.hpp"
 #include "agv/sim/ray_caster.hpp"
 #include "agv/sim/world.hpp"
-#include "calibration_routine.hpp"
 #include "scenario.hpp"
-#include "sim_calibration_vehicle.hpp"
 #include "svg_plots.hpp"
 
 namespace {

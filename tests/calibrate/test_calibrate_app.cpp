@@ -9,10 +9,10 @@
 #include <vector>
 
 #include "agv/calib/calibration_file.hpp"
+#include "agv/calibration/calibration_routine.hpp"
 #include "agv/sim/sim_vehicle.hpp"
 #include "agv_test.hpp"
 #include "calibrate_cli.hpp"
-#include "calibration_routine.hpp"
 
 using agv::deg2rad;
 using agv::Status;

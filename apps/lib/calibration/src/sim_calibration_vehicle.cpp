@@ -1,4 +1,4 @@
-#include "sim_calibration_vehicle.hpp"
+#include "agv/calibration/sim_calibration_vehicle.hpp"
 
 namespace agv::calibration {
 

@@ -9,11 +9,11 @@
 #include <cstdint>
 #include <memory>
 
+#include "agv/calibration/calibration_routine.hpp"
 #include "agv/sim/can_encoder_source.hpp"
 #include "agv/sim/ray_caster.hpp"
 #include "agv/sim/sim_laser.hpp"
 #include "agv/sim/sim_vehicle.hpp"
-#include "calibration_routine.hpp"
 
 namespace agv::calibration {
 

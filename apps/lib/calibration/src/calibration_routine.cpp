@@ -1,4 +1,4 @@
-#include "calibration_routine.hpp"
+#include "agv/calibration/calibration_routine.hpp"
 
 #include <Eigen/Core>
 #include <cmath>
