@@ -8,10 +8,10 @@
 #include <string>
 #include <vector>
 
-#include "agv/drivers/canopen/canopen_encoders.hpp"
-#include "agv/drivers/sick/cola_a_scan.hpp"
-#include "agv/drivers/sick/nav350.hpp"
-#include "agv/drivers/sick/telegram_framer.hpp"
+#include "agv/drivers/protocol/canopen/canopen_encoders.hpp"
+#include "agv/drivers/protocol/sick/cola_a_scan.hpp"
+#include "agv/drivers/protocol/sick/nav350.hpp"
+#include "agv/drivers/protocol/sick/telegram_framer.hpp"
 
 namespace {
 std::string colaTelegram(int beams) {

@@ -6,7 +6,7 @@
 #include <random>
 
 #include "agv/core/angle.hpp"
-#include "agv/drivers/canopen/canopen_encoders.hpp"
+#include "agv/drivers/protocol/canopen/canopen_encoders.hpp"
 #include "agv_test.hpp"
 
 using agv::Duration;

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "agv/core/angle.hpp"
-#include "agv/drivers/sick/cola_a_scan.hpp"
+#include "agv/drivers/protocol/sick/cola_a_scan.hpp"
 #include "agv_test.hpp"
 #include "sick_telegrams.hpp"
 

@@ -4,8 +4,8 @@
 #include <vector>
 
 #include "agv/core/angle.hpp"
-#include "agv/drivers/sick/nav350.hpp"
-#include "agv/drivers/sick/telegram_framer.hpp"
+#include "agv/drivers/protocol/sick/nav350.hpp"
+#include "agv/drivers/protocol/sick/telegram_framer.hpp"
 #include "agv_test.hpp"
 #include "sick_telegrams.hpp"
 

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "agv/core/angle.hpp"
-#include "agv/drivers/plc/plc_register_map.hpp"
+#include "agv/drivers/protocol/plc/plc_register_map.hpp"
 #include "agv_test.hpp"
 
 using agv::Span;

@@ -3,7 +3,7 @@
 #include <string>
 #include <vector>
 
-#include "agv/drivers/sick/telegram_framer.hpp"
+#include "agv/drivers/protocol/sick/telegram_framer.hpp"
 #include "agv_test.hpp"
 #include "sick_telegrams.hpp"
 

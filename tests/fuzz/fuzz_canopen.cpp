@@ -7,7 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "agv/drivers/canopen/canopen_encoders.hpp"
+#include "agv/drivers/protocol/canopen/canopen_encoders.hpp"
 #include "fuzz_support.hpp"
 
 using namespace agv::drivers;

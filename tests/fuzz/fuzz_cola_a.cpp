@@ -6,8 +6,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "agv/drivers/sick/cola_a_scan.hpp"
-#include "agv/drivers/sick/telegram_framer.hpp"
+#include "agv/drivers/protocol/sick/cola_a_scan.hpp"
+#include "agv/drivers/protocol/sick/telegram_framer.hpp"
 #include "fuzz_support.hpp"
 
 using namespace agv::drivers::sick;

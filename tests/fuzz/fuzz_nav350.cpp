@@ -5,8 +5,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "agv/drivers/sick/nav350.hpp"
-#include "agv/drivers/sick/telegram_framer.hpp"
+#include "agv/drivers/protocol/sick/nav350.hpp"
+#include "agv/drivers/protocol/sick/telegram_framer.hpp"
 #include "fuzz_support.hpp"
 
 using namespace agv::drivers::sick;

@@ -5,7 +5,7 @@
 #include <cstdint>
 
 #include "agv/core/span.hpp"
-#include "agv/drivers/sick/telegram_framer.hpp"
+#include "agv/drivers/protocol/sick/telegram_framer.hpp"
 
 namespace agv::fuzz {
 

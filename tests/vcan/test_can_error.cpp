@@ -4,8 +4,8 @@
 // (test_socketcan_vm.cpp, run by run-vcan-vm.sh).
 #include <linux/can/error.h>
 
-#include "agv/drivers/can_error.hpp"
-#include "agv/drivers/socketcan_bus.hpp"
+#include "agv/drivers/linux/can_error.hpp"
+#include "agv/drivers/linux/socketcan_bus.hpp"
 #include "agv_test.hpp"
 
 #include <string>

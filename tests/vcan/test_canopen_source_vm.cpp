@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "agv/drivers/linux/canopen_encoder_source.hpp"
-#include "agv/drivers/socketcan_bus.hpp"
+#include "agv/drivers/linux/socketcan_bus.hpp"
 #include "agv_test.hpp"
 #include "vcan_peer.hpp"
 #include "vm_alloc_count.hpp"

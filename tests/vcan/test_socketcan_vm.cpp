@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "agv/drivers/socketcan_bus.hpp"
+#include "agv/drivers/linux/socketcan_bus.hpp"
 #include "agv_test.hpp"
 #include "vcan_peer.hpp"
 #include "vm_alloc_count.hpp"

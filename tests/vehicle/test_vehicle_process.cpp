@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "agv/core/status.hpp"
-#include "agv/drivers/plc/plc_register_map.hpp"
+#include "agv/drivers/protocol/plc/plc_register_map.hpp"
 #include "agv_test.hpp"
 #include "loopback_server.hpp"
 #include "sick_telegrams.hpp"

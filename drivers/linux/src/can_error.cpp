@@ -1,4 +1,4 @@
-#include "agv/drivers/can_error.hpp"
+#include "agv/drivers/linux/can_error.hpp"
 
 #include <linux/can.h>
 #include <linux/can/error.h>

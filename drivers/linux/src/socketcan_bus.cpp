@@ -1,4 +1,4 @@
-#include "agv/drivers/socketcan_bus.hpp"
+#include "agv/drivers/linux/socketcan_bus.hpp"
 
 #include <linux/can.h>
 #include <linux/can/error.h>

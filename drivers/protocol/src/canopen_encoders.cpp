@@ -1,4 +1,4 @@
-#include "agv/drivers/canopen/canopen_encoders.hpp"
+#include "agv/drivers/protocol/canopen/canopen_encoders.hpp"
 
 #include <cmath>
 #include <initializer_list>

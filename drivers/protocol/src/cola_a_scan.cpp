@@ -1,4 +1,4 @@
-#include "agv/drivers/sick/cola_a_scan.hpp"
+#include "agv/drivers/protocol/sick/cola_a_scan.hpp"
 
 #include <cmath>
 #include <cstring>

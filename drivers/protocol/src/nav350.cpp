@@ -1,4 +1,4 @@
-#include "agv/drivers/sick/nav350.hpp"
+#include "agv/drivers/protocol/sick/nav350.hpp"
 
 #include <cmath>
 #include <cstring>

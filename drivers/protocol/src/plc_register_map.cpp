@@ -1,4 +1,4 @@
-#include "agv/drivers/plc/plc_register_map.hpp"
+#include "agv/drivers/protocol/plc/plc_register_map.hpp"
 
 #include <cmath>
 #include <initializer_list>

@@ -1,4 +1,4 @@
-#include "agv/drivers/sick/telegram_framer.hpp"
+#include "agv/drivers/protocol/sick/telegram_framer.hpp"
 
 #include <cstring>
 

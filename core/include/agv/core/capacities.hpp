@@ -27,17 +27,11 @@
 #ifndef AGV_MAX_CALIB_SEGMENTS
 #define AGV_MAX_CALIB_SEGMENTS 64
 #endif
-#ifndef AGV_MAX_CAN_FILTERS
-#define AGV_MAX_CAN_FILTERS 16
-#endif
 #ifndef AGV_MAX_ODOMETRY_HISTORY
 #define AGV_MAX_ODOMETRY_HISTORY 128
 #endif
 #ifndef AGV_LANDMARK_GRID_BUCKETS
 #define AGV_LANDMARK_GRID_BUCKETS 8192
-#endif
-#ifndef AGV_MAX_LASER_TELEGRAM_BYTES
-#define AGV_MAX_LASER_TELEGRAM_BYTES 32768
 #endif
 
 namespace agv {
@@ -54,17 +48,12 @@ inline constexpr std::size_t kMaxObservations = AGV_MAX_OBSERVATIONS;
 inline constexpr std::size_t kMaxLandmarks = AGV_MAX_LANDMARKS;
 /// Constant-steering path segments used by one calibration solve.
 inline constexpr std::size_t kMaxCalibSegments = AGV_MAX_CALIB_SEGMENTS;
-/// Receive filters of one CAN socket (one per node and object class leaves ample room).
-inline constexpr std::size_t kMaxCanFilters = AGV_MAX_CAN_FILTERS;
 
 /// Odometry increments the localizer keeps for re-prediction after a late scan (at 100 Hz
 /// encoders, 128 cover 1.28 s of scan latency).
 inline constexpr std::size_t kMaxOdometryHistory = AGV_MAX_ODOMETRY_HISTORY;
 /// Hash buckets of the landmark map's spatial grid (power of two; 2x kMaxLandmarks keeps chains short).
 inline constexpr std::size_t kLandmarkGridBuckets = AGV_LANDMARK_GRID_BUCKETS;
-/// Bytes of one laser telegram (framing included) a driver buffers: a CoLa A LMDscandata of
-/// 1141 beams with RSSI is ~12 KB, a NAV350 reply with 1440 beams and 64 reflectors ~8 KB.
-inline constexpr std::size_t kMaxLaserTelegramBytes = AGV_MAX_LASER_TELEGRAM_BYTES;
 
 static_assert(kMaxScanBeams >= 16, "a scan needs at least 16 beams of capacity");
 static_assert(kMaxKeypoints >= 1 && kMaxReflectors >= 1 && kMaxObservations >= 1, "capacities must be positive");
@@ -72,6 +61,5 @@ static_assert(kMaxLandmarks >= 1 && kMaxCalibSegments >= 2, "capacities must be 
 static_assert(kMaxOdometryHistory >= 4, "the odometry history needs at least 4 entries");
 static_assert(kLandmarkGridBuckets >= 16 && (kLandmarkGridBuckets & (kLandmarkGridBuckets - 1)) == 0,
               "landmark grid buckets must be a power of two");
-static_assert(kMaxLaserTelegramBytes >= 64, "a laser telegram buffer needs at least 64 bytes");
 
 }  // namespace agv

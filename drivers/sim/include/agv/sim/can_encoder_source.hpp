@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <functional>
 
-#include "agv/drivers/canopen/canopen_encoders.hpp"
+#include "agv/drivers/protocol/canopen/canopen_encoders.hpp"
 #include "agv/hal/encoder_source.hpp"
 #include "agv/sim/sim_can_encoders.hpp"
 

@@ -3,7 +3,7 @@
 /// The vehicle's two CANopen encoder nodes, simulated: a CiA 402 traction drive sending its
 /// position actual value (0x6064) and a CiA 406 steering encoder sending its position value
 /// (0x6004), each in a TPDO, with their heartbeats and NMT state machine. The frames are built by
-/// the portable encoders of `agv/drivers/canopen/canopen_encoders.hpp`, so the vehicle-side
+/// the portable encoders of `agv/drivers/protocol/canopen/canopen_encoders.hpp`, so the vehicle-side
 /// decoder (`canopen::CanopenEncoders`) reads exactly what it reads from the real devices.
 
 #include <cstddef>
@@ -12,8 +12,8 @@
 #include "agv/core/span.hpp"
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
-#include "agv/drivers/can_frame.hpp"
-#include "agv/drivers/canopen/canopen_encoders.hpp"
+#include "agv/drivers/protocol/can_frame.hpp"
+#include "agv/drivers/protocol/canopen/canopen_encoders.hpp"
 #include "agv/hal/encoder_sample.hpp"
 
 namespace agv::sim {

@@ -20,8 +20,8 @@
 
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
-#include "agv/drivers/canopen/canopen_encoders.hpp"
-#include "agv/drivers/socketcan_bus.hpp"
+#include "agv/drivers/linux/socketcan_bus.hpp"
+#include "agv/drivers/protocol/canopen/canopen_encoders.hpp"
 #include "agv/hal/encoder_source.hpp"
 
 namespace agv::drivers {

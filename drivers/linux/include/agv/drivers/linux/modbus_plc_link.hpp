@@ -2,7 +2,7 @@
 /// @file modbus_plc_link.hpp
 /// The PLC link over Modbus TCP (libmodbus): the vehicle either serves its register map to a
 /// polling PLC (role Server) or writes its status into the PLC and reads the PLC's command
-/// registers (role Client). Register map and checks: agv/drivers/plc/plc_register_map.hpp and
+/// registers (role Client). Register map and checks: agv/drivers/protocol/plc/plc_register_map.hpp and
 /// docs/plc-link.md.
 ///
 /// Cycle budget: `cycle()` never blocks longer than the budget it is given (server) or than two
@@ -15,7 +15,7 @@
 
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
-#include "agv/drivers/plc/plc_register_map.hpp"
+#include "agv/drivers/protocol/plc/plc_register_map.hpp"
 #include "agv/hal/plc_link.hpp"
 
 struct _modbus;  // libmodbus context (modbus_t)

@@ -7,9 +7,9 @@
 #include <cstdint>
 
 #include "agv/drivers/linux/tcp_stream.hpp"
-#include "agv/drivers/sick/cola_a_scan.hpp"
-#include "agv/drivers/sick/nav350.hpp"
-#include "agv/drivers/sick/telegram_framer.hpp"
+#include "agv/drivers/protocol/sick/cola_a_scan.hpp"
+#include "agv/drivers/protocol/sick/nav350.hpp"
+#include "agv/drivers/protocol/sick/telegram_framer.hpp"
 
 namespace agv::drivers {
 

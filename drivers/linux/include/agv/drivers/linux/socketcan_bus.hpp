@@ -19,13 +19,13 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "agv/core/capacities.hpp"
 #include "agv/core/fixed_vector.hpp"
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
-#include "agv/drivers/can_error.hpp"
-#include "agv/drivers/can_frame.hpp"
+#include "agv/drivers/linux/can_error.hpp"
 #include "agv/drivers/linux/monotonic_clock.hpp"
+#include "agv/drivers/protocol/can_frame.hpp"
+#include "agv/drivers/protocol/capacities.hpp"
 
 namespace agv::drivers {
 

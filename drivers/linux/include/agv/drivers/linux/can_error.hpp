@@ -9,7 +9,7 @@
 #include <cstdint>
 
 #include "agv/core/status.hpp"
-#include "agv/drivers/can_frame.hpp"
+#include "agv/drivers/protocol/can_frame.hpp"
 
 namespace agv::drivers {
 

@@ -16,7 +16,7 @@
 #include "agv/core/span.hpp"
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
-#include "agv/drivers/can_frame.hpp"
+#include "agv/drivers/protocol/can_frame.hpp"
 #include "agv/hal/encoder_sample.hpp"
 
 namespace agv::drivers::canopen {

@@ -39,7 +39,7 @@
 #include "agv/core/span.hpp"
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
-#include "agv/drivers/plc/word_order.hpp"
+#include "agv/drivers/protocol/plc/word_order.hpp"
 #include "agv/hal/plc_messages.hpp"
 
 namespace agv::drivers::plc {

@@ -21,8 +21,8 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "agv/core/capacities.hpp"
 #include "agv/core/span.hpp"
+#include "agv/drivers/protocol/capacities.hpp"
 
 namespace agv::drivers::sick {
 
@@ -41,7 +41,7 @@ struct FramerCounters {
   std::uint32_t checksumErrors = 0;  ///< CoLa B telegrams whose XOR checksum did not match
 };
 
-/// Stream-to-telegram cutter with a fixed buffer of `kMaxLaserTelegramBytes`.
+/// Stream-to-telegram cutter with a fixed buffer of `kMaxLaserTelegramBytes` (agv/drivers/protocol/capacities.hpp).
 class TelegramFramer {
  public:
   static constexpr std::size_t kCapacity = kMaxLaserTelegramBytes;
