@@ -5,5 +5,5 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
 cmake --preset default
-cmake --build --preset default -j "$(nproc)"
+cmake --build --preset default -j "$(nproc)" --target agvnav-hil  # only what the main job needs
 exec build/default/apps/hil/agvnav-hil "$@"
