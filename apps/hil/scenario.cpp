@@ -157,7 +157,7 @@ nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode m
   // 1.3 s of travel at the warehouse's 0.8 re-detection rate), when its position is an average
   // over several viewpoints rather than one detection taken from the pose it would correct.
   if (mode == LocalizationMode::Dynamic) {
-    l.minHitsToCorrect = cfg.dynamicMinHitsToCorrect;
+    l.map.minHitsToCorrect = cfg.dynamicMinHitsToCorrect;
   }
   const bool reflectors = mode == LocalizationMode::Reflectors || mode == LocalizationMode::Mapping;
   p.observations.reflectors = reflectors;

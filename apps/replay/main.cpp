@@ -42,26 +42,30 @@ int main(int argc, char** argv) {
   app.add_option("--odo-rot-var-m", options.odometryNoise.rotationVariancePerMetre, "[rad^2/m]");
   app.add_option("--odo-rot-var-rad", options.odometryNoise.rotationVariancePerRadian, "[rad^2/rad]");
   app.add_option("--update-rate", options.map.updateRate, "map update rate");
-  app.add_option("--gate", options.localizer.gate, "squared Mahalanobis gate");
-  app.add_option("--ambiguity", options.localizer.ambiguityMargin, "ambiguity margin (0: off)");
-  app.add_option("--max-position-sigma", options.localizer.maxPositionSigma, "[m] covariance limit of a good cycle");
-  app.add_option("--max-heading-sigma", options.localizer.maxHeadingSigma, "[rad] covariance limit of a good cycle");
-  app.add_option("--min-matched-fraction", options.localizer.minMatchedFraction, "of the landmarks expected in view");
-  app.add_option("--min-expected", options.localizer.minExpectedForCheck,
+  app.add_option("--gate", options.localizer.association.gate, "squared Mahalanobis gate");
+  app.add_option("--ambiguity", options.localizer.association.ambiguityMargin, "ambiguity margin (0: off)");
+  app.add_option("--max-position-sigma", options.localizer.health.maxPositionSigma,
+                 "[m] covariance limit of a good cycle");
+  app.add_option("--max-heading-sigma", options.localizer.health.maxHeadingSigma,
+                 "[rad] covariance limit of a good cycle");
+  app.add_option("--min-matched-fraction", options.localizer.health.minMatchedFraction,
+                 "of the landmarks expected in view");
+  app.add_option("--min-expected", options.localizer.health.minExpectedForCheck,
                  "landmarks expected before the match check runs");
   app.add_flag(
-      "--no-occlusion", [&options](std::int64_t) { options.localizer.modelOcclusion = false; },
+      "--no-occlusion", [&options](std::int64_t) { options.localizer.occlusion.enabled = false; },
       "count every landmark inside the range and angle limits as in view (no occlusion test)");
-  app.add_option("--corner-detection-rate", options.localizer.detectionRate[1],
+  app.add_option("--corner-detection-rate", options.localizer.health.detectionRate[1],
                  "probability that an expected corner is detected (the check counts expected detections)");
-  app.add_option("--min-hits-confirmed", options.localizer.minHitsConfirmed,
+  app.add_option("--min-hits-confirmed", options.localizer.map.minHitsConfirmed,
                  "hits from which a dynamic landmark is expected and kept while occluded");
-  app.add_option("--min-hits-to-correct", options.localizer.minHitsToCorrect,
+  app.add_option("--min-hits-to-correct", options.localizer.map.minHitsToCorrect,
                  "hits from which a dynamic landmark corrects the pose (tentative before)");
-  app.add_option("--lost-after", options.localizer.lostAfterBadCycles, "consecutive bad cycles that make it lost");
+  app.add_option("--lost-after", options.localizer.health.lostAfterBadCycles,
+                 "consecutive bad cycles that make it lost");
   app.add_option("--initial-hits", options.map.initialHits, "hit count of a new landmark");
   app.add_option("--max-hits", options.map.maxHits, "landmark hit-count cap");
-  app.add_option("--insert-separation", options.localizer.insertSeparation, "[m]");
+  app.add_option("--insert-separation", options.localizer.map.insertSeparation, "[m]");
   app.add_option("--falko-max-score", options.falko.maxScore, "FALKO cornerness score limit");
   app.add_option("--falko-beta", options.falko.beta, "FALKO corner angle parameter");
   app.add_flag("--static-map-from-truth", options.staticMapFromTruth,

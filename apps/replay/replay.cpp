@@ -154,8 +154,8 @@ ReplayOptions fr079Defaults() {
   // Pioneer's odometry drifts 6 cm and 3 deg per metre (median), so dead reckoning through a
   // stretch without corners crosses them within metres; a bad cycle then stops the map updates
   // and the dynamic map can never catch up. Relaxed to 1 m / 0.5 rad for the replay.
-  o.localizer.maxPositionSigma = 1.0;
-  o.localizer.maxHeadingSigma = 0.5;
+  o.localizer.health.maxPositionSigma = 1.0;
+  o.localizer.health.maxHeadingSigma = 0.5;
   // The matched/expected check runs with the library defaults; each scan's ranges go to
   // `correct`, so corners hidden behind walls, doors and people are not expected.
   o.map.initialHits = 3;  // a corner seen once survives two missed re-detections
@@ -313,7 +313,7 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, Rep
     r.keypoints += obs->points.size();
     const LocalizerHealth& h = localizer->correct(*obs, *scan, *map);
     r.used += h.used;
-    r.fixCycles += h.used >= lp.minMatchesForFix ? 1U : 0U;
+    r.fixCycles += h.used >= lp.health.minMatchesForFix ? 1U : 0U;
     r.rejectedGate += h.rejectedGate;
     r.rejectedAmbiguous += h.rejectedAmbiguous;
     r.rejectedDuplicate += h.rejectedDuplicate;

@@ -24,7 +24,7 @@ struct Scene {
 
   explicit Scene(MapMode mode = MapMode::Static, bool surveyed = true, std::int16_t minHitsToCorrect = 0) {
     params.laser.mounting = Pose2d{1.0, 0.0, 0.0};
-    params.minHitsToCorrect = minHitsToCorrect;
+    params.map.minHitsToCorrect = minHitsToCorrect;
     loc = std::make_unique<Localizer>(params);
     LandmarkMapParams mp;
     mp.mode = mode;
@@ -199,8 +199,8 @@ TEST_CASE("localizer: gate, duplicate and lost health", "[localization][localize
     s.scan->points.clear();
     h = s.cycle();
     // flagged bad up to the cycle that turns lost; a lost localizer only reports Lost
-    CHECK(hasFlag(h.flags, LocalizerFlag::BadCycle) == (c <= s.params.lostAfterBadCycles));
-    CHECK(h.lost == (c >= s.params.lostAfterBadCycles));
+    CHECK(hasFlag(h.flags, LocalizerFlag::BadCycle) == (c <= s.params.health.lostAfterBadCycles));
+    CHECK(h.lost == (c >= s.params.health.lostAfterBadCycles));
   }
   CHECK(h.status == Status::Lost);
   CHECK(hasFlag(h.flags, LocalizerFlag::Lost));
@@ -383,4 +383,34 @@ TEST_CASE("localizer: an observation between two landmarks inside the gate is am
   h = s.cycle();
   CHECK(h.rejectedAmbiguous == 0U);
   CHECK(h.used == s.world.size() + 1U);
+}
+
+TEST_CASE("LocalizerParams::validate refuses each sub-struct's out-of-domain values", "[localizer][params]") {
+  CHECK(agv::LocalizerParams{}.validate() == agv::Status::Ok);
+  const auto refused = [](auto edit) {
+    agv::LocalizerParams p;
+    edit(p);
+    return p.validate();
+  };
+  using P = agv::LocalizerParams;
+  CHECK(refused([](P& p) { p.association.gate = 0.0; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.association.gate = NAN; }) == agv::Status::NonFiniteInput);
+  CHECK(refused([](P& p) { p.association.maxSearchRadius = -1.0; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.laser.rangeMin = 40.0; }) == agv::Status::InvalidArgument);  // above rangeMax
+  CHECK(refused([](P& p) { p.laser.angleMax = p.laser.angleMin; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.laser.mounting.theta = INFINITY; }) == agv::Status::NonFiniteInput);
+  CHECK(refused([](P& p) { p.laser.kindSigma[1] = -0.01; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.occlusion.sigmas = 0.0; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.occlusion.kindDepth[0] = -0.05; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.map.insertSeparation = -0.3; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.map.minHitsToCorrect = -1; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.health.detectionRate[1] = 1.5; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.health.minMatchedFraction = NAN; }) == agv::Status::NonFiniteInput);
+  CHECK(refused([](P& p) { p.health.lostAfterBadCycles = 0; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.health.maxPositionSigma = 0.0; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.ekf.varianceFloorXY = 0.0; }) == agv::Status::InvalidArgument);
+  CHECK(refused([](P& p) { p.maxScanLead = agv::Duration::fromMilliseconds(-1); }) == agv::Status::InvalidArgument);
+  // Boundaries that are valid.
+  CHECK(refused([](P& p) { p.health.detectionRate[0] = 1.0; }) == agv::Status::Ok);
+  CHECK(refused([](P& p) { p.association.ambiguityMargin = 0.0; }) == agv::Status::Ok);
 }

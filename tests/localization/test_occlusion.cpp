@@ -301,7 +301,7 @@ TEST_CASE(
     }
   }
   SECTION("a young landmark (fewer than minHitsConfirmed hits) hidden behind the wall is still decremented") {
-    while (s.hits(2) >= s.params.minHitsConfirmed) {
+    while (s.hits(2) >= s.params.map.minHitsConfirmed) {
       (void)s.map->weaken(s.index[2]);
     }
     const std::int16_t young = s.hits(2);
@@ -321,7 +321,7 @@ TEST_CASE(
     CHECK(s.hits(missed) == h0 - 1);
   }
   SECTION("modelOcclusion off: the same as without a scan") {
-    s.params.modelOcclusion = false;
+    s.params.occlusion.enabled = false;
     Localizer plain(s.params);
     Eigen::Matrix3d P0 = Eigen::Matrix3d::Identity() * 1e-5;
     REQUIRE(plain.reset(s.t, s.truth, P0) == Status::Ok);
@@ -371,7 +371,7 @@ TEST_CASE(
   }
   REQUIRE(nVisible == 3U);
   const std::vector<std::size_t> seen{0, 7};
-  const int cycles = 3 * s.params.lostAfterBadCycles;
+  const int cycles = 3 * s.params.health.lostAfterBadCycles;
   SECTION("with the scan's ranges: good cycles, never lost") {
     for (int c = 0; c < cycles; ++c) {
       s.stand(10);
@@ -393,7 +393,7 @@ TEST_CASE(
         lostAt = c;
       }
     }
-    CHECK(lostAt == s.params.lostAfterBadCycles);
+    CHECK(lostAt == s.params.health.lostAfterBadCycles);
   }
   SECTION("with the scan's ranges, nothing matched: lost after lostAfterBadCycles") {
     int lostAt = -1;
@@ -405,7 +405,7 @@ TEST_CASE(
         lostAt = c;
       }
     }
-    CHECK(lostAt == s.params.lostAfterBadCycles);
+    CHECK(lostAt == s.params.health.lostAfterBadCycles);
   }
 }
 

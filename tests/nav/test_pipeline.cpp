@@ -241,7 +241,7 @@ TEST_CASE("pipeline: lifecycle transitions and refused parameters", "[nav]") {
   bad.localizer.laser.rangeMin = 40.0;  // above rangeMax
   CHECK(refused(bad) == Status::InvalidArgument);
   bad = rigParams();
-  bad.localizer.gate = 0.0;
+  bad.localizer.association.gate = 0.0;
   CHECK(refused(bad) == Status::InvalidArgument);
   bad = rigParams();
   bad.maxSamplesPerCycle = 0;

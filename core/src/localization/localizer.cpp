@@ -88,11 +88,11 @@ Localizer::Visibility Localizer::visibility(const Pose2d& laserWorld, const Land
   const Eigen::Vector2d p = laserWorld.inverseTransformPoint(Eigen::Vector2d(lm.x, lm.y));
   const LaserModel& L = params_.laser;
   const double r = p.norm();
-  if (r < L.rangeMin + params_.viewRangeMargin || r > L.rangeMax - params_.viewRangeMargin) {
+  if (r < L.rangeMin + params_.occlusion.viewRangeMargin || r > L.rangeMax - params_.occlusion.viewRangeMargin) {
     return Visibility::OutOfLimits;
   }
   const double b = std::atan2(p.y(), p.x());
-  if (b < L.angleMin + params_.viewAngleMargin || b > L.angleMax - params_.viewAngleMargin) {
+  if (b < L.angleMin + params_.occlusion.viewAngleMargin || b > L.angleMax - params_.occlusion.viewAngleMargin) {
     return Visibility::OutOfLimits;
   }
   if (beams == nullptr) {
@@ -116,16 +116,16 @@ Localizer::Visibility Localizer::visibility(const Pose2d& laserWorld, const Land
   const std::size_t kind = static_cast<std::size_t>(lm.kind) % kLandmarkKindCount;
   const double ks = L.kindSigma[kind];
   const double var = L.rangeSigma * L.rangeSigma + ks * ks + lm.variance + g.dot(P * g);
-  const double tolerance = params_.occlusionSigmas * std::sqrt(var > 0.0 ? var : 0.0) +
-                           params_.occlusionKindDepth[kind] + r * static_cast<double>(beams->angleIncrement);
+  const double tolerance = params_.occlusion.sigmas * std::sqrt(var > 0.0 ? var : 0.0) +
+                           params_.occlusion.kindDepth[kind] + r * static_cast<double>(beams->angleIncrement);
   if (measured.value() < r - tolerance) {
     return Visibility::Occluded;
   }
-  const double support = params_.occlusionSupportRadius[kind];
-  if (support > 0.0 && params_.occlusionSupportPoints > 0U) {
-    const Result<SideSupport> sides = sideSupport(*beams, r, b, support, params_.occlusionSupportPoints);
-    if (!sides.ok() || sides.value().before < params_.occlusionSupportPoints ||
-        sides.value().after < params_.occlusionSupportPoints) {
+  const double support = params_.occlusion.supportRadius[kind];
+  if (support > 0.0 && params_.occlusion.supportPoints > 0U) {
+    const Result<SideSupport> sides = sideSupport(*beams, r, b, support, params_.occlusion.supportPoints);
+    if (!sides.ok() || sides.value().before < params_.occlusion.supportPoints ||
+        sides.value().after < params_.occlusion.supportPoints) {
       return Visibility::InViewUnsupported;
     }
   }
@@ -140,7 +140,7 @@ Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMa
     if ((landmarkKindBit(lm.kind) & kinds) == 0U) {
       return;
     }
-    const bool confirmed = lm.surveyed || lm.hits >= params_.minHitsConfirmed;
+    const bool confirmed = lm.surveyed || lm.hits >= params_.map.minHitsConfirmed;
     switch (visibility(laserWorld, lm, beams)) {
       case Visibility::OutOfLimits:
         return;
@@ -159,7 +159,7 @@ Localizer::ViewCount Localizer::countInView(std::uint8_t kinds, const LandmarkMa
       case Visibility::InView:
         if (confirmed) {
           ++count.inView;
-          count.detections += params_.detectionRate[static_cast<std::size_t>(lm.kind) % kLandmarkKindCount];
+          count.detections += params_.health.detectionRate[static_cast<std::size_t>(lm.kind) % kLandmarkKindCount];
         }
         break;
     }
@@ -201,10 +201,11 @@ void Localizer::associate(const ScanObservations& scan, const LandmarkMap& map) 
       s.state = Assoc::Gate;
       continue;
     }
-    const double lambda = largestEigen2(base.S(0, 0), base.S(0, 1), base.S(1, 1)) + params_.searchLandmarkVariance;
-    double radius = std::sqrt(params_.gate * lambda);
-    if (radius > params_.maxSearchRadius) {
-      radius = params_.maxSearchRadius;
+    const double lambda =
+        largestEigen2(base.S(0, 0), base.S(0, 1), base.S(1, 1)) + params_.association.searchLandmarkVariance;
+    double radius = std::sqrt(params_.association.gate * lambda);
+    if (radius > params_.association.maxSearchRadius) {
+      radius = params_.association.maxSearchRadius;
     }
     const double r2 = radius * radius;
     double best = INFINITY;
@@ -241,10 +242,10 @@ void Localizer::associate(const ScanObservations& scan, const LandmarkMap& map) 
       }
     });
     s.d2 = best;
-    if (bestIdx != kNoLandmark && best <= params_.gate && second <= params_.gate &&
-        second - best < params_.ambiguityMargin) {
+    if (bestIdx != kNoLandmark && best <= params_.association.gate && second <= params_.association.gate &&
+        second - best < params_.association.ambiguityMargin) {
       s.state = Assoc::Ambiguous;
-    } else if (bestIdx != kNoLandmark && best <= params_.gate) {
+    } else if (bestIdx != kNoLandmark && best <= params_.association.gate) {
       s.state = Assoc::Matched;
       s.landmark = bestIdx;
     } else if (anyCandidate) {
@@ -320,8 +321,8 @@ void Localizer::maintainMap(const ScanObservations& scan, const LaserScan* beams
     const PointObservation& o = scan.points[i];
     const Eigen::Vector2d w = laserWorld.transformPoint(Eigen::Vector2d(o.x, o.y));
     bool crowded = false;
-    const double sep2 = params_.insertSeparation * params_.insertSeparation;
-    map.forEachNear(w.x(), w.y(), params_.insertSeparation, [&](LandmarkIndex, const Landmark& lm) {
+    const double sep2 = params_.map.insertSeparation * params_.map.insertSeparation;
+    map.forEachNear(w.x(), w.y(), params_.map.insertSeparation, [&](LandmarkIndex, const Landmark& lm) {
       const double ex = lm.x - w.x();
       const double ey = lm.y - w.y();
       if (lm.kind == o.kind && ex * ex + ey * ey < sep2) {
@@ -426,7 +427,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
 
   // --- Association against the prior at the scan time.
   associate(scan, map);
-  if (!params_.modelOcclusion) {
+  if (!params_.occlusion.enabled) {
     beams = nullptr;
   } else if (beams != nullptr && checkBeamGeometry(*beams) != Status::Ok) {
     health_.flags |= bit(LocalizerFlag::OcclusionUnchecked);
@@ -457,7 +458,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
       s.state = Assoc::UpdateRejected;
       continue;
     }
-    if (!lm->surveyed && lm->hits < params_.minHitsToCorrect) {
+    if (!lm->surveyed && lm->hits < params_.map.minHitsToCorrect) {
       s.state = Assoc::Tentative;  // matched for the map lifecycle, not used by the filter
       continue;
     }
@@ -466,9 +467,9 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     R(0, 0) += lm->variance;
     R(1, 1) += lm->variance;
     const PointInnovation in = ekf_.innovation(Eigen::Vector2d(o.x, o.y), Eigen::Vector2d(lm->x, lm->y), R, L.mounting);
-    if (ekf_.update(in, params_.gate) == Status::Ok) {
+    if (ekf_.update(in, params_.association.gate) == Status::Ok) {
       s.state = Assoc::Used;
-      const double ratio = in.mahalanobis2 / params_.gate;
+      const double ratio = in.mahalanobis2 / params_.association.gate;
       ratioSum += ratio;
       if (ratio > health_.maxTestRatio) {
         health_.maxTestRatio = ratio;
@@ -524,14 +525,14 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   flagIf(health_.rejectedDuplicate > 0, LocalizerFlag::DuplicateRejected);
   flagIf(health_.rejectedUpdate > 0, LocalizerFlag::UpdateRejected);
   flagIf(health_.rejectedAmbiguous > 0, LocalizerFlag::AmbiguityRejected);
-  flagIf(health_.used < params_.minMatchesForFix, LocalizerFlag::NoFix);
+  flagIf(health_.used < params_.health.minMatchesForFix, LocalizerFlag::NoFix);
 
   // --- Health: matched vs expected, covariance limits, lost.
   bool bad = false;
-  if (health_.expectedDetections >= static_cast<double>(params_.minExpectedForCheck)) {
-    double need = std::ceil(params_.minMatchedFraction * health_.expectedDetections);
-    if (need < static_cast<double>(params_.minMatchesForFix)) {
-      need = static_cast<double>(params_.minMatchesForFix);
+  if (health_.expectedDetections >= static_cast<double>(params_.health.minExpectedForCheck)) {
+    double need = std::ceil(params_.health.minMatchedFraction * health_.expectedDetections);
+    if (need < static_cast<double>(params_.health.minMatchesForFix)) {
+      need = static_cast<double>(params_.health.minMatchesForFix);
     }
     // A tentative match confirms the landmark is there as well as a used one.
     if (static_cast<double>(health_.used) + static_cast<double>(health_.tentative) < need) {
@@ -541,7 +542,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   {
     const Eigen::Matrix3d& P = ekf_.covariance();
     const double ps = std::sqrt(largestEigen2(P(0, 0), P(0, 1), P(1, 1)));
-    if (!(ps <= params_.maxPositionSigma) || !(std::sqrt(P(2, 2)) <= params_.maxHeadingSigma)) {
+    if (!(ps <= params_.health.maxPositionSigma) || !(std::sqrt(P(2, 2)) <= params_.health.maxHeadingSigma)) {
       health_.flags |= bit(LocalizerFlag::CovarianceLimit);
       bad = true;
     }
@@ -551,7 +552,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     if (badCycles_ < 255U) {
       ++badCycles_;
     }
-    if (badCycles_ >= params_.lostAfterBadCycles) {
+    if (badCycles_ >= params_.health.lostAfterBadCycles) {
       lost_ = true;
     }
   } else {

@@ -121,4 +121,13 @@ Pose2d partialIncrement(const Pose2d& delta, double f) noexcept {
   return Pose2d{f * rho * std::cos(dir), f * rho * std::sin(dir), normalizeAngle(f * dTheta)};
 }
 
+Status TricycleNoiseParams::validate() const noexcept {
+  if (!std::isfinite(slipVariancePerMetre) || !std::isfinite(steeringSigma) || !std::isfinite(samplesPerCorrection)) {
+    return Status::NonFiniteInput;
+  }
+  return slipVariancePerMetre >= 0.0 && steeringSigma >= 0.0 && samplesPerCorrection >= 1.0 && maxTicksPerSample > 0
+             ? Status::Ok
+             : Status::InvalidArgument;
+}
+
 }  // namespace agv

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 
 #include "agv/core/fixed_vector.hpp"
 #include "agv/falko/falko_detector.hpp"
@@ -14,45 +15,19 @@ bool finite(double v) noexcept {
   return std::isfinite(v);
 }
 
-Status validateKinematics(const TricycleParams& k) noexcept {
-  if (!finite(k.wheelbase) || !finite(k.driveScale) || !finite(k.steerOffsetForward) ||
-      !finite(k.steerOffsetBackward)) {
-    return Status::NonFiniteInput;
-  }
-  return k.wheelbase > 0.0 && k.driveScale > 0.0 ? Status::Ok : Status::InvalidArgument;
-}
-
-Status validateLaser(const LaserModel& l) noexcept {
-  const double v[] = {l.mounting.x, l.mounting.y, l.mounting.theta, l.rangeMin,    l.rangeMax,
-                      l.angleMin,   l.angleMax,   l.rangeSigma,     l.bearingSigma};
-  for (double x : v) {
-    if (!finite(x)) {
-      return Status::NonFiniteInput;
-    }
-  }
-  if (l.rangeMin < 0.0 || l.rangeMax <= l.rangeMin || l.angleMax <= l.angleMin || l.rangeSigma < 0.0 ||
-      l.bearingSigma < 0.0) {
-    return Status::InvalidArgument;
-  }
-  return Status::Ok;
-}
-
 }  // namespace
 
 Status PipelineParams::validate() const noexcept {
-  Status s = validateKinematics(kinematics);
-  if (s != Status::Ok) {
-    return s;
+  for (const Status s : {kinematics.validate(), odometryNoise.validate(), localizer.validate(), agv::validate(falko)}) {
+    if (s != Status::Ok) {
+      return s;
+    }
   }
-  s = validateLaser(localizer.laser);
-  if (s != Status::Ok) {
-    return s;
-  }
-  if (!finite(localizer.gate) || !finite(setPosePositionStdDev) || !finite(setPoseHeadingStdDev)) {
+  if (!finite(setPosePositionStdDev) || !finite(setPoseHeadingStdDev)) {
     return Status::NonFiniteInput;
   }
-  if (localizer.gate <= 0.0 || setPosePositionStdDev < 0.0 || setPoseHeadingStdDev < 0.0 || publishPeriod.ns < 0 ||
-      maxSamplesPerCycle == 0 || maxCommandsPerCycle == 0) {
+  if (setPosePositionStdDev < 0.0 || setPoseHeadingStdDev < 0.0 || publishPeriod.ns < 0 || maxSamplesPerCycle == 0 ||
+      maxCommandsPerCycle == 0) {
     return Status::InvalidArgument;
   }
   return Status::Ok;

@@ -5,6 +5,8 @@
 
 #include <cstddef>
 
+#include "agv/core/status.hpp"
+
 namespace agv {
 
 /// FALKO detector parameters. Distances in metres, angles in radians.
@@ -59,6 +61,11 @@ struct FalkoParams {
 /// FalkoDetector::detect returns InvalidArgument otherwise. Lets a caller check a configuration
 /// before the first scan.
 bool isValid(const FalkoParams& p) noexcept;
+/// The same as a status, as every parameter struct of the library reports it: `Ok` or
+/// `InvalidArgument`.
+inline Status validate(const FalkoParams& p) noexcept {
+  return isValid(p) ? Status::Ok : Status::InvalidArgument;
+}
 
 /// The thesis defaults with the three values that the public reference implementation of FALKO
 /// sets differently by default: neighA 0.1 m, beta 2.5, nmsRadius 0.1 m. For comparisons with

@@ -11,6 +11,7 @@
 #include <cmath>
 
 #include "agv/core/pose2.hpp"
+#include "agv/core/status.hpp"
 
 namespace agv {
 
@@ -20,6 +21,15 @@ struct TricycleParams {
   double driveScale = 5e-4;          ///< s_w [m/tick]: drive-wheel travel per encoder tick
   double steerOffsetForward = 0.0;   ///< alpha_F [rad]: added to the measured steering when driving forward
   double steerOffsetBackward = 0.0;  ///< alpha_B [rad]: the same for backward motion (= alpha_F in the standard model)
+
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (wheelbase or drive scale not positive).
+  Status validate() const noexcept {
+    if (!std::isfinite(wheelbase) || !std::isfinite(driveScale) || !std::isfinite(steerOffsetForward) ||
+        !std::isfinite(steerOffsetBackward)) {
+      return Status::NonFiniteInput;
+    }
+    return wheelbase > 0.0 && driveScale > 0.0 ? Status::Ok : Status::InvalidArgument;
+  }
 };
 
 /// (1 - cos t) / t and sin t / t, evaluated without cancellation near t = 0 (series to t^4).

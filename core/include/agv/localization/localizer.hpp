@@ -54,18 +54,30 @@ struct LaserModel {
   /// Extra isotropic position noise per kind [m]: a reflector centre is well defined (0), a corner
   /// apex from FALKO's sub-beam refinement less so.
   double kindSigma[kLandmarkKindCount] = {0.0, 0.01};
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (rangeMin negative or not below rangeMax,
+  /// angleMin not below angleMax, a negative sigma).
+  Status validate() const noexcept;
 };
 
-/// Parameters of the localizer.
-struct LocalizerParams {
-  PoseEkfParams ekf{};
-  LaserModel laser{};
+/// Association of observations with map landmarks.
+struct AssociationParams {
   /// Squared-Mahalanobis gate for association and update (2 dof, 99 %).
   double gate = kChiSquare2Dof99;
   /// Largest association search radius [m] (bounds the work when the pose is uncertain).
   double maxSearchRadius = 1.0;
   /// Landmark variance assumed when sizing the search radius [m^2].
   double searchLandmarkVariance = 0.05 * 0.05;
+  /// An observation whose second-best candidate is also inside the gate and within this much
+  /// squared Mahalanobis distance of the best (a likelihood ratio below exp(margin/2) = 7.4) is
+  /// ambiguous and not used. 0 disables the test.
+  double ambiguityMargin = 4.0;
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (gate, search radius or variance not positive,
+  /// negative margin).
+  Status validate() const noexcept;
+};
+
+/// Which landmarks count as in view (and so are expected, or weakened when missed).
+struct OcclusionParams {
   /// A landmark counts as "in view" (may lose a hit) only this far inside the range limits [m]...
   double viewRangeMargin = 0.5;
   /// ...and this far inside the angular limits [rad].
@@ -80,14 +92,14 @@ struct LocalizerParams {
   /// range when the landmark is visible), and r * angleIncrement allows for the beam nearest to the
   /// landmark hitting a surface that ends at it (a corner's side seen at >= 27 deg incidence).
   /// false: range and angle limits only (as without a scan).
-  bool modelOcclusion = true;
+  bool enabled = true;
   /// Sigma multiple of the occlusion tolerance (3: a visible landmark is taken for occluded with
   /// probability 0.13 % from noise alone).
-  double occlusionSigmas = 3.0;
+  double sigmas = 3.0;
   /// How far in front of its point a landmark's own surface returns the beam [m], per kind: a
   /// reflector pole's radius (poles are 40..50 mm in radius; a flat reflector needs 0), a corner
   /// apex lies on the surface (0).
-  double occlusionKindDepth[kLandmarkKindCount] = {0.05, 0.0};
+  double kindDepth[kLandmarkKindCount] = {0.05, 0.0};
   /// A landmark formed by two surfaces (a corner) is detectable only where both are seen: with the
   /// scan's ranges, a landmark of a kind with a support radius > 0 is *expected* by the
   /// matched/expected check only if at least `occlusionSupportPoints` valid scan points lie within
@@ -96,24 +108,16 @@ struct LocalizerParams {
   /// a point where the beams find no surface at all, is still weakened (it is in view and cannot be
   /// matched from here) but not expected. Per kind [m]: reflectors 0 (off); corners 0.2 = FALKO's
   /// smallest neighbourhood radius (a = 0.2 m), whose sides need 2 points each.
-  double occlusionSupportRadius[kLandmarkKindCount] = {0.0, 0.2};
-  std::size_t occlusionSupportPoints = 2;
-  /// An observation whose second-best candidate is also inside the gate and within this much
-  /// squared Mahalanobis distance of the best (a likelihood ratio below exp(margin/2) = 7.4) is
-  /// ambiguous and not used. 0 disables the test.
-  double ambiguityMargin = 4.0;
+  double supportRadius[kLandmarkKindCount] = {0.0, 0.2};
+  std::size_t supportPoints = 2;
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (a negative margin, sigma, depth or radius).
+  Status validate() const noexcept;
+};
+
+/// The dynamic map's lifecycle: insertion, confirmation, correction.
+struct MapLifecycleParams {
   /// No new landmark is inserted this close to an existing one of the same kind [m].
   double insertSeparation = 0.3;
-  /// Fewer landmarks used than this: the cycle has no fix (flag NoFix).
-  std::uint16_t minMatchesForFix = 2;
-  /// Probability that the detector reports a landmark of each kind that is in view (and, for
-  /// corners, seen on both sides): the matched/expected check counts expected *detections*, the sum
-  /// of these over the expected landmarks. Reflectors 1 (a pole in the line of sight returns); FALKO
-  /// corners 0.5 (re-detection rate from a moved viewpoint: 0.49 on fr079, docs/falko.md; the
-  /// simulated warehouse gives 0.8), so a cycle with few corners in view is not judged on them.
-  double detectionRate[kLandmarkKindCount] = {1.0, 0.5};
-  /// The matched/expected check runs when at least this many detections are expected.
-  std::uint16_t minExpectedForCheck = 3;
   /// A dynamic landmark is *confirmed* once it has this many hits (surveyed landmarks always
   /// are). Only confirmed landmarks are expected by the matched/expected check and kept from the
   /// decrement while occluded: a corner seen once or twice may be a transient or a viewpoint
@@ -127,6 +131,22 @@ struct LocalizerParams {
   /// and nearly the same detector error; used at once it pulls the heading toward its own
   /// insertion error (docs/localization.md, "Tentative landmarks"). 0 = every match corrects.
   std::int16_t minHitsToCorrect = 0;
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (negative separation or hit counts).
+  Status validate() const noexcept;
+};
+
+/// When a cycle is bad and when the localizer is lost.
+struct LocalizerHealthParams {
+  /// Fewer landmarks used than this: the cycle has no fix (flag NoFix).
+  std::uint16_t minMatchesForFix = 2;
+  /// Probability that the detector reports a landmark of each kind that is in view (and, for
+  /// corners, seen on both sides): the matched/expected check counts expected *detections*, the sum
+  /// of these over the expected landmarks. Reflectors 1 (a pole in the line of sight returns); FALKO
+  /// corners 0.5 (re-detection rate from a moved viewpoint: 0.49 on fr079, docs/falko.md; the
+  /// simulated warehouse gives 0.8), so a cycle with few corners in view is not judged on them.
+  double detectionRate[kLandmarkKindCount] = {1.0, 0.5};
+  /// The matched/expected check runs when at least this many detections are expected.
+  std::uint16_t minExpectedForCheck = 3;
   /// A checked cycle is bad when fewer than max(minMatchesForFix, this fraction of the expected
   /// detections) landmarks were used.
   double minMatchedFraction = 0.3;
@@ -135,8 +155,27 @@ struct LocalizerParams {
   /// Position (largest axis) and heading standard deviations beyond which a cycle is bad.
   double maxPositionSigma = 0.10;  ///< [m]
   double maxHeadingSigma = 0.035;  ///< [rad] (2 deg)
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (a rate or fraction outside [0, 1], a sigma limit
+  /// not positive, `lostAfterBadCycles` or `minMatchesForFix` zero).
+  Status validate() const noexcept;
+};
+
+/// Parameters of the localizer, one sub-struct per stage of a correction.
+struct LocalizerParams {
+  PoseEkfParams ekf{};
+  LaserModel laser{};
+  AssociationParams association{};
+  OcclusionParams occlusion{};
+  MapLifecycleParams map{};
+  LocalizerHealthParams health{};
   /// A scan stamped later than the newest odometry by more than this is refused.
   Duration maxScanLead = Duration::fromMilliseconds(100);
+
+  /// `Ok`, or the first sub-struct's refusal (`NonFiniteInput`, `InvalidArgument`): laser model
+  /// (range and angle limits ordered, sigmas non-negative), association, occlusion, map,
+  /// health, and a non-negative scan lead. The localizer runs with whatever it is given; its
+  /// owner checks this before (the navigation pipeline's `configure()` does).
+  Status validate() const noexcept;
 };
 
 /// Bits of `LocalizerHealth::flags`.

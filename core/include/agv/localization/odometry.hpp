@@ -55,6 +55,10 @@ struct TricycleNoiseParams {
   double samplesPerCorrection = 10.0;
   /// Largest plausible |tick change| between two samples; a larger jump is refused as a fault.
   std::int64_t maxTicksPerSample = 100000;
+
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (a negative variance or sigma,
+  /// samplesPerCorrection below 1, maxTicksPerSample not positive).
+  Status validate() const noexcept;
 };
 
 /// Tricycle odometry: turns consecutive encoder samples into RK2 increments (`tricycleRk2Step`) of

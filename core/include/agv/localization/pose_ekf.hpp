@@ -31,6 +31,8 @@ namespace agv {
 struct PoseEkfParams {
   double varianceFloorXY = 1e-10;     ///< [m^2] lowest x/y variance kept ((10 um)^2)
   double varianceFloorTheta = 1e-12;  ///< [rad^2] lowest heading variance kept ((1 urad)^2)
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (a floor not positive).
+  Status validate() const noexcept;
 };
 
 /// The linearised prediction of one point observation at the current state.

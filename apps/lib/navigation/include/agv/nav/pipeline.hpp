@@ -81,9 +81,10 @@ struct PipelineParams {
   /// Published as `HealthBit::CalibrationValid` (the owner loaded and checked a calibration).
   bool calibrationValid = true;
 
-  /// `Ok`, or the first problem: `NonFiniteInput` for a NaN / infinite value, `InvalidArgument`
-  /// for a value outside its domain (non-positive wheelbase or scale, negative sigma or period,
-  /// zero per-cycle bounds, empty laser range or field of view, non-positive gate).
+  /// `Ok`, or the first refusal (`NonFiniteInput` for a NaN / infinite value, `InvalidArgument` for
+  /// a value outside its domain) of: `kinematics.validate()`, `odometryNoise.validate()`,
+  /// `localizer.validate()`, `validate(falko)`, then the pipeline's own values (negative set-pose
+  /// sigma or publish period, zero per-cycle bounds).
   Status validate() const noexcept;
 };
 
