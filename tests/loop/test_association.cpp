@@ -210,8 +210,9 @@ TEST_CASE("loop association: correspondence graph refuses fewer than 3 compatibl
   // minPairs above 3 raises the bar.
   CorrespondenceGraphParams p;
   p.minPairs = 4;
-  CorrespondenceGraphMatcher strict(p);
-  CHECK(strict.match(span(t4, 3), span(t1, 3), a) == Status::NotEnoughData);
+  cg.setParams(p);
+  CHECK(cg.match(span(t4, 3), span(t1, 3), a) == Status::NotEnoughData);
+  cg.setParams(CorrespondenceGraphParams{});
 }
 
 TEST_CASE("loop association: work bounds are hit, reported and never exceeded", "[loop]") {
@@ -230,11 +231,12 @@ TEST_CASE("loop association: work bounds are hit, reported and never exceeded", 
   CHECK(a.pairs.size() == kN);  // the identity (and its symmetries) take every point
   const std::uint32_t needed = a.work;
   CHECK(needed > 10U);
-  for (std::uint32_t budget : {1U, 2U, 10U, needed - 1U}) {
+  const std::uint32_t budgets[] = {1U, 2U, 10U, needed - 1U};
+  for (std::uint32_t budget : budgets) {
     CorrespondenceGraphParams p;
     p.maxNodes = budget;
     static CorrespondenceGraphMatcher cg;
-    cg = CorrespondenceGraphMatcher(p);
+    cg.setParams(p);
     CHECK(cg.match(span(grid, kN), span(grid, kN), a) == Status::NotConverged);
     CHECK(a.budgetHit);
     CHECK(a.work == budget);
@@ -243,7 +245,7 @@ TEST_CASE("loop association: work bounds are hit, reported and never exceeded", 
     CorrespondenceGraphParams p;
     p.maxNodes = needed;
     static CorrespondenceGraphMatcher cg;
-    cg = CorrespondenceGraphMatcher(p);
+    cg.setParams(p);
     CHECK(cg.match(span(grid, kN), span(grid, kN), a) == Status::Ok);
     CHECK_FALSE(a.budgetHit);
     CHECK(a.work == needed);
@@ -254,13 +256,13 @@ TEST_CASE("loop association: work bounds are hit, reported and never exceeded", 
     AffineHoughParams p;
     p.maxVotes = kN * kN * 10 + 5;
     static AffineHoughMatcher ah;
-    ah = AffineHoughMatcher(p);
+    ah.setParams(p);
     CHECK(ah.match(span(s.first, kN), span(s.second, kN), a) == Status::NotConverged);
     CHECK(a.budgetHit);
     CHECK(a.work == kN * kN * 10);
     CHECK(a.work <= p.maxVotes);
     p.maxVotes = 100;  // not even one slice
-    ah = AffineHoughMatcher(p);
+    ah.setParams(p);
     CHECK(ah.match(span(s.first, kN), span(s.second, kN), a) == Status::NotConverged);
     CHECK(a.work == 0U);
     CHECK(a.pairs.empty());
@@ -271,13 +273,13 @@ TEST_CASE("loop association: work bounds are hit, reported and never exceeded", 
     RansacParams p;
     p.maxSamples = 50;
     static RansacMatcher r;
-    r = RansacMatcher(p);
+    r.setParams(p);
     CHECK(r.match(span(s.first, kN), span(s.second, kN), a) == Status::NotConverged);
     CHECK(a.budgetHit);
     CHECK(a.work == 50U);
     p = RansacParams{};
     p.maxHypotheses = 3;
-    r = RansacMatcher(p);
+    r.setParams(p);
     CHECK(r.match(span(s.first, kN), span(s.second, kN), a) == Status::NotConverged);
     CHECK(a.budgetHit);
     CHECK(r.lastHypotheses() == 3U);
@@ -323,7 +325,10 @@ TEST_CASE("loop association: empty, over-capacity and NaN inputs, bad parameters
   CorrespondenceGraphParams pc;
   pc.epsilon = 0.0F;
   CHECK_FALSE(isValid(pc));
-  CHECK(CorrespondenceGraphMatcher(pc).match(three, three, a) == Status::InvalidArgument);
+  cg.setParams(pc);
+  CHECK(cg.match(three, three, a) == Status::InvalidArgument);
+  cg.setParams(CorrespondenceGraphParams{});
+  CHECK(cg.match(three, three, a) != Status::InvalidArgument);
   AffineHoughParams ph;
   ph.translationStep = 0.01F;  // 1000 x 1000 cells per slice > kMaxHoughCells
   CHECK_FALSE(isValid(ph));

@@ -32,8 +32,8 @@ Fixture& fixture() {
   for (std::size_t e = 0; e < kEntries; ++e) {
     f.n[e] = 4 + (e * 7) % (kMaxSet - 3);
     agv::test::randomPoints(rng, f.n[e], -6.0, -4.0, 12.0, 8.0, 0.3, f.pts[e]);
-    REQUIRE(computeGlarot(Span<const Eigen::Vector2f>(f.pts[e], f.n[e]), GlarotParams{}, f.sig[e]) == Status::Ok);
-    REQUIRE(f.db.insert(f.sig[e], Pose2d{static_cast<double>(e), 0.0, 0.0}) == Status::Ok);
+    CHECK(computeGlarot(Span<const Eigen::Vector2f>(f.pts[e], f.n[e]), GlarotParams{}, f.sig[e]) == Status::Ok);
+    CHECK(f.db.insert(f.sig[e], Pose2d{static_cast<double>(e), 0.0, 0.0}) == Status::Ok);
   }
   return f;
 }

@@ -62,6 +62,9 @@ class AffineHoughMatcher {
                PointAssociation& out) noexcept;
 
   const AffineHoughParams& params() const noexcept { return params_; }
+  /// Replaces the parameters (checked at the next match: InvalidArgument when out of their domain).
+  /// Use it instead of assigning a new matcher: a temporary of this size does not fit a small stack.
+  void setParams(const AffineHoughParams& params) noexcept { params_ = params; }
   /// Votes of the winning cell in the last call.
   std::uint32_t lastPeak() const noexcept { return peak_; }
 

@@ -69,6 +69,9 @@ class CorrespondenceGraphMatcher {
                PointAssociation& out) noexcept;
 
   const CorrespondenceGraphParams& params() const noexcept { return params_; }
+  /// Replaces the parameters (checked at the next match: InvalidArgument when out of their domain).
+  /// Use it instead of assigning a new matcher: a temporary of this size does not fit a small stack.
+  void setParams(const CorrespondenceGraphParams& params) noexcept { params_ = params; }
   /// Vertices and edges of the last graph built (for the docs' figures and the tests).
   std::size_t lastVertices() const noexcept { return vertices_; }
   std::size_t lastEdges() const noexcept { return edges_; }

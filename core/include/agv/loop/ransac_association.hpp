@@ -53,6 +53,9 @@ class RansacMatcher {
                PointAssociation& out) noexcept;
 
   const RansacParams& params() const noexcept { return params_; }
+  /// Replaces the parameters (checked at the next match: InvalidArgument when out of their domain).
+  /// Use it instead of assigning a new matcher: a temporary of this size does not fit a small stack.
+  void setParams(const RansacParams& params) noexcept { params_ = params; }
   /// Motions scored in the last call.
   std::uint32_t lastHypotheses() const noexcept { return hypotheses_; }
 
