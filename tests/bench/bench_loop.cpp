@@ -31,7 +31,7 @@ constexpr std::size_t kCandidates = 10;
 
 struct LoopSet {
   std::vector<std::vector<Eigen::Vector2f>> points;  // keypoints per scan (sensor frame)
-  std::vector<agv::Pose2d> truth;                     // ground-truth laser pose per scan
+  std::vector<agv::Pose2d> truth;                    // ground-truth laser pose per scan
   std::unique_ptr<agv::GlarotDatabase<2048>> db;
   std::vector<agv::GlarotSignature> signatures;
   std::vector<std::vector<std::uint32_t>> candidates;  // 10 GLAROT candidates per scan, itself excluded

@@ -128,7 +128,8 @@ Status AffineHoughMatcher::run(Span<const Eigen::Vector2f> first, Span<const Eig
     const float c = std::cos(bestTheta);
     const float s = std::sin(bestTheta);
     const float tx = (static_cast<float>(bestCell % side) + 0.5F) * p.translationStep - p.maxTranslation;
-    const float ty = (static_cast<float>(bestCell / side) + 0.5F) * p.translationStep - p.maxTranslation;
+    const std::size_t row = bestCell / side;
+    const float ty = (static_cast<float>(row) + 0.5F) * p.translationStep - p.maxTranslation;
     std::array<float, kMaxLoopPoints> resFirst{};
     std::array<std::uint16_t, kMaxLoopPoints> secondOf{};
     for (std::size_t i = 0; i < first.size(); ++i) {
