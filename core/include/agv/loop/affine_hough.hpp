@@ -47,7 +47,7 @@ struct AffineHoughParams {
 /// most 4096 slices, passes in [0, 10], maxVotes >= 1 and minPairs >= 3.
 bool isValid(const AffineHoughParams& p) noexcept;
 
-/// Affine Hough matcher with its working storage (~41 kB: keep it static or a member).
+/// Affine Hough matcher with its working storage (~57 kB: keep it static or a member).
 class AffineHoughMatcher {
  public:
   explicit AffineHoughMatcher(const AffineHoughParams& params = AffineHoughParams{}) noexcept;

@@ -17,7 +17,7 @@
 /// Distance compatibility cannot tell a set from its mirror image: a clique is a rigid match or a
 /// reflected one; the reflected one shows as a large `rms` of the fit.
 ///
-/// Memory: ~95 kB with the default capacities (V = 256: adjacency 8 kB, per-depth colour lists
+/// Memory: 96 kB with the default capacities (V = 256: adjacency 8 kB, per-depth colour lists
 /// 50 kB, distance tables 32 kB): make the matcher static or a member, not a stack object.
 
 #include <Eigen/Core>
@@ -38,7 +38,7 @@ struct CorrespondenceGraphParams {
   /// times the keypoint position noise).
   float epsilon = 0.10F;
   /// Branch-and-bound nodes (greedy colourings) allowed per call. With the default 1e5 and V = 256
-  /// the worst case is about 1e5 * 256 * 4 word operations; fr079 scans take tens of nodes.
+  /// the worst case is about 1e5 * 256 * 4 word operations.
   std::uint32_t maxNodes = 100000;
   /// Fewest associated pairs accepted (at least 3: two pairs are compatible with some motion
   /// whenever their distances agree).
