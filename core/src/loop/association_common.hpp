@@ -1,0 +1,55 @@
+#pragma once
+/// @file association_common.hpp
+/// Private helpers shared by the loop-closure point associations: input checks, the rigid fit of
+/// pairs and the one-to-one nearest-neighbour re-association.
+
+#include <Eigen/Core>
+#include <cstddef>
+
+#include "agv/core/fixed_vector.hpp"
+#include "agv/core/pose2.hpp"
+#include "agv/core/span.hpp"
+#include "agv/core/status.hpp"
+#include "agv/loop/point_association.hpp"
+
+namespace agv::detail {
+
+/// EmptyInput when a set is empty, CapacityExceeded above kMaxLoopPoints, NonFiniteInput for a
+/// NaN or infinite coordinate, else Ok.
+Status checkPointSets(Span<const Eigen::Vector2f> first, Span<const Eigen::Vector2f> second) noexcept;
+
+/// InvalidArgument when a candidate indexes outside its set, EmptyInput when there is none,
+/// CapacityExceeded above CandidatePairs' capacity.
+Status checkCandidates(Span<const PointPair> candidates, std::size_t nFirst, std::size_t nSecond) noexcept;
+
+/// Fills out.transform (fitRigid2d over the pairs, identity below 3 pairs) and out.rms.
+void fitPairs(Span<const Eigen::Vector2f> first, Span<const Eigen::Vector2f> second, PointAssociation& out) noexcept;
+
+/// One-to-one association under `motion`: each second point to its nearest first point within
+/// `gate` [m]; when two claim the same first point the nearer keeps it. O(n m). Returns the count.
+std::size_t associateNearest(Span<const Eigen::Vector2f> first, Span<const Eigen::Vector2f> second,
+                             const Pose2d& motion, float gate, IVector<PointPair>& out) noexcept;
+
+/// Re-associates under out.transform within `gate` and refits, `passes` times (keeps the previous
+/// answer if a pass would leave fewer than 3 pairs).
+void refine(Span<const Eigen::Vector2f> first, Span<const Eigen::Vector2f> second, float gate, int passes,
+            PointAssociation& out) noexcept;
+
+/// Deterministic generator (splitmix64): reproducible draws on every platform, no state that
+/// allocates.
+struct SplitMix64 {
+  std::uint64_t state;
+  std::uint64_t next() noexcept {
+    state += 0x9E3779B97F4A7C15ULL;
+    std::uint64_t z = state;
+    z = (z ^ (z >> 30U)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27U)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31U);
+  }
+  /// Uniform in [0, n) for 0 < n < 2^32 (multiply-shift, bias below 2^-32 n).
+  std::uint32_t below(std::uint32_t n) noexcept {
+    return static_cast<std::uint32_t>(((next() >> 32U) * static_cast<std::uint64_t>(n)) >> 32U);
+  }
+};
+
+}  // namespace agv::detail
