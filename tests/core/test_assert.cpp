@@ -1,0 +1,64 @@
+// AGV_ASSERT: active without NDEBUG (this file undefines it whatever the build type), compiled out
+// with it (test_assert_ndebug.cpp). Each failing assertion runs in a child process, whose
+// assertion handler reports the condition through its exit status. Host only (fork).
+#undef NDEBUG
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstring>
+
+#include "agv/core/assert.hpp"
+#include "agv_test.hpp"
+
+// Defined in test_assert_ndebug.cpp, compiled with NDEBUG: how often AGV_ASSERT there evaluated
+// its condition (0 when compiled out).
+int evaluationsWithNdebug() noexcept;
+
+namespace {
+
+// The child's handler: exit status 3 when the failed condition is `g_expected`, 4 otherwise.
+const char* g_expected = "";
+void exitWithVerdict(const char* condition, const char* /*file*/, int /*line*/) noexcept {
+  _exit(std::strcmp(condition, g_expected) == 0 ? 3 : 4);
+}
+
+/// Runs `body` in a child process; its exit status: 3 = the expected assertion failed, 4 = another
+/// one, 0 = none (body returned), -1 = killed by a signal (e.g. abort without the handler).
+template <typename F>
+int childStatus(const char* expected, F body) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    g_expected = expected;
+    (void)agv::setAssertionHandler(&exitWithVerdict);
+    body();
+    _exit(0);
+  }
+  int status = 0;
+  if (pid < 0 || waitpid(pid, &status, 0) != pid) {
+    return -2;
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace
+
+TEST_CASE("AGV_ASSERT stops on a false condition, runs the handler, and is compiled out with NDEBUG",
+          "[core][assert]") {
+  CHECK(childStatus("1 + 1 == 3", [] { AGV_ASSERT(1 + 1 == 3); }) == 3);
+  CHECK(childStatus("1 + 1 == 3", [] { AGV_ASSERT(1 + 1 == 2); }) == 0);
+  // Without a handler the program aborts (a signal, not an exit).
+  const pid_t pid = fork();
+  if (pid == 0) {
+    AGV_ASSERT(sizeof(int) == 0);
+    _exit(0);
+  }
+  int status = 0;
+  REQUIRE(waitpid(pid, &status, 0) == pid);
+  CHECK(WIFSIGNALED(status));
+  // Compiled out: the condition is not even evaluated.
+  CHECK(evaluationsWithNdebug() == 0);
+  // setAssertionHandler returns the previous handler.
+  CHECK(agv::setAssertionHandler(&exitWithVerdict) == nullptr);
+  CHECK(agv::setAssertionHandler(nullptr) == &exitWithVerdict);
+}
