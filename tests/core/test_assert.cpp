@@ -1,5 +1,6 @@
 // AGV_ASSERT: active without NDEBUG (this file undefines it whatever the build type), compiled out
-// with it (test_assert_ndebug.cpp). Each failing assertion runs in a child process, whose
+// with it (test_assert_ndebug.cpp); FixedVector's checked accessors stop a program on an index
+// past size() or on an empty container. Each failing access runs in a child process, whose
 // assertion handler reports the condition through its exit status. Host only (fork).
 #undef NDEBUG
 #include <sys/types.h>
@@ -9,6 +10,7 @@
 #include <cstring>
 
 #include "agv/core/assert.hpp"
+#include "agv/core/fixed_vector.hpp"
 #include "agv_test.hpp"
 
 // Defined in test_assert_ndebug.cpp, compiled with NDEBUG: how often AGV_ASSERT there evaluated
@@ -16,6 +18,12 @@
 int evaluationsWithNdebug() noexcept;
 
 namespace {
+
+// Local element types: their container instantiations exist only in this file, so compiling them
+// with assertions on here cannot clash with other files compiled with NDEBUG.
+struct Probe {
+  int v = 0;
+};
 
 // The child's handler: exit status 3 when the failed condition is `g_expected`, 4 otherwise.
 const char* g_expected = "";
@@ -61,4 +69,38 @@ TEST_CASE("AGV_ASSERT stops on a false condition, runs the handler, and is compi
   // setAssertionHandler returns the previous handler.
   CHECK(agv::setAssertionHandler(&exitWithVerdict) == nullptr);
   CHECK(agv::setAssertionHandler(nullptr) == &exitWithVerdict);
+}
+
+TEST_CASE("FixedVector element access is checked in debug builds", "[core][assert][fixed_vector]") {
+  CHECK(childStatus("i < size_", [] {
+          agv::FixedVector<Probe, 4> v;
+          (void)v.push_back(Probe{1});
+          (void)v.push_back(Probe{2});
+          volatile int x = v[1].v;  // in range: fine
+          (void)x;
+          v.pop_back();
+          x = v[1].v;  // past size(): the slot holds no element any more
+        }) == 3);
+  CHECK(childStatus("i < size_", [] {
+          const agv::FixedVector<Probe, 4> v;
+          volatile int x = v[0].v;
+          (void)x;
+        }) == 3);
+  CHECK(childStatus("size_ > 0", [] {
+          agv::FixedVector<Probe, 4> v;
+          v.front().v = 1;
+        }) == 3);
+  CHECK(childStatus("size_ > 0", [] {
+          agv::FixedVector<Probe, 4> v;
+          (void)v.push_back(Probe{1});
+          v.clear();
+          v.back().v = 1;
+        }) == 3);
+  CHECK(childStatus("i < size_", [] {
+          agv::FixedVector<Probe, 4> v;
+          (void)v.push_back(Probe{1});
+          v[0].v = 2;
+          v.front().v = 3;
+          v.back().v = 4;
+        }) == 0);
 }
