@@ -1,5 +1,5 @@
 // AGV_ASSERT: active without NDEBUG (this file undefines it whatever the build type), compiled out
-// with it (test_assert_ndebug.cpp); FixedVector's checked accessors stop a program on an index
+// with it (test_assert_ndebug.cpp); the containers' checked accessors stop a program on an index
 // past size() or on an empty container. Each failing access runs in a child process, whose
 // assertion handler reports the condition through its exit status. Host only (fork).
 #undef NDEBUG
@@ -10,6 +10,7 @@
 #include <cstring>
 
 #include "agv/core/assert.hpp"
+#include "agv/core/fixed_ring.hpp"
 #include "agv/core/fixed_vector.hpp"
 #include "agv_test.hpp"
 
@@ -103,4 +104,28 @@ TEST_CASE("FixedVector element access is checked in debug builds", "[core][asser
           v.front().v = 3;
           v.back().v = 4;
         }) == 0);
+}
+
+TEST_CASE("FixedRing element access is checked in debug builds", "[core][assert][fixed_ring]") {
+  CHECK(childStatus("k < size_", [] {
+          agv::FixedRing<Probe, 3> r;
+          for (int i = 0; i < 5; ++i) {
+            (void)r.push(Probe{i});
+          }
+          volatile int x = r[2].v;  // in range: fine
+          r.pop_front();
+          x = r[2].v;  // past size()
+          (void)x;
+        }) == 3);
+  CHECK(childStatus("size_ > 0", [] {
+          const agv::FixedRing<Probe, 3> r;
+          volatile int x = r.front().v;
+          (void)x;
+        }) == 3);
+  CHECK(childStatus("size_ > 0", [] {
+          agv::FixedRing<Probe, 3> r;
+          (void)r.push(Probe{1});
+          r.clear();
+          r.back().v = 1;
+        }) == 3);
 }

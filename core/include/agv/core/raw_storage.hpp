@@ -1,7 +1,7 @@
 #pragma once
 /// @file raw_storage.hpp
 /// Uninitialised, suitably aligned inline storage for the fixed-capacity containers
-/// (`FixedVector`): room for N objects of `T`, none of which exists until the owning
+/// (`FixedVector`, `FixedRing`): room for N objects of `T`, none of which exists until the owning
 /// container constructs it (placement new) and which it destroys again. Not an interface for
 /// algorithm code.
 
