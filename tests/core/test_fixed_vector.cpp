@@ -1,6 +1,12 @@
+#include <new>
+
 #include "agv/core/fixed_vector.hpp"
 #include "agv/core/span.hpp"
 #include "agv_test.hpp"
+#include "counted.hpp"
+
+using agv::test::Counted;
+using agv::test::NoDefault;
 
 namespace {
 // One function for every capacity: the point of IVector.
@@ -152,4 +158,89 @@ TEST_CASE("FixedVector operations never allocate", "[core][fixed_vector][alloc]"
   });
   CHECK(v.size() == 63);  // 64 kept of 100, one erased, one inserted, one erased
   CHECK(v.refusedCount() == 36);
+}
+
+TEST_CASE("FixedVector constructs no element up front and destroys each one exactly once", "[core][fixed_vector]") {
+  using Big = agv::FixedVector<Counted, 1000>;
+  alignas(Big) static unsigned char buffer[sizeof(Big)];
+  Counted::resetCounts();
+  Big* v = ::new (static_cast<void*>(buffer)) Big();
+  CHECK(Counted::constructed == 0);  // a default-constructed array would have made 1000
+  CHECK(v->empty());
+  for (int i = 0; i < 10; ++i) {
+    REQUIRE(v->push_back(Counted(i)) == agv::Status::Ok);
+  }
+  CHECK(Counted::alive() == 10);  // the temporaries are gone, the 10 elements live
+  REQUIRE(v->emplace_back(10) == agv::Status::Ok);
+  CHECK(Counted::alive() == 11);
+  Counted* appended = v->append();
+  REQUIRE(appended != nullptr);
+  CHECK(appended->value == -1);  // freshly constructed, not a leftover
+  CHECK(Counted::alive() == 12);
+  v->pop_back();
+  CHECK(Counted::alive() == 11);
+  REQUIRE(v->erase(2) == agv::Status::Ok);  // 0 1 3 4 ... 10
+  CHECK(Counted::alive() == 10);
+  CHECK((*v)[2].value == 3);
+  REQUIRE(v->eraseUnordered(0) == agv::Status::Ok);  // 10 1 3 4 ... 9
+  CHECK(Counted::alive() == 9);
+  CHECK(v->front().value == 10);
+  REQUIRE(v->insert(1, Counted(42)) == agv::Status::Ok);  // 10 42 1 3 ...
+  CHECK(Counted::alive() == 10);
+  CHECK((*v)[1].value == 42);
+  CHECK((*v)[2].value == 1);
+  REQUIRE(v->resize(25) == agv::Status::Ok);
+  CHECK(Counted::alive() == 25);
+  CHECK(v->back().value == -1);
+  REQUIRE(v->resize(4) == agv::Status::Ok);
+  CHECK(Counted::alive() == 4);
+  {
+    Big copy(*v);  // copies the 4 live elements only
+    CHECK(Counted::alive() == 8);
+    REQUIRE(copy.push_back(Counted(7)) == agv::Status::Ok);
+    CHECK(Counted::alive() == 9);
+    copy = *v;  // shrinks back to 4: the surplus element is destroyed
+    CHECK(Counted::alive() == 8);
+    agv::FixedVector<Counted, 2> small;
+    CHECK(small.assign(copy) == agv::Status::CapacityExceeded);
+    CHECK(Counted::alive() == 10);
+    CHECK(small[1].value == 42);
+  }
+  CHECK(Counted::alive() == 4);
+  v->clear();
+  CHECK(Counted::alive() == 0);
+  REQUIRE(v->push_back(Counted(1)) == agv::Status::Ok);
+  v->~Big();
+  CHECK(Counted::alive() == 0);  // the destructor destroyed the live element
+  CHECK(Counted::constructed > 0);
+}
+
+TEST_CASE("FixedVector works with a type that has no default constructor", "[core][fixed_vector]") {
+  agv::FixedVector<NoDefault, 4> v;
+  CHECK(v.push_back(NoDefault(1)) == agv::Status::Ok);
+  CHECK(v.emplace_back(2) == agv::Status::Ok);
+  CHECK(v.insert(0, NoDefault(0)) == agv::Status::Ok);  // 0 1 2
+  CHECK(v.insert(1, v[2]) == agv::Status::Ok);          // an element of the vector itself: 0 2 1 2
+  CHECK(v.size() == 4);
+  CHECK(v[0].value == 0);
+  CHECK(v[1].value == 2);
+  CHECK(v[2].value == 1);
+  CHECK(v[3].value == 2);
+  CHECK(v.emplace_back(5) == agv::Status::CapacityExceeded);
+  CHECK(v.refusedCount() == 1);
+  CHECK(v.erase(0) == agv::Status::Ok);  // 2 1 2
+  CHECK(v.front().value == 2);
+  agv::FixedVector<NoDefault, 4> w(v);
+  CHECK(v.eraseUnordered(0) == agv::Status::Ok);  // 2 1
+  CHECK(v.back().value == 1);
+  w = v;
+  CHECK(w.size() == 2);
+  CHECK(w[0].value == 2);
+  CHECK(w[1].value == 1);
+  agv::FixedVector<NoDefault, 8> big;
+  CHECK(big.assign(w) == agv::Status::Ok);
+  CHECK(big.size() == 2);
+  big.pop_back();
+  CHECK(big.size() == 1);
+  CHECK(big[0].value == 2);
 }

@@ -23,10 +23,10 @@ std::uint16_t sat16(std::size_t v) noexcept {
 Localizer::Localizer(const LocalizerParams& params) noexcept : params_(params), ekf_(params.ekf) {}
 
 Timestamp Localizer::stamp() const noexcept {
-  if (historyCount_ == 0) {
+  if (history_.empty()) {
     return Timestamp{};
   }
-  return history_[(historyStart_ + historyCount_ - 1U) % kMaxOdometryHistory].stamp;
+  return history_.back().stamp;
 }
 
 Status Localizer::reset(Timestamp stamp, const Pose2d& pose, const Eigen::Matrix3d& covariance) noexcept {
@@ -36,14 +36,14 @@ Status Localizer::reset(Timestamp stamp, const Pose2d& pose, const Eigen::Matrix
     return s;
   }
   ekf_ = fresh;
-  historyStart_ = 0;
-  historyCount_ = 1;
-  HistoryEntry& e = history_[0];
+  HistoryEntry e;
   e.stamp = stamp;
   e.delta = Pose2d{};
   e.deltaCov.setZero();
   e.pose = ekf_.pose();
   e.cov = ekf_.covariance();
+  history_.clear();
+  (void)history_.push(e);
   initialized_ = true;
   lost_ = false;
   badCycles_ = 0;
@@ -69,17 +69,13 @@ Status Localizer::predict(const OdometryIncrement& inc) noexcept {
     pendingFlags_ |= bit(LocalizerFlag::OdometryRejected);
     return s;
   }
-  if (historyCount_ == kMaxOdometryHistory) {
-    historyStart_ = (historyStart_ + 1U) % kMaxOdometryHistory;
-    --historyCount_;
-  }
-  HistoryEntry& e = entry(historyCount_);
-  ++historyCount_;
+  HistoryEntry e;
   e.stamp = inc.stamp;
   e.delta = inc.delta;
   e.deltaCov = inc.covariance;
   e.pose = ekf_.pose();
   e.cov = ekf_.covariance();
+  (void)history_.push(e);  // when full, the oldest increment makes room
   return Status::Ok;
 }
 
@@ -386,9 +382,9 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   }
 
   // --- Latency: find the odometry interval holding the scan time.
-  const std::size_t n = historyCount_;
-  const Timestamp newest = entry(n - 1U).stamp;
-  const bool tooOld = scan.stamp < entry(0).stamp || (haveScan_ && scan.stamp < lastScanStamp_);
+  const std::size_t n = history_.size();
+  const Timestamp newest = history_[n - 1U].stamp;
+  const bool tooOld = scan.stamp < history_[0].stamp || (haveScan_ && scan.stamp < lastScanStamp_);
   const bool tooNew = scan.stamp > newest && (scan.stamp - newest) > params_.maxScanLead;
   if (tooOld || tooNew) {
     health_.flags |=
@@ -398,11 +394,11 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     return health_;
   }
   std::size_t k = n - 1U;
-  while (k > 0 && entry(k).stamp > scan.stamp) {
+  while (k > 0 && history_[k].stamp > scan.stamp) {
     --k;
   }
   const PoseEkf atNewest = ekf_;
-  if (ekf_.reset(entry(k).pose, entry(k).cov) != Status::Ok) {
+  if (ekf_.reset(history_[k].pose, history_[k].cov) != Status::Ok) {
     // A stored state that does not validate cannot be rewound to; keep the newest state.
     ekf_ = atNewest;
     health_.flags |= bit(LocalizerFlag::ScanRejected);
@@ -413,10 +409,11 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   bool split = false;
   double f = 0.0;
   Pose2d part{};
-  if (k + 1U < n && scan.stamp > entry(k).stamp) {
-    const HistoryEntry& next = entry(k + 1U);
+  if (k + 1U < n && scan.stamp > history_[k].stamp) {
+    const HistoryEntry& next = history_[k + 1U];
     split = true;
-    f = static_cast<double>((scan.stamp - entry(k).stamp).ns) / static_cast<double>((next.stamp - entry(k).stamp).ns);
+    f = static_cast<double>((scan.stamp - history_[k].stamp).ns) /
+        static_cast<double>((next.stamp - history_[k].stamp).ns);
     OdometryIncrement p;
     p.stamp = scan.stamp;
     p.delta = partialIncrement(next.delta, f);
@@ -567,19 +564,19 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   // --- Store the corrected state and re-apply the newer odometry.
   std::size_t j = k + 1U;
   if (split) {
-    HistoryEntry& at = entry(k);
+    HistoryEntry& at = history_[k];
     at.stamp = scan.stamp;  // scans come in order: nothing before this is replayed again
     at.pose = ekf_.pose();
     at.cov = ekf_.covariance();
-    HistoryEntry& next = entry(k + 1U);
+    HistoryEntry& next = history_[k + 1U];
     next.delta = between(part, next.delta);
     next.deltaCov = (1.0 - f) * next.deltaCov;
   } else {
-    entry(k).pose = ekf_.pose();
-    entry(k).cov = ekf_.covariance();
+    history_[k].pose = ekf_.pose();
+    history_[k].cov = ekf_.covariance();
   }
   for (; j < n; ++j) {
-    HistoryEntry& e = entry(j);
+    HistoryEntry& e = history_[j];
     OdometryIncrement inc;
     inc.stamp = e.stamp;
     inc.delta = e.delta;

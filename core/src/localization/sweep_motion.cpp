@@ -11,45 +11,39 @@ Status MotionHistory::add(Timestamp stamp, const Pose2d& pose) noexcept {
   if (!std::isfinite(pose.x) || !std::isfinite(pose.y) || !std::isfinite(pose.theta)) {
     return Status::NonFiniteInput;
   }
-  if (count_ > 0 && !(newest() < stamp)) {
+  if (!samples_.empty() && !(newest() < stamp)) {
     return Status::InvalidArgument;
   }
-  if (count_ == kCapacity) {
-    start_ = (start_ + 1) % kCapacity;
-    --count_;
-  }
-  samples_[(start_ + count_) % kCapacity] = Sample{stamp, pose};
-  ++count_;
-  while (count_ > 2 && stamp - oldest() > maxAge_) {
-    start_ = (start_ + 1) % kCapacity;
-    --count_;
+  (void)samples_.push(Sample{stamp, pose});  // when full, the oldest pose makes room
+  while (samples_.size() > 2 && stamp - oldest() > maxAge_) {
+    samples_.pop_front();
   }
   return Status::Ok;
 }
 
 Result<Pose2d> MotionHistory::at(Timestamp t) const noexcept {
-  if (count_ == 0) {
+  if (samples_.empty()) {
     return Status::NotEnoughData;
   }
   if (!(oldest() < t)) {
-    return sample(0).pose;
+    return samples_.front().pose;
   }
   if (newest() < t) {
-    return sample(count_ - 1).pose;
+    return samples_.back().pose;
   }
   // The first pose at or after t (binary search: stamps strictly increase); oldest < t <= newest.
   std::size_t lo = 1;
-  std::size_t hi = count_ - 1;
+  std::size_t hi = samples_.size() - 1;
   while (lo < hi) {
     const std::size_t mid = lo + (hi - lo) / 2;
-    if (sample(mid).stamp < t) {
+    if (samples_[mid].stamp < t) {
       lo = mid + 1;
     } else {
       hi = mid;
     }
   }
-  const Sample& a = sample(lo - 1);
-  const Sample& b = sample(lo);
+  const Sample& a = samples_[lo - 1];
+  const Sample& b = samples_[lo];
   const double f = (t - a.stamp).seconds() / (b.stamp - a.stamp).seconds();
   return Pose2d{a.pose.x + f * (b.pose.x - a.pose.x), a.pose.y + f * (b.pose.y - a.pose.y),
                 normalizeAngle(a.pose.theta + f * angleDiff(b.pose.theta, a.pose.theta))};

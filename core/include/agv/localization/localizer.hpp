@@ -14,6 +14,7 @@
 #include <cstdint>
 
 #include "agv/core/capacities.hpp"
+#include "agv/core/fixed_ring.hpp"
 #include "agv/core/fixed_vector.hpp"
 #include "agv/core/pose2.hpp"
 #include "agv/core/status.hpp"
@@ -301,7 +302,6 @@ class Localizer {
     Assoc state = Assoc::None;
   };
 
-  HistoryEntry& entry(std::size_t k) noexcept { return history_[(historyStart_ + k) % kMaxOdometryHistory]; }
   void associate(const ScanObservations& scan, const LandmarkMap& map) noexcept;
   void orderMatches(const ScanObservations& scan) noexcept;  // sorts the matches into order_
   enum class Visibility : std::uint8_t { OutOfLimits, Occluded, NoReturn, InViewUnsupported, InView };
@@ -330,9 +330,8 @@ class Localizer {
   std::uint32_t pendingFlags_ = 0;
   Timestamp lastScanStamp_{};
   bool haveScan_ = false;
-  HistoryEntry history_[kMaxOdometryHistory];
-  std::size_t historyStart_ = 0;
-  std::size_t historyCount_ = 0;
+  /// Oldest first; never empty once initialised (reset() stores the initial state).
+  FixedRing<HistoryEntry, kMaxOdometryHistory> history_;
   Scratch scratch_[kMaxObservations];
   std::uint16_t order_[kMaxObservations] = {};
   LocalizerHealth health_{};

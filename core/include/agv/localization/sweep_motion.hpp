@@ -15,6 +15,7 @@
 #include <cstddef>
 
 #include "agv/core/capacities.hpp"
+#include "agv/core/fixed_ring.hpp"
 #include "agv/core/pose2.hpp"
 #include "agv/core/result.hpp"
 #include "agv/core/status.hpp"
@@ -39,13 +40,16 @@ class MotionHistory {
   Status add(Timestamp stamp, const Pose2d& pose) noexcept;
 
   /// Forgets every pose.
-  void clear() noexcept { count_ = 0; }
+  void clear() noexcept { samples_.clear(); }
 
-  std::size_t size() const noexcept { return count_; }
-  bool empty() const noexcept { return count_ == 0; }
-  /// Oldest and newest stamps held (undefined when empty).
-  Timestamp oldest() const noexcept { return sample(0).stamp; }
-  Timestamp newest() const noexcept { return sample(count_ - 1).stamp; }
+  /// Number of poses held.
+  std::size_t size() const noexcept { return samples_.size(); }
+  /// True when no pose is held.
+  bool empty() const noexcept { return samples_.empty(); }
+  /// Oldest stamp held; precondition `!empty()` (checked in debug builds).
+  Timestamp oldest() const noexcept { return samples_.front().stamp; }
+  /// Newest stamp held; precondition `!empty()` (checked in debug builds).
+  Timestamp newest() const noexcept { return samples_.back().stamp; }
 
   /// The pose at `t`: linear between the two stored poses around it (position, and heading along
   /// the shorter arc); the oldest / newest pose for a `t` outside the stored interval.
@@ -57,12 +61,9 @@ class MotionHistory {
     Timestamp stamp;
     Pose2d pose;
   };
-  const Sample& sample(std::size_t k) const noexcept { return samples_[(start_ + k) % kCapacity]; }
 
   Duration maxAge_;
-  Sample samples_[kCapacity] = {};
-  std::size_t start_ = 0;
-  std::size_t count_ = 0;
+  FixedRing<Sample, kCapacity> samples_;  ///< oldest first; stamps strictly increase
 };
 
 /// Moves the points of one sweep into the sensor frame at the end of the sweep
