@@ -29,13 +29,10 @@ foreach(f "${json_file}" "${WORK_DIR}/svg/map.svg" "${WORK_DIR}/svg/error.svg")
 endforeach()
 file(READ "${json_file}" j)
 
-function(expect_type json type)
-  string(JSON t ERROR_VARIABLE e TYPE "${json}" ${ARGN})
-  if(e OR NOT t STREQUAL type)
-    message(FATAL_ERROR "JSON: ${ARGN} should be ${type}, is '${t}' ${e}")
-  endif()
-endfunction()
-
+include("${CMAKE_CURRENT_LIST_DIR}/../support/JsonChecks.cmake")
+expect_keys("${j}" "calibration;requirement;can_encoders;stages;runs;static_falko_mapping;requirement_met")
+expect_keys("${j}" "truth;estimate;nominal;estimate_error;nominal_error;estimate_source;status;segments_used"
+            calibration)
 expect_type("${j}" OBJECT calibration truth)
 expect_type("${j}" OBJECT calibration estimate)
 expect_type("${j}" OBJECT calibration nominal)
