@@ -1,7 +1,6 @@
 #include "eval.hpp"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -9,6 +8,8 @@
 #include <ostream>
 #include <random>
 #include <sstream>
+
+#include "agv/report/number.hpp"
 
 namespace agv {
 namespace features {
@@ -209,17 +210,18 @@ bool checkExternal(const KeypointTable& table, const std::string& name, const st
   return true;
 }
 
+// The keypoint file's numbers go through the apps' one parser (decimal, locale-free, whole token).
 bool parseCount(const std::string& tok, long long& v) {
-  errno = 0;
-  char* end = nullptr;
-  v = std::strtoll(tok.c_str(), &end, 10);
-  return !tok.empty() && end == tok.c_str() + tok.size() && errno == 0;
+  std::int64_t x = 0;
+  if (!report::toInteger(tok, x)) {
+    return false;
+  }
+  v = x;
+  return true;
 }
 
 bool parseNumber(const std::string& tok, double& v) {
-  char* end = nullptr;
-  v = std::strtod(tok.c_str(), &end);
-  return !tok.empty() && end == tok.c_str() + tok.size();
+  return report::toReal(tok, v);  // inf and nan refused
 }
 
 }  // namespace

@@ -277,6 +277,19 @@ TEST_CASE("features export: the scans written are the scans evaluated, to the bi
   }
 }
 
+TEST_CASE("features eval: keypoint file numbers are decimal (leading zeros are not octal)", "[features]") {
+  std::istringstream in("fr079 clean 010 2 01.5 -2e0 +.5 3.\n");
+  f::KeypointTable t;
+  std::string err;
+  REQUIRE(f::readKeypointTable(in, t, err));
+  const auto& kps = t.at("fr079").at("clean").at(10);
+  REQUIRE(kps.size() == 2U);
+  CHECK(kps[0].x == 1.5F);
+  CHECK(kps[0].y == -2.0F);
+  CHECK(kps[1].x == 0.5F);
+  CHECK(kps[1].y == 3.0F);
+}
+
 TEST_CASE("features eval: a malformed keypoint file is refused with its line number", "[features]") {
   const struct {
     const char* text;
@@ -287,6 +300,10 @@ TEST_CASE("features eval: a malformed keypoint file is refused with its line num
       {"# header\n\nfr079 clean 0 1 1.0 nan\n", "line 3: keypoint 1 is not a pair of finite numbers"},
       {"fr079 clean 0 1 1e400 0\n", "line 1: keypoint 1 is not a pair of finite numbers"},
       {"fr079 clean 0 1 1.0 2.0x\n", "line 1: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0 1 0x1 2.0\n", "line 1: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0 1 1,5 2.0\n", "line 1: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0x1 0\n", "line 1: expected <dataset> <variant> <scan> <count>"},
+      {"fr079 clean 0 1.0\n", "line 1: expected <dataset> <variant> <scan> <count>"},
       {"fr079 clean 0 -1\n", "line 1: negative scan index or count"},
       {"fr079 clean x 0\n", "line 1: expected <dataset> <variant> <scan> <count>"},
       {"fr079 clean 0\n", "line 1: expected"},
