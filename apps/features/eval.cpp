@@ -1,7 +1,6 @@
 #include "eval.hpp"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -9,6 +8,8 @@
 #include <ostream>
 #include <random>
 #include <sstream>
+
+#include "agv/report/number.hpp"
 
 namespace agv {
 namespace features {
@@ -209,17 +210,18 @@ bool checkExternal(const KeypointTable& table, const std::string& name, const st
   return true;
 }
 
+// The keypoint file's numbers go through the apps' one parser (decimal, locale-free, whole token).
 bool parseCount(const std::string& tok, long long& v) {
-  errno = 0;
-  char* end = nullptr;
-  v = std::strtoll(tok.c_str(), &end, 10);
-  return !tok.empty() && end == tok.c_str() + tok.size() && errno == 0;
+  std::int64_t x = 0;
+  if (!report::toInteger(tok, x)) {
+    return false;
+  }
+  v = x;
+  return true;
 }
 
 bool parseNumber(const std::string& tok, double& v) {
-  char* end = nullptr;
-  v = std::strtod(tok.c_str(), &end);
-  return !tok.empty() && end == tok.c_str() + tok.size();
+  return report::toReal(tok, v);  // inf and nan refused
 }
 
 }  // namespace
@@ -560,62 +562,48 @@ std::string paramsLine(const FalkoParams& p) {
   return buf;
 }
 
-std::string resultsToJson(const std::vector<DatasetResult>& results, const FalkoParams& params,
-                          const std::string& keypointsFile) {
-  std::ostringstream js;
-  js.precision(6);
-  js << "{\n  \"repeatability\": {";
-  for (std::size_t d = 0; d < results.size(); ++d) {
-    const DatasetResult& r = results[d];
-    js << (d ? "," : "") << "\n    \"" << r.name << "\": {";
-    std::size_t t = 0;
-    for (const auto& test : r.repeatability) {
-      js << (t++ ? "," : "") << "\n      \"" << test.first << "\": {";
-      std::size_t l = 0;
-      for (const auto& level : test.second) {
-        js << (l++ ? ", " : "") << "\"" << level.first << "\": " << level.second;
+report::Json resultsToJson(const std::vector<DatasetResult>& results, const FalkoParams& params,
+                           const std::string& keypointsFile) {
+  using report::Json;
+  Json repeatability = Json::object();
+  Json keypointsPerScan = Json::object();
+  Json scans = Json::object();
+  Json descriptors = Json::object();
+  for (const DatasetResult& r : results) {
+    Json tests = Json::object();
+    for (const auto& [test, levels] : r.repeatability) {
+      Json byLevel = Json::object();
+      for (const auto& [level, value] : levels) {
+        byLevel[level] = value;
       }
-      js << "}";
+      tests[test] = std::move(byLevel);
     }
-    js << "\n    }";
-  }
-  js << "\n  },\n  \"keypoints_per_scan\": {";
-  for (std::size_t d = 0; d < results.size(); ++d) {
-    js << (d ? ", " : "") << "\"" << results[d].name << "\": " << results[d].keypointsPerScan;
-  }
-  js << "},\n  \"scans\": {";
-  for (std::size_t d = 0; d < results.size(); ++d) {
-    js << (d ? ", " : "") << "\"" << results[d].name << "\": " << results[d].scans;
-  }
-  js << "},\n  \"descriptors\": {";
-  for (std::size_t d = 0; d < results.size(); ++d) {
-    js << (d ? "," : "") << "\n    \"" << results[d].name << "\": {";
+    repeatability[r.name] = std::move(tests);
+    keypointsPerScan[r.name] = r.keypointsPerScan;
+    scans[r.name] = r.scans;
+    Json curves = Json::object();
     for (int k = 0; k < 2; ++k) {
-      const auto& pr = k == 0 ? results[d].bsc : results[d].cgh;
-      js << (k ? ", " : "") << "\"" << (k == 0 ? "bsc" : "cgh") << "\": [";
-      for (std::size_t i = 0; i < pr.size(); ++i) {
-        js << (i ? ", " : "") << "{\"threshold\": " << pr[i].threshold << ", \"precision\": " << pr[i].precision
-           << ", \"recall\": " << pr[i].recall << "}";
+      Json points = Json::array();
+      for (const PrPoint& p : k == 0 ? r.bsc : r.cgh) {
+        points.push_back(Json{{"threshold", p.threshold}, {"precision", p.precision}, {"recall", p.recall}});
       }
-      js << "]";
+      curves[k == 0 ? "bsc" : "cgh"] = std::move(points);
     }
-    js << "}";
+    descriptors[r.name] = std::move(curves);
   }
+  Json doc{{"repeatability", std::move(repeatability)},
+           {"keypoints_per_scan", std::move(keypointsPerScan)},
+           {"scans", std::move(scans)},
+           {"descriptors", std::move(descriptors)}};
   if (!keypointsFile.empty()) {
-    js << "\n  },\n  \"keypoints_file\": \"";
-    for (const char ch : keypointsFile) {
-      if (ch == '"' || ch == '\\') {
-        js << '\\';
-      }
-      js << ch;
-    }
-    js << "\"\n}\n";
-    return js.str();
+    doc["keypoints_file"] = keypointsFile;
+    return doc;
   }
-  js << "\n  },\n  \"falko_params\": {\"neigh_a\": " << params.neighA << ", \"neigh_b\": " << params.neighB
-     << ", \"beta\": " << params.beta << ", \"grid_sectors\": " << params.gridSectors
-     << ", \"max_score\": " << params.maxScore << ", \"nms_radius\": " << params.nmsRadius << "}\n}\n";
-  return js.str();
+  doc["falko_params"] = Json{
+      {"neigh_a", report::shortestDouble(params.neighA)},     {"neigh_b", report::shortestDouble(params.neighB)},
+      {"beta", report::shortestDouble(params.beta)},          {"grid_sectors", params.gridSectors},
+      {"max_score", report::shortestDouble(params.maxScore)}, {"nms_radius", report::shortestDouble(params.nmsRadius)}};
+  return doc;
 }
 
 std::string resultsToTables(const std::vector<DatasetResult>& results) {

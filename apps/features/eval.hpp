@@ -13,6 +13,7 @@
 #include "agv/datasets/carmen_log.hpp"
 #include "agv/falko/falko_descriptors.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "agv/report/json.hpp"
 
 namespace agv {
 namespace features {
@@ -131,8 +132,8 @@ bool exportLog(const std::string& name, const std::string& path, const EvalOptio
 /// "keypoints_per_scan": {dataset: value}, "scans": {...}, "descriptors": {...},
 /// "falko_params": {...}} (the detector parameters of the run). When the keypoints were read from a
 /// file (`keypointsFile` not empty), "keypoints_file": path replaces "falko_params".
-std::string resultsToJson(const std::vector<DatasetResult>& results, const FalkoParams& params = FalkoParams{},
-                          const std::string& keypointsFile = std::string());
+report::Json resultsToJson(const std::vector<DatasetResult>& results, const FalkoParams& params = FalkoParams{},
+                           const std::string& keypointsFile = std::string());
 
 /// The detector parameters a run used, one line (for logs and table headers).
 std::string paramsLine(const FalkoParams& params);

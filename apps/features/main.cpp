@@ -17,15 +17,21 @@
 
 #include "agv/datasets/carmen_log.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "agv/report/json.hpp"
+#include "agv/report/text_file.hpp"
 #include "eval.hpp"
 #include "svg.hpp"
 
 namespace {
 
+/// Writes `text` to `path`; false after saying why on stderr.
 bool writeFile(const std::string& path, const std::string& text) {
-  std::ofstream f(path);
-  f << text;
-  return static_cast<bool>(f);
+  std::string error;
+  if (!agv::report::writeTextFile(path, text, error)) {
+    std::fprintf(stderr, "agvnav-features: %s\n", error.c_str());
+    return false;
+  }
+  return true;
 }
 
 struct Dataset {
@@ -116,7 +122,6 @@ int runDetect(const std::string& logPath, std::size_t index, const std::string& 
   }
   const std::vector<agv::FalkoKeypoint> v(kps->begin(), kps->end());
   if (!writeFile(svgPath, agv::features::scanSvg(*scan, v))) {
-    std::fprintf(stderr, "agvnav-features: cannot write %s\n", svgPath.c_str());
     return 1;
   }
   return 0;
@@ -283,15 +288,16 @@ int main(int argc, char** argv) {
     results.push_back(std::move(r));
   }
   std::fputs(agv::features::resultsToTables(results).c_str(), stdout);
-  if (!jsonPath.empty() && !writeFile(jsonPath, agv::features::resultsToJson(results, options.falko, keypointsIn))) {
-    std::fprintf(stderr, "agvnav-features: cannot write %s\n", jsonPath.c_str());
+  std::string error;
+  if (!jsonPath.empty() &&
+      !agv::report::writeJsonFile(jsonPath, agv::features::resultsToJson(results, options.falko, keypointsIn), error)) {
+    std::fprintf(stderr, "agvnav-features: %s\n", error.c_str());
     return 1;
   }
   if (!svgDir.empty()) {
     for (const char* test : {"viewpoint", "noise", "sampling"}) {
       const std::string p = svgDir + "/repeatability_" + test + ".svg";
       if (!writeFile(p, agv::features::curveSvg(results, test))) {
-        std::fprintf(stderr, "agvnav-features: cannot write %s\n", p.c_str());
         return 1;
       }
     }

@@ -2,11 +2,44 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <sstream>
+#include <string_view>
+
+#include "agv/report/number.hpp"
+#include "agv/report/svg.hpp"
 
 namespace agv {
 namespace features {
+namespace {
+
+using report::SvgDocument;
+using report::SvgPoints;
+
+/// Sort key of a repeatability level: "0.05" -> 0.05, "x2" -> 2, "x1/4" -> 0.25; 0 when the level
+/// is not one of those forms.
+double levelKey(std::string_view level) {
+  double v = 0.0;
+  if (level.rfind("x1/", 0) == 0) {
+    return report::toReal(level.substr(3), v) && v != 0.0 ? 1.0 / v : 0.0;
+  }
+  if (!level.empty() && level.front() == 'x') {
+    level.remove_prefix(1);
+  }
+  return report::toReal(level, v) ? v : 0.0;
+}
+
+/// A tick label: 0, 0.25, 0.5, ... without trailing zeros.
+std::string tickLabel(double v) {
+  std::string s = report::svgNumber(v);
+  while (s.back() == '0') {
+    s.pop_back();
+  }
+  if (s.back() == '.') {
+    s.pop_back();
+  }
+  return s;
+}
+
+}  // namespace
 
 std::string scanSvg(const LaserScan& scan, const std::vector<FalkoKeypoint>& keypoints) {
   double minX = -0.5;
@@ -29,42 +62,41 @@ std::string scanSvg(const LaserScan& scan, const std::vector<FalkoKeypoint>& key
   const double h = (maxY - minY + 1.0) * scale;
   auto px = [&](double x) { return (x - minX + 0.5) * scale; };
   auto py = [&](double y) { return (maxY - y + 0.5) * scale; };  // y up
-  std::ostringstream s;
-  s.precision(5);
-  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h << "\">\n";
-  s << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  s << "<circle cx=\"" << px(0) << "\" cy=\"" << py(0) << "\" r=\"6\" fill=\"blue\"/>\n";
+  SvgDocument svg(w, h);
+  svg.add("circle", {{"cx", px(0)}, {"cy", py(0)}, {"r", "6"}, {"fill", "blue"}});
   for (std::size_t i = 0; i < scan.size(); ++i) {
     if (!scan.isValid(i)) {
       continue;
     }
     const double a = static_cast<double>(scan.angle(i));
     const double r = static_cast<double>(scan.ranges[i]);
-    s << "<circle cx=\"" << px(r * std::cos(a)) << "\" cy=\"" << py(r * std::sin(a))
-      << "\" r=\"1.5\" fill=\"#555\"/>\n";
+    svg.add("circle", {{"cx", px(r * std::cos(a))}, {"cy", py(r * std::sin(a))}, {"r", "1.5"}, {"fill", "#555"}});
   }
   for (const FalkoKeypoint& k : keypoints) {
     const double x = static_cast<double>(k.x);
     const double y = static_cast<double>(k.y);
     const double o = static_cast<double>(k.orientation);
     const double len = 0.3;
-    s << "<circle cx=\"" << px(x) << "\" cy=\"" << py(y) << "\" r=\"" << static_cast<double>(k.radius) * scale
-      << "\" fill=\"none\" stroke=\"red\"/>\n";
-    s << "<circle cx=\"" << px(x) << "\" cy=\"" << py(y) << "\" r=\"3\" fill=\"red\"/>\n";
+    svg.add("circle", {{"cx", px(x)},
+                       {"cy", py(y)},
+                       {"r", static_cast<double>(k.radius) * scale},
+                       {"fill", "none"},
+                       {"stroke", "red"}});
+    svg.add("circle", {{"cx", px(x)}, {"cy", py(y)}, {"r", "3"}, {"fill", "red"}});
     const double ex = x + len * std::cos(o);
     const double ey = y + len * std::sin(o);
-    s << "<line x1=\"" << px(x) << "\" y1=\"" << py(y) << "\" x2=\"" << px(ex) << "\" y2=\"" << py(ey)
-      << "\" stroke=\"red\" stroke-width=\"2\"/>\n";
+    svg.add("line",
+            {{"x1", px(x)}, {"y1", py(y)}, {"x2", px(ex)}, {"y2", py(ey)}, {"stroke", "red"}, {"stroke-width", "2"}});
     // arrow head
     for (const double side : {-0.5, 0.5}) {
       const double hx = ex - 0.08 * std::cos(o + side);
       const double hy = ey - 0.08 * std::sin(o + side);
-      s << "<line x1=\"" << px(ex) << "\" y1=\"" << py(ey) << "\" x2=\"" << px(hx) << "\" y2=\"" << py(hy)
-        << "\" stroke=\"red\" stroke-width=\"2\"/>\n";
+      svg.add(
+          "line",
+          {{"x1", px(ex)}, {"y1", py(ey)}, {"x2", px(hx)}, {"y2", py(hy)}, {"stroke", "red"}, {"stroke-width", "2"}});
     }
   }
-  s << "</svg>\n";
-  return s.str();
+  return svg.str();
 }
 
 std::string curveSvg(const std::vector<DatasetResult>& results, const std::string& test) {
@@ -72,17 +104,13 @@ std::string curveSvg(const std::vector<DatasetResult>& results, const std::strin
   const double h = 320.0;
   const double m = 50.0;
   const char* colours[] = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e"};
-  std::ostringstream s;
-  s.precision(5);
-  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h << "\">\n";
-  s << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  s << "<text x=\"" << m << "\" y=\"20\" font-size=\"14\">repeatability / " << test << "</text>\n";
-  s << "<line x1=\"" << m << "\" y1=\"" << h - m << "\" x2=\"" << w - m << "\" y2=\"" << h - m
-    << "\" stroke=\"black\"/>\n";
-  s << "<line x1=\"" << m << "\" y1=\"" << m << "\" x2=\"" << m << "\" y2=\"" << h - m << "\" stroke=\"black\"/>\n";
+  SvgDocument svg(w, h);
+  svg.addText("text", {{"x", m}, {"y", "20"}, {"font-size", "14"}}, "repeatability / " + test);
+  svg.add("line", {{"x1", m}, {"y1", h - m}, {"x2", w - m}, {"y2", h - m}, {"stroke", "black"}});
+  svg.add("line", {{"x1", m}, {"y1", m}, {"x2", m}, {"y2", h - m}, {"stroke", "black"}});
   for (int t = 0; t <= 4; ++t) {
     const double y = h - m - (h - 2 * m) * t / 4.0;
-    s << "<text x=\"10\" y=\"" << y + 4 << "\" font-size=\"11\">" << t * 0.25 << "</text>\n";
+    svg.addText("text", {{"x", "10"}, {"y", y + 4}, {"font-size", "11"}}, tickLabel(t * 0.25));
   }
   std::size_t c = 0;
   for (const DatasetResult& r : results) {
@@ -93,37 +121,26 @@ std::string curveSvg(const std::vector<DatasetResult>& results, const std::strin
     // Levels in numeric order where they are numbers, else as stored.
     std::vector<std::pair<double, std::pair<std::string, double>>> pts;
     for (const auto& lv : it->second) {
-      const std::string& l = lv.first;
-      double key = 0.0;
-      if (l.rfind("x1/", 0) == 0) {
-        key = 1.0 / std::atof(l.c_str() + 3);
-      } else if (l[0] == 'x') {
-        key = std::atof(l.c_str() + 1);
-      } else {
-        key = std::atof(l.c_str());
-      }
-      pts.push_back({key, {l, lv.second}});
+      pts.push_back({levelKey(lv.first), {lv.first, lv.second}});
     }
     std::sort(pts.begin(), pts.end());
     const double n = static_cast<double>(pts.size());
-    s << "<polyline fill=\"none\" stroke=\"" << colours[c % 5] << "\" stroke-width=\"2\" points=\"";
+    const auto xAt = [&](std::size_t i) { return m + (w - 2 * m) * (n > 1 ? static_cast<double>(i) / (n - 1) : 0.5); };
+    SvgPoints line;
     for (std::size_t i = 0; i < pts.size(); ++i) {
-      const double x = m + (w - 2 * m) * (n > 1 ? static_cast<double>(i) / (n - 1) : 0.5);
-      const double y = h - m - (h - 2 * m) * pts[i].second.second;
-      s << x << "," << y << " ";
+      line.add(xAt(i), h - m - (h - 2 * m) * pts[i].second.second);
     }
-    s << "\"/>\n";
+    svg.add("polyline", {{"fill", "none"}, {"stroke", colours[c % 5]}, {"stroke-width", "2"}, {"points", line.str()}});
     for (std::size_t i = 0; i < pts.size() && c == 0; ++i) {
-      const double x = m + (w - 2 * m) * (n > 1 ? static_cast<double>(i) / (n - 1) : 0.5);
-      s << "<text x=\"" << x - 10 << "\" y=\"" << h - m + 16 << "\" font-size=\"11\">" << pts[i].second.first
-        << "</text>\n";
+      svg.addText("text", {{"x", xAt(i) - 10}, {"y", h - m + 16}, {"font-size", "11"}}, pts[i].second.first);
     }
-    s << "<text x=\"" << w - m - 80 << "\" y=\"" << m + 16 * static_cast<double>(c) << "\" font-size=\"12\" fill=\""
-      << colours[c % 5] << "\">" << r.name << "</text>\n";
+    svg.addText(
+        "text",
+        {{"x", w - m - 80}, {"y", m + 16 * static_cast<double>(c)}, {"font-size", "12"}, {"fill", colours[c % 5]}},
+        r.name);
     ++c;
   }
-  s << "</svg>\n";
-  return s.str();
+  return svg.str();
 }
 
 }  // namespace features

@@ -3,12 +3,15 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <sstream>
+
+#include "agv/report/svg.hpp"
 
 namespace agv::hil {
 
 namespace {
+
+using report::SvgDocument;
+using report::SvgPoints;
 
 constexpr double kScale = 20.0;   // [px/m] map
 constexpr double kMargin = 30.0;  // [px]
@@ -29,12 +32,6 @@ const char* colourOf(sim::ObstacleKind k) {
   return "#000";
 }
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.2f", v);
-  return buf;
-}
-
 // 1e-4 -> "0.1 mm", 0.01 -> "10 mm", 1 -> "1 m".
 std::string label(double metres) {
   char buf[32];
@@ -46,41 +43,58 @@ std::string label(double metres) {
   return buf;
 }
 
-bool save(const std::string& file, const std::string& text) {
-  std::ofstream out(file, std::ios::binary);
-  out << text;
-  return static_cast<bool>(out);
+/// A legend line: `before` then each (colour, text) as a coloured tspan, separated by `gap`.
+void legend(SvgDocument& svg, double x, double y, const char* before,
+            std::initializer_list<std::pair<const char*, const char*>> entries, const char* gap, const char* after) {
+  svg.open("text", {{"x", x}, {"y", y}});
+  svg.text(before);
+  bool first = true;
+  for (const auto& [colour, text] : entries) {
+    if (!first) {
+      svg.text(gap);
+    }
+    svg.addText("tspan", {{"fill", colour}}, text);
+    first = false;
+  }
+  svg.text(after);
+  svg.close();
 }
 
 }  // namespace
 
-bool writeMapSvg(const std::string& file, const sim::World& world, const std::vector<RunResult>& runs) {
+bool writeMapSvg(const std::string& file, const sim::World& world, const std::vector<RunResult>& runs,
+                 std::string& error) {
   sim::Point2 lo;
   sim::Point2 hi;
   world.bounds(&lo, &hi);
   const double w = (hi.x - lo.x) * kScale + 2 * kMargin;
   const double h = (hi.y - lo.y) * kScale + 2 * kMargin + 40.0;
-  auto X = [&](double x) { return num(kMargin + (x - lo.x) * kScale); };
-  auto Y = [&](double y) { return num(kMargin + (hi.y - y) * kScale); };
-  std::ostringstream s;
-  s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << num(w) << "' height='" << num(h)
-    << "' font-family='sans-serif' font-size='12'>\n";
-  s << "<rect width='100%' height='100%' fill='white'/>\n";
+  auto X = [&](double x) { return kMargin + (x - lo.x) * kScale; };
+  auto Y = [&](double y) { return kMargin + (hi.y - y) * kScale; };
+  SvgDocument svg(w, h, {{"font-family", "sans-serif"}, {"font-size", "12"}});
   for (const sim::Segment& g : world.segments) {
-    s << "<line x1='" << X(g.a.x) << "' y1='" << Y(g.a.y) << "' x2='" << X(g.b.x) << "' y2='" << Y(g.b.y)
-      << "' stroke='" << colourOf(g.kind) << "' stroke-width='1.5'/>\n";
+    svg.add("line", {{"x1", X(g.a.x)},
+                     {"y1", Y(g.a.y)},
+                     {"x2", X(g.b.x)},
+                     {"y2", Y(g.b.y)},
+                     {"stroke", colourOf(g.kind)},
+                     {"stroke-width", "1.5"}});
   }
   for (const sim::Circle& c : world.circles) {
     const double r = std::max(c.radius * kScale, c.kind == sim::ObstacleKind::Reflector ? 3.0 : 1.0);
-    s << "<circle cx='" << X(c.centre.x) << "' cy='" << Y(c.centre.y) << "' r='" << num(r) << "' fill='"
-      << colourOf(c.kind) << "'/>\n";
+    svg.add("circle", {{"cx", X(c.centre.x)}, {"cy", Y(c.centre.y)}, {"r", r}, {"fill", colourOf(c.kind)}});
   }
   for (const sim::Path& p : world.paths) {
-    s << "<polyline fill='none' stroke='#bbb' stroke-width='6' stroke-linecap='round' points='";
+    SvgPoints pts;
     for (const Pose2d& q : p.points) {
-      s << X(q.x) << ',' << Y(q.y) << ' ';
+      pts.add(X(q.x), Y(q.y));
     }
-    s << "'/>\n<text x='" << X(p.start.x) << "' y='" << Y(p.start.y) << "' dx='-18' dy='4'>" << p.name << "</text>\n";
+    svg.add("polyline", {{"fill", "none"},
+                         {"stroke", "#bbb"},
+                         {"stroke-width", "6"},
+                         {"stroke-linecap", "round"},
+                         {"points", pts.str()}});
+    svg.addText("text", {{"x", X(p.start.x)}, {"y", Y(p.start.y)}, {"dx", "-18"}, {"dy", "4"}}, p.name);
   }
   // First run of each path (reflector mode): truth, dead reckoning, localizer.
   const char* colours[5] = {"#000", "#1a9850", "#f46d43", "#2166ac", "#762a83"};
@@ -89,31 +103,33 @@ bool writeMapSvg(const std::string& file, const sim::World& world, const std::ve
       continue;
     }
     for (int k = 0; k < 5; ++k) {
-      s << "<polyline fill='none' stroke='" << colours[k] << "' stroke-width='1.2' points='";
+      SvgPoints pts;
       for (const TrajectorySample& t : r.history) {
         const Pose2d& q = k == 0   ? t.truth
                           : k == 1 ? t.withTruth
                           : k == 2 ? t.withNominal
                           : k == 3 ? t.withEstimate
                                    : t.localized;
-        s << X(q.x) << ',' << Y(q.y) << ' ';
+        pts.add(X(q.x), Y(q.y));
       }
-      s << "'/>\n";
+      svg.add("polyline", {{"fill", "none"}, {"stroke", colours[k]}, {"stroke-width", "1.2"}, {"points", pts.str()}});
     }
   }
-  const double ly = h - 18.0;
-  s << "<text x='" << num(kMargin) << "' y='" << num(ly) << "'>"
-    << "<tspan fill='#000'>truth</tspan>  <tspan fill='#1a9850'>dead reckoning, true parameters</tspan>  "
-    << "<tspan fill='#f46d43'>dead reckoning, nominal parameters</tspan>  "
-    << "<tspan fill='#2166ac'>dead reckoning, estimated parameters</tspan>  <tspan fill='#762a83'>localizer "
-       "(reflectors)</tspan>  "
-    << "<tspan fill='#e00000'>reflectors</tspan>  "
-    << "<tspan fill='#a0522d'>pallet blocks</tspan>  <tspan fill='#3060a0'>racks</tspan>  (1 px = 5 cm)</text>\n";
-  s << "</svg>\n";
-  return save(file, s.str());
+  legend(svg, kMargin, h - 18.0, "",
+         {{"#000", "truth"},
+          {"#1a9850", "dead reckoning, true parameters"},
+          {"#f46d43", "dead reckoning, nominal parameters"},
+          {"#2166ac", "dead reckoning, estimated parameters"},
+          {"#762a83", "localizer (reflectors)"},
+          {"#e00000", "reflectors"},
+          {"#a0522d", "pallet blocks"},
+          {"#3060a0", "racks"}},
+         "  ", "  (1 px = 5 cm)");
+  return svg.save(file, error);
 }
 
-bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, double requirement) {
+bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, double requirement,
+                   std::string& error) {
   const double w = 800.0;
   const double h = 480.0;
   const double left = 80.0;
@@ -127,34 +143,36 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
   maxDist = std::ceil(maxDist);
   const double logLo = -4.0;  // 0.1 mm
   const double logHi = 1.0;   // 10 m
-  auto X = [&](double d) { return num(left + d / maxDist * (w - left - right)); };
+  auto X = [&](double d) { return left + d / maxDist * (w - left - right); };
   auto Y = [&](double e) {
     const double l = std::clamp(std::log10(std::max(e, 1e-12)), logLo, logHi);
-    return num(top + (logHi - l) / (logHi - logLo) * (h - top - bottom));
+    return top + (logHi - l) / (logHi - logLo) * (h - top - bottom);
   };
-  std::ostringstream s;
-  s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << num(w) << "' height='" << num(h)
-    << "' font-family='sans-serif' font-size='12'>\n";
-  s << "<rect width='100%' height='100%' fill='white'/>\n";
+  SvgDocument svg(w, h, {{"font-family", "sans-serif"}, {"font-size", "12"}});
   for (int e = static_cast<int>(logLo); e <= static_cast<int>(logHi); ++e) {
     const double v = std::pow(10.0, e);
-    s << "<line x1='" << num(left) << "' x2='" << num(w - right) << "' y1='" << Y(v) << "' y2='" << Y(v)
-      << "' stroke='#ddd'/><text x='" << num(left - 6) << "' y='" << Y(v) << "' dy='4' text-anchor='end'>" << label(v)
-      << "</text>\n";
+    svg.add("line", {{"x1", left}, {"x2", w - right}, {"y1", Y(v)}, {"y2", Y(v)}, {"stroke", "#ddd"}});
+    svg.addText("text", {{"x", left - 6}, {"y", Y(v)}, {"dy", "4"}, {"text-anchor", "end"}}, label(v));
   }
   for (int d = 0; d <= static_cast<int>(maxDist); d += 2) {
-    s << "<line y1='" << num(top) << "' y2='" << num(h - bottom) << "' x1='" << X(d) << "' x2='" << X(d)
-      << "' stroke='#eee'/><text x='" << X(d) << "' y='" << num(h - bottom + 16) << "' text-anchor='middle'>" << d
-      << "</text>\n";
+    svg.add("line", {{"y1", top}, {"y2", h - bottom}, {"x1", X(d)}, {"x2", X(d)}, {"stroke", "#eee"}});
+    svg.addText("text", {{"x", X(d)}, {"y", h - bottom + 16}, {"text-anchor", "middle"}}, std::to_string(d));
   }
-  s << "<text x='" << num(left + (w - left - right) / 2) << "' y='" << num(h - bottom + 34)
-    << "' text-anchor='middle'>distance travelled [m]</text>\n";
-  s << "<text transform='translate(16," << num(top + (h - top - bottom) / 2)
-    << ") rotate(-90)' text-anchor='middle'>position error (log)</text>\n";
-  s << "<line x1='" << num(left) << "' x2='" << num(w - right) << "' y1='" << Y(requirement) << "' y2='"
-    << Y(requirement) << "' stroke='#d73027' stroke-dasharray='6,4'/>\n";
-  s << "<text x='" << num(w - right - 4) << "' y='" << Y(requirement)
-    << "' dy='-4' text-anchor='end' fill='#d73027'>requirement " << num(requirement * 100.0) << " cm</text>\n";
+  svg.addText("text", {{"x", left + (w - left - right) / 2}, {"y", h - bottom + 34}, {"text-anchor", "middle"}},
+              "distance travelled [m]");
+  svg.addText("text",
+              {{"transform", "translate(16," + report::svgNumber(top + (h - top - bottom) / 2) + ") rotate(-90)"},
+               {"text-anchor", "middle"}},
+              "position error (log)");
+  svg.add("line", {{"x1", left},
+                   {"x2", w - right},
+                   {"y1", Y(requirement)},
+                   {"y2", Y(requirement)},
+                   {"stroke", "#d73027"},
+                   {"stroke-dasharray", "6,4"}});
+  svg.addText("text",
+              {{"x", w - right - 4}, {"y", Y(requirement)}, {"dy", "-4"}, {"text-anchor", "end"}, {"fill", "#d73027"}},
+              "requirement " + report::svgNumber(requirement * 100.0) + " cm");
   for (const RunResult& r : runs) {
     // Dead reckoning (once: every mode repeats the vehicle runs), then the localizer by mode.
     const char* colours[4] = {"#1a9850", "#f46d43", "#2166ac", "#762a83"};
@@ -164,7 +182,7 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
       colours[3] = "#35978f";
     }
     for (int k = r.mode == LocalizationMode::Reflectors ? 0 : 3; k < 4; ++k) {
-      s << "<polyline fill='none' stroke-opacity='0.6' stroke='" << colours[k] << "' points='";
+      SvgPoints pts;
       double lastD = -1.0;
       for (const TrajectorySample& t : r.history) {
         if (t.distance - lastD < 0.05) {
@@ -172,18 +190,26 @@ bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, 
         }
         lastD = t.distance;
         const Pose2d& q = k == 0 ? t.withTruth : (k == 1 ? t.withNominal : (k == 2 ? t.withEstimate : t.localized));
-        s << X(t.distance) << ',' << Y(positionError(q, t.truth)) << ' ';
+        pts.add(X(t.distance), Y(positionError(q, t.truth)));
       }
-      s << "'/>\n";
+      svg.add("polyline", {{"fill", "none"}, {"stroke-opacity", "0.6"}, {"stroke", colours[k]}, {"points", pts.str()}});
     }
   }
-  s << "<text x='" << num(left + 8) << "' y='" << num(top + 14)
-    << "'>dead reckoning with: <tspan fill='#1a9850'>true parameters</tspan>   "
-    << "<tspan fill='#f46d43'>nominal parameters</tspan>   <tspan fill='#2166ac'>estimated parameters</tspan>; "
-       "localizer: <tspan fill='#762a83'>reflectors</tspan> "
-    << "<tspan fill='#e08214'>static FALKO</tspan> <tspan fill='#35978f'>dynamic</tspan></text>\n";
-  s << "</svg>\n";
-  return save(file, s.str());
+  svg.open("text", {{"x", left + 8}, {"y", top + 14}});
+  svg.text("dead reckoning with: ");
+  svg.addText("tspan", {{"fill", "#1a9850"}}, "true parameters");
+  svg.text("   ");
+  svg.addText("tspan", {{"fill", "#f46d43"}}, "nominal parameters");
+  svg.text("   ");
+  svg.addText("tspan", {{"fill", "#2166ac"}}, "estimated parameters");
+  svg.text("; localizer: ");
+  svg.addText("tspan", {{"fill", "#762a83"}}, "reflectors");
+  svg.text(" ");
+  svg.addText("tspan", {{"fill", "#e08214"}}, "static FALKO");
+  svg.text(" ");
+  svg.addText("tspan", {{"fill", "#35978f"}}, "dynamic");
+  svg.close();
+  return svg.save(file, error);
 }
 
 }  // namespace agv::hil

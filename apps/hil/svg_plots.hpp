@@ -12,11 +12,13 @@
 namespace agv::hil {
 
 /// Map (walls, pallets, racks, pillars, reflectors, paths) with the first run of every path:
-/// truth, dead reckoning with the true, the nominal and the estimated parameters. False on a write error.
-bool writeMapSvg(const std::string& file, const sim::World& world, const std::vector<RunResult>& runs);
+/// truth, dead reckoning with the true, the nominal and the estimated parameters. False with `error`
+/// when the file cannot be written.
+bool writeMapSvg(const std::string& file, const sim::World& world, const std::vector<RunResult>& runs,
+                 std::string& error);
 
 /// Position error [m, log scale] versus distance [m] for every run and parameter set, with
-/// the 2 cm requirement line. False on a write error.
-bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, double requirement);
+/// the 2 cm requirement line. False with `error` when the file cannot be written.
+bool writeErrorSvg(const std::string& file, const std::vector<RunResult>& runs, double requirement, std::string& error);
 
 }  // namespace agv::hil

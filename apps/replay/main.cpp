@@ -6,18 +6,23 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
 #include <string>
 
 #include "agv/datasets/carmen_log.hpp"
+#include "agv/report/json.hpp"
+#include "agv/report/text_file.hpp"
 #include "replay.hpp"
 
 namespace {
 
+/// Writes `text` to `path`; false after saying why on stderr.
 bool writeFile(const std::string& path, const std::string& text) {
-  std::ofstream f(path);
-  f << text;
-  return static_cast<bool>(f);
+  std::string error;
+  if (!agv::report::writeTextFile(path, text, error)) {
+    std::fprintf(stderr, "agvnav-replay: %s\n", error.c_str());
+    return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -102,12 +107,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::fputs(agv::replay::resultText(r).c_str(), stdout);
-  if (!jsonPath.empty() && !writeFile(jsonPath, agv::replay::resultJson(r))) {
-    std::fprintf(stderr, "agvnav-replay: cannot write %s\n", jsonPath.c_str());
+  if (!jsonPath.empty() && !writeFile(jsonPath, agv::report::dumpJson(agv::replay::resultJson(r)))) {
     return 1;
   }
   if (!svgPath.empty() && !writeFile(svgPath, agv::replay::trajectorySvg(r))) {
-    std::fprintf(stderr, "agvnav-replay: cannot write %s\n", svgPath.c_str());
     return 1;
   }
   if (check) {

@@ -10,6 +10,7 @@
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "agv/report/svg.hpp"
 #include "agv/scan/laser_scan.hpp"
 
 namespace agv {
@@ -50,9 +51,12 @@ std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0, double 
   return buf;
 }
 
-void statsJson(std::ostringstream& o, const char* name, const ErrorStats& s, double scale) {
-  o << "\"" << name << "\": {\"count\": " << s.count << ", \"mean\": " << s.mean * scale
-    << ", \"median\": " << s.median * scale << ", \"rms\": " << s.rms * scale << ", \"max\": " << s.max * scale << "}";
+report::Json statsJson(const ErrorStats& s, double scale) {
+  return report::Json{{"count", s.count},
+                      {"mean", s.mean * scale},
+                      {"median", s.median * scale},
+                      {"rms", s.rms * scale},
+                      {"max", s.max * scale}};
 }
 
 // Clusters the keypoints of every scan, placed in the world with the corrected poses, and adds
@@ -392,31 +396,38 @@ std::string resultText(const ReplayResult& r) {
   return o.str();
 }
 
-std::string resultJson(const ReplayResult& r) {
-  std::ostringstream o;
-  o << "{\n  \"log\": \"" << r.log << "\",\n  \"scans\": " << r.scans << ",\n  \"path_length_m\": " << r.pathLength
-    << ",\n  \"duration_s\": " << r.duration << ",\n  \"zero_increments\": " << r.zeroIncrements << ",\n";
-  const auto rel = [&o](const char* name, const RelativeError& e) {
-    o << "  \"" << name << "\": {";
-    statsJson(o, "position_m", e.position, 1.0);
-    o << ", ";
-    statsJson(o, "heading_deg", e.heading, kDeg);
-    o << "},\n";
+report::Json resultJson(const ReplayResult& r) {
+  using report::Json;
+  const auto errors = [](const ErrorStats& position, const ErrorStats& heading) {
+    return Json{{"position_m", statsJson(position, 1.0)}, {"heading_deg", statsJson(heading, kDeg)}};
   };
-  rel("odometry_per_metre", r.odometryRelative);
-  rel("localizer_per_metre", r.localizerRelative);
-  rel("odometry_absolute", RelativeError{r.odometryAbsolute.position, r.odometryAbsolute.heading});
-  rel("localizer_absolute", RelativeError{r.localizerAbsolute.position, r.localizerAbsolute.heading});
-  o << "  \"static_map\": " << (r.staticMap ? "true" : "false") << ",\n";
-  o << "  \"localizer\": {\"keypoints\": " << r.keypoints << ", \"used\": " << r.used
-    << ", \"fix_cycles\": " << r.fixCycles << ", \"bad_cycles\": " << r.badCycles
-    << ", \"lost_events\": " << r.lostEvents << ", \"rejected_gate\": " << r.rejectedGate
-    << ", \"rejected_ambiguous\": " << r.rejectedAmbiguous << ", \"rejected_duplicate\": " << r.rejectedDuplicate
-    << ", \"rejected_update\": " << r.rejectedUpdate << ", \"mean_test_ratio\": " << r.meanTestRatio
-    << ", \"map_size\": " << r.mapSize << ", \"map_inserted\": " << r.mapInserted
-    << ", \"map_deleted\": " << r.mapDeleted << ", \"expected_in_view\": " << r.expected
-    << ", \"occluded_or_no_return\": " << r.occluded << "},\n  \"replay_seconds\": " << r.seconds << "\n}\n";
-  return o.str();
+  return Json{{"log", r.log},
+              {"scans", r.scans},
+              {"path_length_m", r.pathLength},
+              {"duration_s", r.duration},
+              {"zero_increments", r.zeroIncrements},
+              {"odometry_per_metre", errors(r.odometryRelative.position, r.odometryRelative.heading)},
+              {"localizer_per_metre", errors(r.localizerRelative.position, r.localizerRelative.heading)},
+              {"odometry_absolute", errors(r.odometryAbsolute.position, r.odometryAbsolute.heading)},
+              {"localizer_absolute", errors(r.localizerAbsolute.position, r.localizerAbsolute.heading)},
+              {"static_map", r.staticMap},
+              {"localizer",
+               {{"keypoints", r.keypoints},
+                {"used", r.used},
+                {"fix_cycles", r.fixCycles},
+                {"bad_cycles", r.badCycles},
+                {"lost_events", r.lostEvents},
+                {"rejected_gate", r.rejectedGate},
+                {"rejected_ambiguous", r.rejectedAmbiguous},
+                {"rejected_duplicate", r.rejectedDuplicate},
+                {"rejected_update", r.rejectedUpdate},
+                {"mean_test_ratio", r.meanTestRatio},
+                {"map_size", r.mapSize},
+                {"map_inserted", r.mapInserted},
+                {"map_deleted", r.mapDeleted},
+                {"expected_in_view", r.expected},
+                {"occluded_or_no_return", r.occluded}}},
+              {"replay_seconds", r.seconds}};
 }
 
 std::string trajectorySvg(const ReplayResult& r) {
@@ -436,33 +447,38 @@ std::string trajectorySvg(const ReplayResult& r) {
   const double scale = 800.0 / std::max(1.0, std::max(maxX - minX, maxY - minY) + 2.0 * margin);
   const double w = (maxX - minX + 2.0 * margin) * scale;
   const double h = (maxY - minY + 2.0 * margin) * scale + 60.0;
-  std::ostringstream o;
-  o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h << "\">\n"
-    << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+  report::SvgDocument svg(w, h);
   const auto line = [&](const std::vector<Pose2d>& t, const char* colour) {
-    o << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"1\" points=\"";
+    report::SvgPoints pts;
     for (const Pose2d& p : t) {
-      o << (p.x - minX + margin) * scale << "," << (maxY - p.y + margin) * scale + 60.0 << " ";
+      pts.add((p.x - minX + margin) * scale, (maxY - p.y + margin) * scale + 60.0);
     }
-    o << "\"/>\n";
+    svg.add("polyline", {{"fill", "none"}, {"stroke", colour}, {"stroke-width", "1"}, {"points", pts.str()}});
   };
   line(r.odometry, "#d62728");
   line(r.truth, "#000000");
   line(r.localizer, "#1f77b4");
-  o << "<text x=\"10\" y=\"18\" font-family=\"sans-serif\" font-size=\"13\">" << r.log << " (" << r.scans
-    << " scans)</text>\n";
-  o << "<text x=\"10\" y=\"34\" font-family=\"sans-serif\" font-size=\"12\"><tspan fill=\"#000000\">corrected "
-       "poses</tspan>, <tspan fill=\"#d62728\">raw odometry</tspan>, <tspan fill=\"#1f77b4\">localizer "
-       "(dynamic FALKO map)</tspan></text>\n";
-  o << "<text x=\"10\" y=\"50\" font-family=\"sans-serif\" font-size=\"12\">"
-    << fmt("per metre (mean): odometry %.3f m / %.2f deg, localizer %.3f m / %.2f deg",
-           r.odometryRelative.position.mean, r.odometryRelative.heading.mean * kDeg, r.localizerRelative.position.mean,
-           r.localizerRelative.heading.mean * kDeg)
-    << "</text>\n";
-  o << "<line x1=\"10\" y1=\"" << h - 10 << "\" x2=\"" << 10 + 5.0 * scale << "\" y2=\"" << h - 10
-    << "\" stroke=\"black\" stroke-width=\"2\"/><text x=\"14\" y=\"" << h - 14
-    << "\" font-family=\"sans-serif\" font-size=\"11\">5 m</text>\n</svg>\n";
-  return o.str();
+  svg.addText("text", {{"x", "10"}, {"y", "18"}, {"font-family", "sans-serif"}, {"font-size", "13"}},
+              r.log + " (" + std::to_string(r.scans) + " scans)");
+  svg.open("text", {{"x", "10"}, {"y", "34"}, {"font-family", "sans-serif"}, {"font-size", "12"}});
+  svg.addText("tspan", {{"fill", "#000000"}}, "corrected poses");
+  svg.text(", ");
+  svg.addText("tspan", {{"fill", "#d62728"}}, "raw odometry");
+  svg.text(", ");
+  svg.addText("tspan", {{"fill", "#1f77b4"}}, "localizer (dynamic FALKO map)");
+  svg.close();
+  svg.addText("text", {{"x", "10"}, {"y", "50"}, {"font-family", "sans-serif"}, {"font-size", "12"}},
+              fmt("per metre (mean): odometry %.3f m / %.2f deg, localizer %.3f m / %.2f deg",
+                  r.odometryRelative.position.mean, r.odometryRelative.heading.mean * kDeg,
+                  r.localizerRelative.position.mean, r.localizerRelative.heading.mean * kDeg));
+  svg.add("line", {{"x1", "10"},
+                   {"y1", h - 10},
+                   {"x2", 10 + 5.0 * scale},
+                   {"y2", h - 10},
+                   {"stroke", "black"},
+                   {"stroke-width", "2"}});
+  svg.addText("text", {{"x", "14"}, {"y", h - 14}, {"font-family", "sans-serif"}, {"font-size", "11"}}, "5 m");
+  return svg.str();
 }
 
 }  // namespace replay

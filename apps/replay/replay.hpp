@@ -13,6 +13,7 @@
 #include "agv/falko/falko_params.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/odometry.hpp"
+#include "agv/report/json.hpp"
 
 namespace agv {
 namespace replay {
@@ -122,7 +123,7 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, Rep
 /// Human-readable summary.
 std::string resultText(const ReplayResult& r);
 /// JSON object of the figures (no trajectories).
-std::string resultJson(const ReplayResult& r);
+report::Json resultJson(const ReplayResult& r);
 /// SVG of the three trajectories (ground truth, raw odometry, localizer).
 std::string trajectorySvg(const ReplayResult& r);
 

@@ -2,15 +2,18 @@
 
 #include <arpa/inet.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
-#include <cstdlib>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <functional>
 #include <map>
 #include <sstream>
 #include <vector>
+
+#include "agv/report/number.hpp"
 
 namespace agv::vehicle {
 namespace {
@@ -26,32 +29,35 @@ std::string trim(const std::string& s) {
   return s.substr(b, e - b + 1);
 }
 
+// Numbers through the one parser of the apps' text formats: locale-free, decimal ("010" is ten,
+// not octal eight), integers also as 0x.. hexadecimal (COB-IDs); the whole value must be the number.
 bool parseDouble(const std::string& v, double& out) {
-  if (v.empty()) {
-    return false;
-  }
-  errno = 0;
-  char* end = nullptr;
-  const double d = std::strtod(v.c_str(), &end);
-  if (errno != 0 || end != v.c_str() + v.size() || !std::isfinite(d)) {
-    return false;
-  }
-  out = d;
-  return true;
+  return report::toReal(v, out);
 }
 
 bool parseInteger(const std::string& v, long long lo, long long hi, long long& out) {
-  if (v.empty()) {
-    return false;
-  }
-  errno = 0;
-  char* end = nullptr;
-  const long long x = std::strtoll(v.c_str(), &end, 0);  // decimal, or 0x.. hexadecimal
-  if (errno != 0 || end != v.c_str() + v.size() || x < lo || x > hi) {
+  std::int64_t x = 0;
+  if (report::parseIntegerOrHex(v, x) != report::NumberError::None || x < lo || x > hi) {
     return false;
   }
   out = x;
   return true;
+}
+
+/// `v` split at blanks (spaces and tabs).
+std::vector<std::string> words(const std::string& v) {
+  std::vector<std::string> w;
+  std::size_t i = 0;
+  while (i < v.size()) {
+    const std::size_t b = v.find_first_not_of(" \t", i);
+    if (b == std::string::npos) {
+      break;
+    }
+    const std::size_t e = std::min(v.find_first_of(" \t", b), v.size());
+    w.push_back(v.substr(b, e - b));
+    i = e;
+  }
+  return w;
 }
 
 std::string range(double lo, double hi, const char* unit) {
@@ -294,11 +300,10 @@ bool parseVehicleConfig(const std::string& text, const std::string& path, Vehicl
   specs["localization.corners"] = choice(false, {"false", "true"}, [&](std::size_t i) { c.useCorners = i == 1; });
   specs["localization.initial_pose"] =
       KeySpec{false, [&](const std::string& v, std::string& why) {
-                std::istringstream s(v);
-                std::string a, b, t, extra;
+                const std::vector<std::string> w = words(v);
                 double x = 0, y = 0, th = 0;
-                if (!(s >> a >> b >> t) || (s >> extra) || !parseDouble(a, x) || !parseDouble(b, y) ||
-                    !parseDouble(t, th) || std::fabs(x) > 1e6 || std::fabs(y) > 1e6 || std::fabs(th) > kTwoPi) {
+                if (w.size() != 3 || !parseDouble(w[0], x) || !parseDouble(w[1], y) || !parseDouble(w[2], th) ||
+                    std::fabs(x) > 1e6 || std::fabs(y) > 1e6 || std::fabs(th) > kTwoPi) {
                   why =
                       "expected 'x y theta' in m, m, rad (|x|,|y| <= 1e6, |theta| "
                       "<= 2 pi), got '" +

@@ -67,6 +67,33 @@ TEST_CASE("carmen log: records, ground truth and malformed lines with their numb
   CHECK(log.odometry[0].tv == Approx(0.5));
 }
 
+TEST_CASE("carmen log: numbers are decimal and finite; a range may be inf", "[datasets]") {
+  const std::string text =
+      "FLASER 3 010 inf 2.5e0 +1.0 2.0 0.5 1.0 2.0 0.5 7.5 h 7.25\n"  // line 1: 010 is ten; inf: no echo
+      "FLASER 2 1.0 2.0 nan 2.0 0.5 1.0 2.0 0.5 7.5 h 7.5\n"          // line 2: a pose must be finite
+      "FLASER 2 1.0 2.0 0x1 2.0 0.5 1.0 2.0 0.5 7.5 h 7.75\n"         // line 3: not decimal
+      "ODOM 1 2 0.1 0.5 0.01 0 100.5 h 1e400\n"                       // line 4: out of range
+      "VERTEX2 0x7 1.0 2.0 0.5\n"                                     // line 5: id not decimal
+      "VERTEX2 07 1.0 2.0 0.5\n";                                     // line 6: id 7
+  const CarmenLog log = agv::datasets::parseCarmenLog(text);
+  REQUIRE(log.scans.size() == 1U);
+  CHECK(log.scans[0].ranges[0] == 10.0F);
+  CHECK(std::isinf(log.scans[0].ranges[1]));
+  CHECK(log.scans[0].ranges[2] == 2.5F);
+  CHECK(log.scans[0].laserPose.x == 1.0);
+  REQUIRE(log.issues.size() == 4U);
+  CHECK(log.issues[0].line == 2U);
+  CHECK(log.issues[1].line == 3U);
+  CHECK(log.issues[2].line == 4U);
+  CHECK(log.issues[3].line == 5U);
+  REQUIRE(log.vertices.size() == 1U);
+  CHECK(log.vertices[0].id == 7);
+  agv::LaserScan scan;
+  REQUIRE(log.scans[0].toLaserScan(scan));
+  CHECK(scan.isValid(0));
+  CHECK_FALSE(scan.isValid(1));  // inf: no return
+}
+
 TEST_CASE("carmen log: the shared FLIRTLib logs read completely", "[datasets][realdata]") {
   struct Expect {
     const char* file;

@@ -6,10 +6,12 @@
 #include <string>
 #include <vector>
 
+#include "agv/report/json.hpp"
 #include "agv_test.hpp"
 #include "eval.hpp"
 
 namespace f = agv::features;
+using agv::report::Json;
 
 namespace {
 const std::string kData = std::string(AGV_SHARED_DATA_DIR) + "/laser2d/";
@@ -53,10 +55,38 @@ TEST_CASE("features eval: intel, fr079 and mit-csail give sane repeatability and
     CHECK(r.bsc.back().recall > 0.5);
     all.push_back(std::move(r));
   }
-  const std::string js = f::resultsToJson(all);
-  CHECK(js.find("\"repeatability\": {") != std::string::npos);
-  CHECK(js.find("\"keypoints_per_scan\": {\"intel\": ") != std::string::npos);
-  CHECK(js.find("\"mit-csail\": {\n      \"noise\": {\"0.01\": ") != std::string::npos);
+  // The JSON document, written and parsed back: every dataset's figures under the documented keys.
+  const Json js = Json::parse(agv::report::dumpJson(f::resultsToJson(all)));
+  std::vector<std::string> keys;
+  for (const auto& item : js.items()) {
+    keys.push_back(item.key());
+  }
+  CHECK(keys ==
+        std::vector<std::string>{"repeatability", "keypoints_per_scan", "scans", "descriptors", "falko_params"});
+  for (const f::DatasetResult& r : all) {
+    INFO(r.name);
+    CHECK(js.at("keypoints_per_scan").at(r.name).get<double>() == r.keypointsPerScan);
+    CHECK(js.at("scans").at(r.name).get<std::size_t>() == r.scans);
+    for (const auto& [test, levels] : r.repeatability) {
+      for (const auto& [level, value] : levels) {
+        CHECK(js.at("repeatability").at(r.name).at(test).at(level).get<double>() == value);
+      }
+    }
+    const Json& bsc = js.at("descriptors").at(r.name).at("bsc");
+    REQUIRE(bsc.size() == r.bsc.size());
+    CHECK(bsc.back().at("threshold").get<double>() == r.bsc.back().threshold);
+    CHECK(bsc.back().at("precision").get<double>() == r.bsc.back().precision);
+    CHECK(bsc.back().at("recall").get<double>() == r.bsc.back().recall);
+    CHECK(js.at("descriptors").at(r.name).at("cgh").size() == r.cgh.size());
+  }
+  const Json& params = js.at("falko_params");
+  CHECK(params.at("neigh_a").get<double>() == 0.2);  // the float parameter as typed
+  CHECK(params.at("neigh_b").get<double>() == 0.07);
+  CHECK(params.at("beta").get<double>() == 4.0);
+  CHECK(params.at("grid_sectors").get<std::size_t>() == 16U);
+  CHECK(params.at("max_score").get<double>() == 1.5);
+  CHECK(params.at("nms_radius").get<double>() == 0.2);
+  CHECK_FALSE(js.contains("keypoints_file"));
 }
 
 TEST_CASE("features eval: resampling keeps the geometry", "[features]") {
@@ -157,8 +187,11 @@ TEST_CASE("features eval: another detector's keypoints are scored exactly like i
   CHECK(ext.pairs == own.pairs);
   CHECK(ext.bsc.empty());
   CHECK(ext.cgh.empty());
-  CHECK(f::resultsToJson({ext}, agv::FalkoParams{}, "kp.txt").find("\"keypoints_file\": \"kp.txt\"") !=
-        std::string::npos);
+  // Keypoints from a file: the file's name (escaped: quotes and backslashes) replaces the parameters.
+  const Json ej = Json::parse(agv::report::dumpJson(f::resultsToJson({ext}, agv::FalkoParams{}, "dir\\kp \"1\".txt")));
+  CHECK(ej.at("keypoints_file") == "dir\\kp \"1\".txt");
+  CHECK_FALSE(ej.contains("falko_params"));
+  CHECK(ej.at("descriptors").at("fr079").at("bsc").empty());
 
   // The scores come from the table: the clean keypoints as the 1 cm noise ones repeat all of
   // themselves; no keypoint at all in the oversampled scans repeats none.
@@ -244,6 +277,19 @@ TEST_CASE("features export: the scans written are the scans evaluated, to the bi
   }
 }
 
+TEST_CASE("features eval: keypoint file numbers are decimal (leading zeros are not octal)", "[features]") {
+  std::istringstream in("fr079 clean 010 2 01.5 -2e0 +.5 3.\n");
+  f::KeypointTable t;
+  std::string err;
+  REQUIRE(f::readKeypointTable(in, t, err));
+  const auto& kps = t.at("fr079").at("clean").at(10);
+  REQUIRE(kps.size() == 2U);
+  CHECK(kps[0].x == 1.5F);
+  CHECK(kps[0].y == -2.0F);
+  CHECK(kps[1].x == 0.5F);
+  CHECK(kps[1].y == 3.0F);
+}
+
 TEST_CASE("features eval: a malformed keypoint file is refused with its line number", "[features]") {
   const struct {
     const char* text;
@@ -254,6 +300,10 @@ TEST_CASE("features eval: a malformed keypoint file is refused with its line num
       {"# header\n\nfr079 clean 0 1 1.0 nan\n", "line 3: keypoint 1 is not a pair of finite numbers"},
       {"fr079 clean 0 1 1e400 0\n", "line 1: keypoint 1 is not a pair of finite numbers"},
       {"fr079 clean 0 1 1.0 2.0x\n", "line 1: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0 1 0x1 2.0\n", "line 1: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0 1 1,5 2.0\n", "line 1: keypoint 1 is not a pair of finite numbers"},
+      {"fr079 clean 0x1 0\n", "line 1: expected <dataset> <variant> <scan> <count>"},
+      {"fr079 clean 0 1.0\n", "line 1: expected <dataset> <variant> <scan> <count>"},
       {"fr079 clean 0 -1\n", "line 1: negative scan index or count"},
       {"fr079 clean x 0\n", "line 1: expected <dataset> <variant> <scan> <count>"},
       {"fr079 clean 0\n", "line 1: expected"},

@@ -3,11 +3,13 @@
 #include <string>
 #include <vector>
 
+#include "agv/report/json.hpp"
 #include "agv_test.hpp"
 #include "replay.hpp"
 
 namespace r = agv::replay;
 using agv::Pose2d;
+using agv::report::Json;
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
@@ -101,4 +103,56 @@ TEST_CASE("replay refuses a log without scans", "[replay]") {
   std::string err;
   CHECK_FALSE(r::replayLog(log, r::fr079Defaults(), res, err));
   CHECK_FALSE(err.empty());
+}
+
+TEST_CASE("replay JSON: parses back with every documented field; SVG text escaped", "[replay]") {
+  r::ReplayResult res;
+  res.log = "odd \"name\" <1>.log";
+  res.scans = 3;
+  res.pathLength = 2.5;
+  res.duration = 1.25;
+  res.truth = line(3, 1.0);
+  res.odometry = line(3, 1.1);
+  res.localizer = line(3, 1.0);
+  res.odometryRelative = r::relativeError(res.truth, res.odometry, 1.0);
+  res.localizerRelative = r::relativeError(res.truth, res.localizer, 1.0);
+  res.odometryAbsolute = r::absoluteError(res.truth, res.odometry);
+  res.localizerAbsolute = r::absoluteError(res.truth, res.localizer);
+  res.keypoints = 7;
+  res.mapDeleted = 2;
+  res.staticMap = true;
+  res.meanTestRatio = 0.5;
+  const Json j = Json::parse(agv::report::dumpJson(r::resultJson(res)));
+  std::vector<std::string> keys;
+  for (const auto& item : j.items()) {
+    keys.push_back(item.key());
+  }
+  CHECK(keys == std::vector<std::string>{"log", "scans", "path_length_m", "duration_s", "zero_increments",
+                                         "odometry_per_metre", "localizer_per_metre", "odometry_absolute",
+                                         "localizer_absolute", "static_map", "localizer", "replay_seconds"});
+  CHECK(j.at("log") == res.log);
+  CHECK(j.at("scans") == 3);
+  CHECK(j.at("path_length_m") == 2.5);
+  CHECK(j.at("static_map") == true);
+  for (const char* part : {"odometry_per_metre", "localizer_per_metre", "odometry_absolute", "localizer_absolute"}) {
+    INFO(part);
+    for (const char* quantity : {"position_m", "heading_deg"}) {
+      for (const char* stat : {"count", "mean", "median", "rms", "max"}) {
+        CHECK(j.at(part).at(quantity).at(stat).is_number());
+      }
+    }
+  }
+  CHECK(j.at("odometry_per_metre").at("position_m").at("mean").get<double>() == res.odometryRelative.position.mean);
+  CHECK(j.at("odometry_per_metre").at("position_m").at("count").get<std::size_t>() ==
+        res.odometryRelative.position.count);
+  const Json& loc = j.at("localizer");
+  CHECK(loc.size() == 15U);
+  CHECK(loc.at("keypoints") == 7);
+  CHECK(loc.at("map_deleted") == 2);
+  CHECK(loc.at("mean_test_ratio") == 0.5);
+  CHECK(loc.at("occluded_or_no_return") == 0);
+
+  const std::string svg = r::trajectorySvg(res);
+  CHECK(svg.find("odd &quot;name&quot; &lt;1&gt;.log (3 scans)") != std::string::npos);
+  CHECK(svg.find("<1>") == std::string::npos);
 }

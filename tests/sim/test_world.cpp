@@ -72,6 +72,17 @@ TEST_CASE("Racks expand into two lines of uprights", "[sim][world]") {
   CHECK(w.segments.size() == 40U);
 }
 
+TEST_CASE("World numbers are decimal: leading zeros, signs and exponents", "[sim][world]") {
+  World w;
+  WorldParseError e;
+  REQUIRE(agv::sim::parseWorld("wall 010 +2 1.5e1 -.5\n", w, e) == Status::Ok);
+  REQUIRE(w.segments.size() == 1U);
+  CHECK(w.segments[0].a.x == 10.0);  // not octal 8
+  CHECK(w.segments[0].a.y == 2.0);
+  CHECK(w.segments[0].b.x == 15.0);
+  CHECK(w.segments[0].b.y == -0.5);
+}
+
 namespace {
 void checkError(const std::string& text, Status status, int line, const std::string& fragment) {
   World w;
@@ -93,6 +104,13 @@ TEST_CASE("World parse errors name the line and the problem", "[sim][world]") {
   checkError("wall 0 0 1 2x\n", Status::Malformed, 1, "'2x' is not a number");
   checkError("wall 0 0 1 nan\n", Status::NonFiniteInput, 1, "not finite");
   checkError("wall 0 0 1 inf\n", Status::NonFiniteInput, 1, "not finite");
+  // Decimal only, no locale: hexadecimal and a decimal comma are not numbers; beyond double's
+  // range is not finite.
+  checkError("wall 0 0 1 0x10\n", Status::Malformed, 1, "'0x10' is not a number");
+  checkError("wall 0 0 1 1,5\n", Status::Malformed, 1, "'1,5' is not a number");
+  checkError("wall 0 0 1 +-1\n", Status::Malformed, 1, "'+-1' is not a number");
+  checkError("wall 0 0 1 -inf\n", Status::NonFiniteInput, 1, "not finite");
+  checkError("wall 0 0 1 1e400\n", Status::NonFiniteInput, 1, "not finite");
   checkError("wall 1 1 1 1\n", Status::InvalidArgument, 1, "same point");
   checkError("hall 0 0 0 5\n", Status::InvalidArgument, 1, "xmax > xmin");
   checkError("wall 0 0 1 1\nreflector 1 2 -0.1\n", Status::InvalidArgument, 2, "radius");

@@ -112,6 +112,56 @@ TEST_CASE("defaults follow the laser model and the node ids", "[vehicle]") {
   CHECK(c.calibrationFile == "calibration.txt");  // no folder in the configuration's path
 }
 
+TEST_CASE("numbers are decimal: a leading zero is not octal, 0x is hexadecimal", "[vehicle]") {
+  // strtoll(..., 0) read "010" as octal 8 and "0502" as 322: a node id or port the user did not write.
+  std::size_t line = 0;
+  std::string text = withValue(agv::test::goodVehicleConfig(), "can.drive.node", "010", line);
+  text = withValue(text, "can.steering.node", "+011", line);
+  text = withValue(text, "modbus.port", "0502", line);
+  text = withValue(text, "laser.port", "02112", line);
+  text = withValue(text, "can.steering.pdo_cob_id", "0x18B", line);
+  text = withValue(text, "can.steering.rad_per_count", "1.5E-4", line);
+  text = withValue(text, "localization.initial_pose", " 01.5\t-2e0  .25 ", line);
+  VehicleConfig c;
+  ConfigError e;
+  REQUIRE(parseVehicleConfig(text, "vehicle.conf", c, e));
+  CHECK(c.can.canopen.drive.nodeId == 10);
+  CHECK(c.can.canopen.drive.pdo.cobId == 0x180 + 10);
+  CHECK(c.can.canopen.steering.nodeId == 11);
+  CHECK(c.can.canopen.steering.pdo.cobId == 0x18B);
+  CHECK(c.modbus.port == 502);
+  CHECK(c.laser.tcp.port == 2112);
+  CHECK(c.can.canopen.steering.radiansPerCount == 1.5e-4);
+  CHECK(c.haveInitialPose);
+  CHECK(c.initialPose.x == 1.5);
+  CHECK(c.initialPose.y == -2.0);
+  CHECK(c.initialPose.theta == 0.25);
+
+  // What the parser refuses: not decimal, trailing text, out of range, octal-looking hex.
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"modbus.port", "0502x"},
+      {"modbus.port", "5e2"},
+      {"modbus.port", "502.0"},
+      {"modbus.port", "99999999999999999999"},
+      {"can.drive.node", "0o10"},
+      {"can.drive.node", "0x"},
+      {"can.steering.rad_per_count", "0x1p-12"},
+      {"can.steering.rad_per_count", "1e-400"},
+      {"can.steering.rad_per_count", "inf"},
+      {"can.steering.rad_per_count", "1,5e-4"},
+      {"localization.initial_pose", "1 2"},
+      {"localization.initial_pose", "1 2 0.1 4"},
+      {"localization.initial_pose", "1 2 nan"},
+  };
+  for (const auto& [key, value] : bad) {
+    INFO(key << " = " << value);
+    VehicleConfig r;
+    ConfigError err;
+    CHECK_FALSE(parseVehicleConfig(withValue(agv::test::goodVehicleConfig(), key, value, line), "v.conf", r, err));
+    CHECK(err.key == key);
+  }
+}
+
 TEST_CASE("every key with a bad value is refused, naming the file, line and key", "[vehicle]") {
   const std::vector<std::pair<std::string, std::string>> bad = {
       {"can.interface", ""},

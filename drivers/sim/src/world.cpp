@@ -1,11 +1,11 @@
 #include "agv/sim/world.hpp"
 
 #include <algorithm>
-#include <cerrno>
+#include <charconv>
 #include <cmath>
-#include <cstdlib>
 #include <fstream>
 #include <sstream>
+#include <system_error>
 
 #include "agv/core/angle.hpp"
 #include "agv/kinematics/tricycle.hpp"
@@ -50,16 +50,25 @@ struct LineParser {
     return s;
   }
 
-  /// Parses token `t` as a finite double.
+  /// Parses token `t` as a finite decimal number: optional sign, digits with an optional fraction,
+  /// optional exponent; no locale, no hexadecimal, the whole token. The grammar of the apps' parser
+  /// (agv::report::parseReal), which the drivers cannot link (apps/lib depends on drivers).
   Status number(std::string_view t, const char* field, double* out) const {
     const std::string s(t);
-    char* end = nullptr;
-    errno = 0;
-    const double v = std::strtod(s.c_str(), &end);
-    if (end == s.c_str() || *end != '\0') {
+    std::string_view digits = t;
+    if (digits.size() > 1 && digits.front() == '+' && digits[1] != '-' && digits[1] != '+') {
+      digits.remove_prefix(1);  // from_chars takes '-' only
+    }
+    double v = 0.0;
+    const char* end = digits.data() + digits.size();
+    const std::from_chars_result r = std::from_chars(digits.data(), end, v, std::chars_format::general);
+    if (r.ec == std::errc::result_out_of_range) {
+      return fail(Status::NonFiniteInput, std::string(field) + ": '" + s + "' is not finite");
+    }
+    if (r.ec != std::errc() || r.ptr != end) {
       return fail(Status::Malformed, std::string(field) + ": '" + s + "' is not a number");
     }
-    if (!std::isfinite(v) || errno == ERANGE) {
+    if (!std::isfinite(v)) {
       return fail(Status::NonFiniteInput, std::string(field) + ": '" + s + "' is not finite");
     }
     *out = v;

@@ -2,11 +2,11 @@
 
 #include <zlib.h>
 
-#include <cerrno>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <string_view>
+
+#include "agv/report/number.hpp"
 
 namespace agv {
 namespace datasets {
@@ -32,17 +32,11 @@ class Tokens {
     tok = line_.substr(start, pos_ - start);
     return true;
   }
-  bool number(double& v) {
+  /// The next token as a decimal number (report::parseReal: locale-free, whole token); infinity
+  /// and NaN only where `nonFinite` allows them (range readings: "inf" is a reading without echo).
+  bool number(double& v, report::NonFinite nonFinite = report::NonFinite::Refuse) {
     std::string_view tok;
-    if (!next(tok) || tok.size() >= sizeof(buf_)) {
-      return false;
-    }
-    std::memcpy(buf_, tok.data(), tok.size());
-    buf_[tok.size()] = '\0';
-    char* end = nullptr;
-    errno = 0;
-    v = std::strtod(buf_, &end);
-    return end == buf_ + tok.size() && errno != ERANGE;
+    return next(tok) && report::toReal(tok, v, nonFinite);
   }
   bool integer(long& v) {
     double d = 0.0;
@@ -75,7 +69,6 @@ class Tokens {
  private:
   std::string_view line_;
   std::size_t pos_ = 0;
-  char buf_[64] = {};
 };
 
 constexpr long kMaxReadings = 100000;
@@ -87,7 +80,7 @@ bool readRanges(Tokens& tk, long count, std::vector<float>& out) {
   out.resize(static_cast<std::size_t>(count));
   for (long i = 0; i < count; ++i) {
     double r = 0.0;
-    if (!tk.number(r)) {
+    if (!tk.number(r, report::NonFinite::Allow)) {
       return false;
     }
     out[static_cast<std::size_t>(i)] = static_cast<float>(r);

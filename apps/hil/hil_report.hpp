@@ -1,0 +1,60 @@
+#pragma once
+/// @file hil_report.hpp
+/// What a HIL session reports: the stages it runs, the calibration stage's outcome, the summary
+/// counts, and the JSON summary (`--json`, docs/hil.md) built from them.
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "agv/calibration/calibration_routine.hpp"
+#include "agv/report/json.hpp"
+#include "agv/sim/can_encoder_source.hpp"
+#include "scenario.hpp"
+
+namespace agv::hil {
+
+constexpr double kPositionRequirement = 0.02;   ///< [m] at the operation point
+constexpr double kHeadingRequirementDeg = 0.1;  ///< [deg]
+
+/// A stage of the full HIL and whether this build runs it (a wired stage may still fail).
+struct Stage {
+  const char* key;
+  const char* name;
+  bool wired;
+  bool failed = false;
+};
+
+/// The calibration stage's outcome and the encoder frames its routine exchanged over CAN.
+struct HilCalibration : calibration::CalibrationOutcome {
+  sim::CanBusCounters can;
+};
+
+/// Everything the session measured, as the reports need it.
+struct SessionResults {
+  HilCalibration calibration;
+  std::string calibrationStatus;       ///< the status name, or the failure message
+  std::vector<RunResult> runs;         ///< localizer runs of every mode (dead reckoning inside)
+  std::vector<RunResult> mappingRuns;  ///< the static FALKO mode's mapping runs
+  std::size_t mapCorners = 0;          ///< corners frozen into the static FALKO map
+};
+
+/// Within 2 cm / 0.1 deg of the truth (dead reckoning and localizer poses).
+bool meetsRequirement(const Pose2d& estimate, const Pose2d& truth);
+
+/// A localizer run meets the requirement when it reached the operation point, the pose sent to
+/// the PLC is within 2 cm / 0.1 deg and the localizer is not lost (a lost localizer stops the
+/// vehicle through the PLC interlock, whatever its last pose).
+bool runMeetsRequirement(const RunResult& r);
+
+/// The encoder frames of the whole session (calibration routine and every run), decoded by the
+/// vehicle's CANopen decoder: the only way the encoder samples reach the navigation.
+sim::CanBusCounters canTotals(const SessionResults& s);
+
+/// The JSON summary: calibration (truth, estimate, nominal and their errors), requirement, CAN
+/// encoders, stages, runs (localizer runs, then dead reckoning of the reflector-mode runs),
+/// static FALKO mapping, requirement_met.
+report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& stages, const SessionResults& s,
+                         bool requirementMet);
+
+}  // namespace agv::hil
