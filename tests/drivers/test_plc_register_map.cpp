@@ -104,6 +104,10 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     s.stamp = agv::Timestamp::fromNanoseconds((std::int64_t{1} << 32) * 1000000 + 123456789);  // wraps
     s.matchedLandmarks = 7;
     s.visibleReflectors = 9;
+    s.reflectorsFused = 6;
+    s.reflectorsRejected = 3;
+    s.cornersFused = 2;
+    s.cornersRejected = 11;
     s.calibration.driveScale = 2.5e-4;
     s.calibration.steerOffsetForward = 0.0123;
     s.calibration.steerOffsetBackward = -0.0045;
@@ -132,7 +136,11 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     AGV_CHECK_NEAR(f(34), -0.05, 1e-8);
     AGV_CHECK_NEAR(f(36), 0.02, 1e-8);
     AGV_CHECK_NEAR(f(38), 1.55, 1e-7);
-    CHECK(table[40] == 0xAAAA);  // nothing written past the block
+    CHECK(table[40] == 6);
+    CHECK(table[41] == 3);
+    CHECK(table[42] == 2);
+    CHECK(table[43] == 11);
+    CHECK(table[44] == 0xAAAA);  // nothing written past the block
   }
   PlcRegisterMap map;
   std::vector<std::uint16_t> shortTable(10);
@@ -159,7 +167,7 @@ TEST_CASE("Command writes: whitelist, whole 32-bit fields, bounds", "[drivers][m
   CHECK(write(100, {3}) == Status::Ok);
   CHECK(write(108, {65535}) == Status::Ok);
   // Read-only and non-existent registers.
-  for (std::uint16_t a : {0, 1, 4, 39, 40, 99, 109, 200}) {
+  for (std::uint16_t a : {0, 1, 4, 39, 40, 43, 44, 99, 109, 200}) {
     CHECK(write(a, {1}) == Status::OutOfRange);
   }
   CHECK(write(99, {0, 1}) == Status::OutOfRange);      // straddles the block start

@@ -414,3 +414,48 @@ TEST_CASE("LocalizerParams::validate refuses each sub-struct's out-of-domain val
   CHECK(refused([](P& p) { p.health.detectionRate[0] = 1.0; }) == agv::Status::Ok);
   CHECK(refused([](P& p) { p.association.ambiguityMargin = 0.0; }) == agv::Status::Ok);
 }
+
+TEST_CASE("Per-source health: reflectors fused, displaced corners gated out, each counted on its own", "[localizer]") {
+  // Four surveyed reflectors and four surveyed corners around a vehicle standing at the origin
+  // (laser on the logical point). The reflectors are observed where they are (+2 mm), the corners
+  // 0.4 m off: the reflectors must be fused with their small innovation, the corners refused.
+  LandmarkMap map;
+  const double pos[4][2] = {{4.0, 1.0}, {-3.0, 2.0}, {1.0, -5.0}, {-2.0, -3.0}};
+  std::uint32_t id = 1;
+  for (const auto& p : pos) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p[0], p[1], 0.001, id++).ok());
+    REQUIRE(map.addSurveyed(LandmarkKind::Corner, p[0] + 0.7, p[1] + 0.7, 0.001, id++).ok());
+  }
+  map.setMode(MapMode::Static);
+  LocalizerParams params;
+  params.laser.mounting = Pose2d{};
+  params.laser.angleMin = -3.14159;
+  params.laser.angleMax = 3.14159;
+  Localizer loc(params);
+  Timestamp t = Timestamp::fromSeconds(1.0);
+  REQUIRE(loc.reset(t, Pose2d{}, Eigen::Matrix3d::Identity() * 1e-4) == Status::Ok);
+  test::standStill(loc, t, 10);
+  ScanObservations scan;
+  scan.stamp = t;
+  for (const auto& p : pos) {
+    REQUIRE(scan.points.push_back(PointObservation{p[0] + 0.002, p[1], LandmarkKind::Reflector}) == Status::Ok);
+    REQUIRE(scan.points.push_back(PointObservation{p[0] + 0.7 + 0.4, p[1] + 0.7, LandmarkKind::Corner}) == Status::Ok);
+  }
+  const LocalizerHealth& h = loc.correct(scan, map);
+  const SourceHealth& refl = h.sources[static_cast<std::size_t>(LandmarkKind::Reflector)];
+  const SourceHealth& corner = h.sources[static_cast<std::size_t>(LandmarkKind::Corner)];
+  CHECK(refl.observed == 4U);
+  CHECK(refl.fused == 4U);
+  CHECK(refl.rejected == 0U);
+  CHECK(refl.innovationRms > 0.0);
+  CHECK(refl.innovationRms < 0.003);  // the 2 mm offset, shared out by the first updates
+  CHECK(refl.maxTestRatio < 1.0);
+  CHECK(refl.meanTestRatio <= refl.maxTestRatio);
+  CHECK(corner.observed == 4U);
+  CHECK(corner.fused == 0U);
+  CHECK(corner.rejected + corner.unmatched == 4U);
+  CHECK(corner.innovationRms == 0.0);
+  // The per-source counts add up to the cycle's.
+  CHECK(refl.fused + corner.fused == h.used);
+  CHECK(refl.observed + corner.observed == h.observations);
+}

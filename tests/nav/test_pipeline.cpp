@@ -290,6 +290,8 @@ TEST_CASE("pipeline: stamped reflectors correct a drifting odometry; published p
       worst = std::max(worst, positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)));
       CHECK(std::fabs(agv::angleDiff(rig.plc.last.pose.theta, truthAt(rig.plc.last.stamp).theta)) < 0.001);
       CHECK(rig.plc.last.health.matchedLandmarks >= 4U);
+      CHECK(rig.plc.last.health.reflectorsFused == rig.plc.last.health.matchedLandmarks);  // per source
+      CHECK(rig.plc.last.health.cornersFused == 0U);
       ++checked;
     }
   }
@@ -317,6 +319,7 @@ TEST_CASE("pipeline: reflectors taken at the reply instead of their stamps are n
   REQUIRE(rig.pipeline.activate() == Status::Ok);
   rig.runUntil(kRollFrom + Duration::fromSeconds(2.0));
   CHECK(rig.plc.last.health.matchedLandmarks < 4U);
+  CHECK(rig.plc.last.health.reflectorsFused < 4U);
 }
 
 TEST_CASE("pipeline: PLC commands, device health and faults reach the report", "[nav]") {

@@ -1,5 +1,6 @@
 #include "agv/localization/localizer.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "agv/localization/beam_lookup.hpp"
@@ -380,49 +381,12 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     finishHealth();
     return health_;
   }
-
-  // --- Latency: find the odometry interval holding the scan time.
-  const std::size_t n = history_.size();
-  const Timestamp newest = history_[n - 1U].stamp;
-  const bool tooOld = scan.stamp < history_[0].stamp || (haveScan_ && scan.stamp < lastScanStamp_);
-  const bool tooNew = scan.stamp > newest && (scan.stamp - newest) > params_.maxScanLead;
-  if (tooOld || tooNew) {
-    health_.flags |=
-        bit(LocalizerFlag::ScanRejected) | bit(tooOld ? LocalizerFlag::ScanTooOld : LocalizerFlag::ScanTooNew);
-    health_.status = Status::Rejected;
+  Rewind at;
+  if (!rewindToScan(scan, at)) {
     finishHealth();
     return health_;
   }
-  std::size_t k = n - 1U;
-  while (k > 0 && history_[k].stamp > scan.stamp) {
-    --k;
-  }
-  const PoseEkf atNewest = ekf_;
-  if (ekf_.reset(history_[k].pose, history_[k].cov) != Status::Ok) {
-    // A stored state that does not validate cannot be rewound to; keep the newest state.
-    ekf_ = atNewest;
-    health_.flags |= bit(LocalizerFlag::ScanRejected);
-    health_.status = Status::Rejected;
-    finishHealth();
-    return health_;
-  }
-  bool split = false;
-  double f = 0.0;
-  Pose2d part{};
-  if (k + 1U < n && scan.stamp > history_[k].stamp) {
-    const HistoryEntry& next = history_[k + 1U];
-    split = true;
-    f = static_cast<double>((scan.stamp - history_[k].stamp).ns) /
-        static_cast<double>((next.stamp - history_[k].stamp).ns);
-    OdometryIncrement p;
-    p.stamp = scan.stamp;
-    p.delta = partialIncrement(next.delta, f);
-    p.covariance = f * next.deltaCov;
-    part = p.delta;
-    (void)ekf_.predict(p);
-  }
-
-  // --- Association against the prior at the scan time.
+  // Association against the prior at the scan time, and what the check expects to see.
   associate(scan, map);
   if (!params_.occlusion.enabled) {
     beams = nullptr;
@@ -437,7 +401,61 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   health_.noReturn = sat16(view.noReturn);
   health_.unsupported = sat16(view.unsupported);
 
-  // --- Sequential gated updates, most certain first.
+  fuseMatches(scan, map);
+  tallyObservations(scan);
+  const bool bad = judgeCycle();
+  // Map lifecycle, on good cycles only (a suspect pose must not write the map).
+  if (!bad && map.mode() == MapMode::Dynamic) {
+    maintainMap(scan, beams, map);
+  }
+  storeAndReplay(at);
+  lastScanStamp_ = scan.stamp;
+  haveScan_ = true;
+  finishHealth();
+  return health_;
+}
+
+bool Localizer::rewindToScan(const ScanObservations& scan, Rewind& at) noexcept {
+  const std::size_t n = history_.size();
+  const Timestamp newest = history_[n - 1U].stamp;
+  const bool tooOld = scan.stamp < history_[0].stamp || (haveScan_ && scan.stamp < lastScanStamp_);
+  const bool tooNew = scan.stamp > newest && (scan.stamp - newest) > params_.maxScanLead;
+  if (tooOld || tooNew) {
+    health_.flags |=
+        bit(LocalizerFlag::ScanRejected) | bit(tooOld ? LocalizerFlag::ScanTooOld : LocalizerFlag::ScanTooNew);
+    health_.status = Status::Rejected;
+    return false;
+  }
+  std::size_t k = n - 1U;
+  while (k > 0 && history_[k].stamp > scan.stamp) {
+    --k;
+  }
+  const PoseEkf atNewest = ekf_;
+  if (ekf_.reset(history_[k].pose, history_[k].cov) != Status::Ok) {
+    // A stored state that does not validate cannot be rewound to; keep the newest state.
+    ekf_ = atNewest;
+    health_.flags |= bit(LocalizerFlag::ScanRejected);
+    health_.status = Status::Rejected;
+    return false;
+  }
+  at = Rewind{};
+  at.k = k;
+  if (k + 1U < n && scan.stamp > history_[k].stamp) {
+    const HistoryEntry& next = history_[k + 1U];
+    at.split = true;
+    at.f = static_cast<double>((scan.stamp - history_[k].stamp).ns) /
+           static_cast<double>((next.stamp - history_[k].stamp).ns);
+    OdometryIncrement p;
+    p.stamp = scan.stamp;
+    p.delta = partialIncrement(next.delta, at.f);
+    p.covariance = at.f * next.deltaCov;
+    at.part = p.delta;
+    (void)ekf_.predict(p);
+  }
+  return true;
+}
+
+void Localizer::fuseMatches(const ScanObservations& scan, const LandmarkMap& map) noexcept {
   orderMatches(scan);
   std::size_t matched = 0;
   const std::size_t nObs = scan.points.size();
@@ -446,7 +464,6 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
       ++matched;
     }
   }
-  double ratioSum = 0.0;
   const LaserModel& L = params_.laser;
   for (std::size_t q = 0; q < matched; ++q) {
     Scratch& s = scratch_[order_[q]];
@@ -466,43 +483,65 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     const PointInnovation in = ekf_.innovation(Eigen::Vector2d(o.x, o.y), Eigen::Vector2d(lm->x, lm->y), R, L.mounting);
     if (ekf_.update(in, params_.association.gate) == Status::Ok) {
       s.state = Assoc::Used;
-      const double ratio = in.mahalanobis2 / params_.association.gate;
-      ratioSum += ratio;
-      if (ratio > health_.maxTestRatio) {
-        health_.maxTestRatio = ratio;
-      }
+      s.ratio = in.mahalanobis2 / params_.association.gate;
+      s.innovation2 = in.innovation.squaredNorm();
     } else {
       s.state = Assoc::UpdateRejected;
     }
   }
+}
+
+void Localizer::tallyObservations(const ScanObservations& scan) noexcept {
+  double ratioSum = 0.0;
+  double ratioSumKind[kLandmarkKindCount] = {};
+  double innovation2Kind[kLandmarkKindCount] = {};
+  const std::size_t nObs = scan.points.size();
   for (std::size_t i = 0; i < nObs; ++i) {
-    switch (scratch_[i].state) {
+    const Scratch& s = scratch_[i];
+    const std::size_t kind = static_cast<std::size_t>(scan.points[i].kind) % kLandmarkKindCount;
+    SourceHealth& src = health_.sources[kind];
+    ++src.observed;
+    switch (s.state) {
       case Assoc::Used:
         ++health_.used;
+        ++src.fused;
+        ratioSum += s.ratio;
+        ratioSumKind[kind] += s.ratio;
+        innovation2Kind[kind] += s.innovation2;
+        health_.maxTestRatio = std::max(health_.maxTestRatio, s.ratio);
+        src.maxTestRatio = std::max(src.maxTestRatio, s.ratio);
         break;
       case Assoc::Tentative:
         ++health_.tentative;
+        ++src.tentative;
         break;
       case Assoc::NonFinite:
         ++health_.rejectedNonFinite;
+        ++src.rejected;
         break;
       case Assoc::OutOfView:
         ++health_.rejectedOutOfView;
+        ++src.unmatched;
         break;
       case Assoc::Gate:
         ++health_.rejectedGate;
+        ++src.rejected;
         break;
       case Assoc::Duplicate:
         ++health_.rejectedDuplicate;
+        ++src.rejected;
         break;
       case Assoc::UpdateRejected:
         ++health_.rejectedUpdate;
+        ++src.rejected;
         break;
       case Assoc::Ambiguous:
         ++health_.rejectedAmbiguous;
+        ++src.rejected;
         break;
       case Assoc::None:
         ++health_.unmatched;
+        ++src.unmatched;
         break;
       case Assoc::Matched:
         break;
@@ -510,6 +549,13 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   }
   if (health_.used > 0) {
     health_.meanTestRatio = ratioSum / static_cast<double>(health_.used);
+  }
+  for (std::size_t k = 0; k < kLandmarkKindCount; ++k) {
+    SourceHealth& src = health_.sources[k];
+    if (src.fused > 0) {
+      src.meanTestRatio = ratioSumKind[k] / static_cast<double>(src.fused);
+      src.innovationRms = std::sqrt(innovation2Kind[k] / static_cast<double>(src.fused));
+    }
   }
   const auto flagIf = [this](bool condition, LocalizerFlag flag) {
     if (condition) {
@@ -523,59 +569,57 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   flagIf(health_.rejectedUpdate > 0, LocalizerFlag::UpdateRejected);
   flagIf(health_.rejectedAmbiguous > 0, LocalizerFlag::AmbiguityRejected);
   flagIf(health_.used < params_.health.minMatchesForFix, LocalizerFlag::NoFix);
+}
 
-  // --- Health: matched vs expected, covariance limits, lost.
+bool Localizer::judgeCycle() noexcept {
+  const LocalizerHealthParams& hp = params_.health;
   bool bad = false;
-  if (health_.expectedDetections >= static_cast<double>(params_.health.minExpectedForCheck)) {
-    double need = std::ceil(params_.health.minMatchedFraction * health_.expectedDetections);
-    if (need < static_cast<double>(params_.health.minMatchesForFix)) {
-      need = static_cast<double>(params_.health.minMatchesForFix);
+  if (health_.expectedDetections >= static_cast<double>(hp.minExpectedForCheck)) {
+    double need = std::ceil(hp.minMatchedFraction * health_.expectedDetections);
+    if (need < static_cast<double>(hp.minMatchesForFix)) {
+      need = static_cast<double>(hp.minMatchesForFix);
     }
     // A tentative match confirms the landmark is there as well as a used one.
     if (static_cast<double>(health_.used) + static_cast<double>(health_.tentative) < need) {
       bad = true;
     }
   }
-  {
-    const Eigen::Matrix3d& P = ekf_.covariance();
-    const double ps = std::sqrt(largestEigen2(P(0, 0), P(0, 1), P(1, 1)));
-    if (!(ps <= params_.health.maxPositionSigma) || !(std::sqrt(P(2, 2)) <= params_.health.maxHeadingSigma)) {
-      health_.flags |= bit(LocalizerFlag::CovarianceLimit);
-      bad = true;
-    }
+  const Eigen::Matrix3d& P = ekf_.covariance();
+  const double ps = std::sqrt(largestEigen2(P(0, 0), P(0, 1), P(1, 1)));
+  if (!(ps <= hp.maxPositionSigma) || !(std::sqrt(P(2, 2)) <= hp.maxHeadingSigma)) {
+    health_.flags |= bit(LocalizerFlag::CovarianceLimit);
+    bad = true;
   }
   if (bad) {
     health_.flags |= bit(LocalizerFlag::BadCycle);
     if (badCycles_ < 255U) {
       ++badCycles_;
     }
-    if (badCycles_ >= params_.health.lostAfterBadCycles) {
+    if (badCycles_ >= hp.lostAfterBadCycles) {
       lost_ = true;
     }
   } else {
     badCycles_ = 0;
   }
+  return bad;
+}
 
-  // --- Map lifecycle, on good cycles only (a suspect pose must not write the map).
-  if (!bad && map.mode() == MapMode::Dynamic) {
-    maintainMap(scan, beams, map);
-  }
-
-  // --- Store the corrected state and re-apply the newer odometry.
-  std::size_t j = k + 1U;
-  if (split) {
-    HistoryEntry& at = history_[k];
-    at.stamp = scan.stamp;  // scans come in order: nothing before this is replayed again
-    at.pose = ekf_.pose();
-    at.cov = ekf_.covariance();
+void Localizer::storeAndReplay(const Rewind& at) noexcept {
+  const std::size_t n = history_.size();
+  const std::size_t k = at.k;
+  if (at.split) {
+    HistoryEntry& here = history_[k];
+    here.stamp = health_.stamp;  // scans come in order: nothing before this is replayed again
+    here.pose = ekf_.pose();
+    here.cov = ekf_.covariance();
     HistoryEntry& next = history_[k + 1U];
-    next.delta = between(part, next.delta);
-    next.deltaCov = (1.0 - f) * next.deltaCov;
+    next.delta = between(at.part, next.delta);
+    next.deltaCov = (1.0 - at.f) * next.deltaCov;
   } else {
     history_[k].pose = ekf_.pose();
     history_[k].cov = ekf_.covariance();
   }
-  for (; j < n; ++j) {
+  for (std::size_t j = k + 1U; j < n; ++j) {
     HistoryEntry& e = history_[j];
     OdometryIncrement inc;
     inc.stamp = e.stamp;
@@ -585,10 +629,6 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     e.pose = ekf_.pose();
     e.cov = ekf_.covariance();
   }
-  lastScanStamp_ = scan.stamp;
-  haveScan_ = true;
-  finishHealth();
-  return health_;
 }
 
 }  // namespace agv

@@ -146,6 +146,10 @@ Status ModbusPlcLink::publish(const hal::PoseReport& report) noexcept {
   s.stamp = report.stamp;
   s.matchedLandmarks = report.health.matchedLandmarks;
   s.visibleReflectors = report.health.visibleReflectors;
+  s.reflectorsFused = report.health.reflectorsFused;
+  s.reflectorsRejected = report.health.reflectorsRejected;
+  s.cornersFused = report.health.cornersFused;
+  s.cornersRejected = report.health.cornersRejected;
   s.calibration = calibration_;
   const Status st = cycle(s, monotonicNow(), config_.publishBudget);
   return st == Status::Lost ? Status::Timeout : st;

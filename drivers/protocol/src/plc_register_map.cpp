@@ -51,6 +51,10 @@ Status PlcRegisterMap::encodeStatus(const PlcStatus& s, Span<std::uint16_t> tabl
   packFloat(toFloat(s.calibration.laserMount.y), o, r + 34);
   packFloat(toFloat(s.calibration.laserMount.theta), o, r + 36);
   packFloat(toFloat(s.calibration.wheelbase), o, r + 38);
+  r[40] = s.reflectorsFused;
+  r[41] = s.reflectorsRejected;
+  r[42] = s.cornersFused;
+  r[43] = s.cornersRejected;
   return Status::Ok;
 }
 

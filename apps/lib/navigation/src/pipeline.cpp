@@ -346,6 +346,12 @@ void Pipeline::Impl::publish(Timestamp now) noexcept {
   r.health.lastStatus = lastStatus();
   r.health.matchedLandmarks = localizer->health().used;
   r.health.visibleReflectors = visibleReflectors;
+  const SourceHealth& refl = localizer->health().sources[static_cast<std::size_t>(LandmarkKind::Reflector)];
+  const SourceHealth& corner = localizer->health().sources[static_cast<std::size_t>(LandmarkKind::Corner)];
+  r.health.reflectorsFused = refl.fused;
+  r.health.reflectorsRejected = refl.rejected;
+  r.health.cornersFused = corner.fused;
+  r.health.cornersRejected = corner.rejected;
   if (plc.publish(r) != Status::Ok) {
     ++counters.publishFailures;
   }

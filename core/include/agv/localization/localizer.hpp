@@ -205,6 +205,19 @@ constexpr bool hasFlag(std::uint32_t flags, LocalizerFlag flag) noexcept {
   return (flags & static_cast<std::uint32_t>(flag)) != 0U;
 }
 
+/// One observation kind's part of a correction (reflectors, corners), in the manner of PX4's
+/// estimator aid-source status: an operator sees which kind is being fused and which gated out.
+struct SourceHealth {
+  std::uint16_t observed = 0;   ///< points of this kind in the scan
+  std::uint16_t fused = 0;      ///< used in the update
+  std::uint16_t tentative = 0;  ///< matched to a tentative landmark (not fused)
+  std::uint16_t rejected = 0;   ///< gated out, ambiguous, duplicate, refused by the update or non-finite
+  std::uint16_t unmatched = 0;  ///< no map candidate (outside the view limits included)
+  double innovationRms = 0.0;   ///< [m] RMS of the fused innovations' norms (laser frame, at the prior)
+  double maxTestRatio = 0.0;    ///< max d^2/gate over the fused (< 1)
+  double meanTestRatio = 0.0;   ///< mean d^2/gate over the fused (~2/gate when consistent)
+};
+
 /// What one correction cycle did and how much it can be trusted.
 struct LocalizerHealth {
   /// Ok; NotInitialized; Rejected (scan refused); Lost (latched).
@@ -236,6 +249,8 @@ struct LocalizerHealth {
   double headingSigma = 0.0;         ///< [rad]
   std::uint8_t consecutiveBadCycles = 0;
   bool lost = false;
+  /// Per observation kind, indexed by `LandmarkKind`.
+  SourceHealth sources[kLandmarkKindCount] = {};
 };
 
 class Localizer {
@@ -300,6 +315,15 @@ class Localizer {
     double d2 = 0.0;
     LandmarkIndex landmark = kNoLandmark;
     Assoc state = Assoc::None;
+    double ratio = 0.0;        // d^2 / gate of the fused update
+    double innovation2 = 0.0;  // |innovation|^2 of the fused update [m^2]
+  };
+  /// Where a scan falls in the odometry history (see `rewindToScan`).
+  struct Rewind {
+    std::size_t k = 0;   // the history entry at or before the scan
+    bool split = false;  // the scan lies inside increment k + 1 (at fraction f)
+    double f = 0.0;
+    Pose2d part{};  // the part of increment k + 1 before the scan
   };
 
   void associate(const ScanObservations& scan, const LandmarkMap& map) noexcept;
@@ -312,7 +336,19 @@ class Localizer {
     std::size_t unsupported = 0;
     double detections = 0.0;
   };
+  // Stages of one correction (correctWith), in order.
   const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
+  /// Latency: moves the filter to the scan's time inside the history. False (health filled) when
+  /// the scan is refused.
+  bool rewindToScan(const ScanObservations& scan, Rewind& at) noexcept;
+  /// The matched observations fused one by one, most certain first, each gated again.
+  void fuseMatches(const ScanObservations& scan, const LandmarkMap& map) noexcept;
+  /// Counts per outcome and per kind, and the flags they raise.
+  void tallyObservations(const ScanObservations& scan) noexcept;
+  /// Matched vs expected and the covariance limits: true for a bad cycle (counted towards lost).
+  bool judgeCycle() noexcept;
+  /// Stores the corrected state at the scan's time and re-applies the newer odometry.
+  void storeAndReplay(const Rewind& at) noexcept;
   void maintainMap(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
   /// Counts the landmarks of `kinds` in view from the current state; with `mutableMap`, weakens
   /// those in view and not matched this cycle.

@@ -52,6 +52,12 @@ struct NavHealth {
   std::uint16_t matchedLandmarks = 0;   ///< landmarks used by the last correction
   std::uint16_t visibleReflectors = 0;  ///< reflectors reported by the laser in the last scan
   float scanAge = 0.0F;                 ///< [s] age of the last laser correction at publication time
+  /// Per observation kind of the last correction (the localizer's `SourceHealth`): how many were
+  /// fused and how many rejected, so an operator sees which kind is being gated out.
+  std::uint16_t reflectorsFused = 0;
+  std::uint16_t reflectorsRejected = 0;
+  std::uint16_t cornersFused = 0;
+  std::uint16_t cornersRejected = 0;
 };
 
 /// Pose of the vehicle's logical point in the map frame, with its uncertainty.

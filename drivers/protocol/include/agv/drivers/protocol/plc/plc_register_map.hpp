@@ -27,6 +27,10 @@
 ///   34-35  laser mounting y f32 [m]
 ///   36-37  laser mounting theta f32 [rad]
 ///   38-39  wheelbase f32 [m]
+///   40     reflectors fused in the last correction u16
+///   41     reflectors rejected in the last correction u16 (gate, ambiguity, duplicate, update)
+///   42     corners fused in the last correction u16
+///   43     corners rejected in the last correction u16
 ///
 /// Every other address in [0, 110) reads as 0 and is not writable; addresses >= 110 do not exist.
 
@@ -69,6 +73,11 @@ struct PlcStatus {
   Timestamp stamp;
   std::uint16_t matchedLandmarks = 0;
   std::uint16_t visibleReflectors = 0;
+  /// Per observation kind of the last correction: fused / rejected (`hal::NavHealth::sources`).
+  std::uint16_t reflectorsFused = 0;
+  std::uint16_t reflectorsRejected = 0;
+  std::uint16_t cornersFused = 0;
+  std::uint16_t cornersRejected = 0;
   PlcCalibration calibration;
 };
 
@@ -97,7 +106,7 @@ struct PlcMapConfig {
 class PlcRegisterMap {
  public:
   static constexpr std::uint16_t kStatusBase = 0;
-  static constexpr std::uint16_t kStatusCount = 40;
+  static constexpr std::uint16_t kStatusCount = 44;
   static constexpr std::uint16_t kCommandBase = 100;
   static constexpr std::uint16_t kCommandCount = 9;
   /// Size of the register table (addresses 0 .. kRegisterCount-1).
