@@ -332,9 +332,15 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, Rep
     if (h.lost) {
       ++r.lostEvents;
       if (options.resetWhenLost) {
-        // Keep the estimate, re-open the covariance to the initial uncertainty plus what it had.
-        const Eigen::Matrix3d cov = localizer->covariance() + p0;
-        (void)localizer->reset(stamp, localizer->pose(), cov);
+        // Keep the estimate and its covariance (re-opening it would only grow it, cycle after
+        // cycle). A dynamic map that no longer matches the pose is dropped and rebuilt from here:
+        // without a surveyed map there is nothing else to return to.
+        (void)localizer->reset(stamp, localizer->pose(), localizer->covariance());
+        if (map->mode() == MapMode::Dynamic) {
+          map->clear();
+          map->setMode(MapMode::Dynamic);
+          ++r.mapRestarts;
+        }
       }
     }
     r.localizer.push_back(localizer->pose());
@@ -385,9 +391,9 @@ std::string resultText(const ReplayResult& r) {
     << fmt("               %.2f / %.2f\n", r.localizerAbsolute.heading.rms * kDeg,
            r.localizerAbsolute.heading.max * kDeg);
   o << "localizer: " << r.keypoints << " keypoints, " << r.used << " used, " << r.fixCycles << " cycles with a fix, "
-    << r.badCycles << " bad cycles, " << r.lostEvents << " lost events; rejected gate " << r.rejectedGate
-    << ", ambiguous " << r.rejectedAmbiguous << ", duplicate " << r.rejectedDuplicate << ", update " << r.rejectedUpdate
-    << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
+    << r.badCycles << " bad cycles, " << r.lostEvents << " lost events (" << r.mapRestarts
+    << " map restarts); rejected gate " << r.rejectedGate << ", ambiguous " << r.rejectedAmbiguous << ", duplicate "
+    << r.rejectedDuplicate << ", update " << r.rejectedUpdate << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
   o << "in view: " << r.expected << " landmark-cycles expected, " << r.occluded
     << " inside the view limits but hidden or without a return\n";
   o << (r.staticMap ? "static map (built from the corrected poses): " : "dynamic map: ") << r.mapSize
@@ -417,6 +423,7 @@ report::Json resultJson(const ReplayResult& r) {
                 {"fix_cycles", r.fixCycles},
                 {"bad_cycles", r.badCycles},
                 {"lost_events", r.lostEvents},
+                {"map_restarts", r.mapRestarts},
                 {"rejected_gate", r.rejectedGate},
                 {"rejected_ambiguous", r.rejectedAmbiguous},
                 {"rejected_duplicate", r.rejectedDuplicate},

@@ -101,10 +101,11 @@ struct ReplayResult {
   std::size_t rejectedDuplicate = 0;
   std::size_t rejectedUpdate = 0;
   std::size_t badCycles = 0;
-  std::size_t lostEvents = 0;  ///< times the localizer declared itself lost
-  std::size_t expected = 0;    ///< landmarks expected in view, summed over the cycles
-  std::size_t occluded = 0;    ///< inside the view limits but hidden (or no valid return), summed over the cycles
-  std::size_t mapSize = 0;     ///< landmarks at the end
+  std::size_t lostEvents = 0;   ///< times the localizer declared itself lost
+  std::size_t mapRestarts = 0;  ///< of which the dynamic map was dropped and rebuilt (`resetWhenLost`)
+  std::size_t expected = 0;     ///< landmarks expected in view, summed over the cycles
+  std::size_t occluded = 0;     ///< inside the view limits but hidden (or no valid return), summed over the cycles
+  std::size_t mapSize = 0;      ///< landmarks at the end
   std::size_t mapInserted = 0;
   std::size_t mapDeleted = 0;
   bool staticMap = false;

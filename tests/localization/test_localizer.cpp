@@ -459,3 +459,41 @@ TEST_CASE("Per-source health: reflectors fused, displaced corners gated out, eac
   CHECK(refl.fused + corner.fused == h.used);
   CHECK(refl.observed + corner.observed == h.observations);
 }
+
+TEST_CASE(
+    "A map-less localizer whose covariance outgrows the limit keeps dead reckoning and says so; against a "
+    "static map the same growth makes it lost",
+    "[localizer]") {
+  for (const MapMode mode : {MapMode::Dynamic, MapMode::Static}) {
+    LandmarkMapParams mp;
+    mp.mode = mode;
+    LandmarkMap map(mp);
+    LocalizerParams params;
+    Localizer loc(params);
+    Timestamp t = Timestamp::fromSeconds(1.0);
+    REQUIRE(loc.reset(t, Pose2d{}, Eigen::Matrix3d::Identity() * 1e-4) == Status::Ok);
+    bool lost = false;
+    bool limit = false;
+    bool badCycle = false;
+    for (int cycle = 0; cycle < 60; ++cycle) {  // 6 s of 10 cm/s-sigma odometry: sigma passes 10 cm
+      for (int i = 0; i < 10; ++i) {
+        t = t + Duration::fromMilliseconds(10);
+        OdometryIncrement inc;
+        inc.stamp = t;
+        inc.delta = Pose2d{0.01, 0.0, 0.0};
+        inc.covariance = Eigen::Matrix3d::Identity() * 1e-4;
+        REQUIRE(loc.predict(inc) == Status::Ok);
+      }
+      ScanObservations scan;  // nothing seen: no landmark in view either
+      scan.stamp = t;
+      const LocalizerHealth& h = loc.correct(scan, map);
+      lost = lost || h.lost;
+      limit = limit || hasFlag(h.flags, LocalizerFlag::CovarianceLimit);
+      badCycle = badCycle || hasFlag(h.flags, LocalizerFlag::BadCycle);
+    }
+    INFO((mode == MapMode::Dynamic ? "dynamic" : "static"));
+    CHECK(limit);  // the growth is reported either way
+    CHECK(lost == (mode == MapMode::Static));
+    CHECK(badCycle == (mode == MapMode::Static));
+  }
+}

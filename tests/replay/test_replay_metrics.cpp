@@ -146,7 +146,8 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   CHECK(j.at("odometry_per_metre").at("position_m").at("count").get<std::size_t>() ==
         res.odometryRelative.position.count);
   const Json& loc = j.at("localizer");
-  CHECK(loc.size() == 15U);
+  CHECK(loc.size() == 16U);
+  CHECK(loc.at("map_restarts") == 0);
   CHECK(loc.at("keypoints") == 7);
   CHECK(loc.at("map_deleted") == 2);
   CHECK(loc.at("mean_test_ratio") == 0.5);

@@ -403,7 +403,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
 
   fuseMatches(scan, map);
   tallyObservations(scan);
-  const bool bad = judgeCycle();
+  const bool bad = judgeCycle(map.mode());
   // Map lifecycle, on good cycles only (a suspect pose must not write the map).
   if (!bad && map.mode() == MapMode::Dynamic) {
     maintainMap(scan, beams, map);
@@ -571,7 +571,7 @@ void Localizer::tallyObservations(const ScanObservations& scan) noexcept {
   flagIf(health_.used < params_.health.minMatchesForFix, LocalizerFlag::NoFix);
 }
 
-bool Localizer::judgeCycle() noexcept {
+bool Localizer::judgeCycle(MapMode mode) noexcept {
   const LocalizerHealthParams& hp = params_.health;
   bool bad = false;
   if (health_.expectedDetections >= static_cast<double>(hp.minExpectedForCheck)) {
@@ -588,7 +588,11 @@ bool Localizer::judgeCycle() noexcept {
   const double ps = std::sqrt(largestEigen2(P(0, 0), P(0, 1), P(1, 1)));
   if (!(ps <= hp.maxPositionSigma) || !(std::sqrt(P(2, 2)) <= hp.maxHeadingSigma)) {
     health_.flags |= bit(LocalizerFlag::CovarianceLimit);
-    bad = true;
+    // Against a static map the limit makes the pose untrusted. A dynamic map has no absolute
+    // reference: the pose's uncertainty about the map's origin grows with the distance travelled by
+    // construction, and nothing could be reset to. There it is dead reckoning relative to its own
+    // map, said by the flag, not a bad cycle: only the matched/expected check judges it.
+    bad = bad || mode == MapMode::Static;
   }
   if (bad) {
     health_.flags |= bit(LocalizerFlag::BadCycle);

@@ -153,7 +153,10 @@ struct LocalizerHealthParams {
   double minMatchedFraction = 0.3;
   /// Consecutive bad cycles that make the localizer lost (latched until `reset`).
   std::uint8_t lostAfterBadCycles = 3;
-  /// Position (largest axis) and heading standard deviations beyond which a cycle is bad.
+  /// Position (largest axis) and heading standard deviations beyond which a cycle is bad against
+  /// a static map. Against a dynamic map they only raise `CovarianceLimit` (dead reckoning relative
+  /// to the map the localizer builds itself: its absolute uncertainty grows by construction, and
+  /// there is no reference to recover to).
   double maxPositionSigma = 0.10;  ///< [m]
   double maxHeadingSigma = 0.035;  ///< [rad] (2 deg)
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (a rate or fraction outside [0, 1], a sigma limit
@@ -192,8 +195,8 @@ enum class LocalizerFlag : std::uint32_t {
   DuplicateRejected = 1U << 8,     ///< two observations claimed one landmark; the worse was dropped
   UpdateRejected = 1U << 9,        ///< an associated observation failed the re-gate in the update
   NoFix = 1U << 10,                ///< fewer than minMatchesForFix landmarks used
-  BadCycle = 1U << 11,             ///< too few of the expected landmarks matched, or covariance limit
-  CovarianceLimit = 1U << 12,      ///< position or heading sigma beyond its limit
+  BadCycle = 1U << 11,             ///< too few of the expected landmarks matched, or covariance limit (static map)
+  CovarianceLimit = 1U << 12,      ///< position or heading sigma beyond its limit (dynamic map: dead reckoning)
   MapInsertRefused = 1U << 13,     ///< the map was full; new landmarks were refused (counted)
   Lost = 1U << 14,                 ///< the pose is not trusted (latched until reset): stop the vehicle
   AmbiguityRejected = 1U << 15,    ///< an observation had two landmarks inside the gate, too close to tell
@@ -345,8 +348,9 @@ class Localizer {
   void fuseMatches(const ScanObservations& scan, const LandmarkMap& map) noexcept;
   /// Counts per outcome and per kind, and the flags they raise.
   void tallyObservations(const ScanObservations& scan) noexcept;
-  /// Matched vs expected and the covariance limits: true for a bad cycle (counted towards lost).
-  bool judgeCycle() noexcept;
+  /// Matched vs expected, and the covariance limits against a static map: true for a bad cycle
+  /// (counted towards lost).
+  bool judgeCycle(MapMode mode) noexcept;
   /// Stores the corrected state at the scan's time and re-applies the newer odometry.
   void storeAndReplay(const Rewind& at) noexcept;
   void maintainMap(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
