@@ -80,7 +80,9 @@ int main(int argc, char** argv) {
   app.add_option("--trace", options.tracePath, "write one CSV line per scan (health, errors)");
   app.add_flag("--truth-odometry", options.truthOdometry,
                "diagnostic: predict with the ground-truth increments instead of the raw odometry");
-  app.add_option("--laser-x", options.laserMounting.x, "[m] laser position ahead of the robot centre");
+  app.add_option("--laser-x", options.laserMounting.x,
+                 "[m] laser position ahead of the robot centre (default: the log's PARAM robot_frontlaser_offset)")
+      ->each([&options](const std::string&) { options.laserFromLog = false; });
   app.add_flag(
       "--no-reset", [&options](std::int64_t) { options.resetWhenLost = false; },
       "keep the latched lost state (no reinitialisation)");

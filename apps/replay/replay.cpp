@@ -233,7 +233,13 @@ std::size_t odometryIncrements(const datasets::CarmenLog& log, std::size_t scans
   return zero;
 }
 
-bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, ReplayResult& r, std::string& error) {
+bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, ReplayResult& r, std::string& error) {
+  ReplayOptions options = optionsIn;
+  if (options.laserFromLog) {
+    options.laserMounting.x = log.frontLaserOffset;
+    r.laserXLine = log.frontLaserOffsetLine;
+  }
+  r.laserX = options.laserMounting.x;
   std::size_t n = log.scans.size();
   if (options.maxScans != 0) {
     n = std::min(n, options.maxScans);
@@ -371,7 +377,10 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, Rep
 std::string resultText(const ReplayResult& r) {
   std::ostringstream o;
   o << r.log << ": " << r.scans << " scans, " << fmt("%.1f m of path, %.1f s", r.pathLength, r.duration) << ", "
-    << r.zeroIncrements << " zero odometry increments\n";
+    << r.zeroIncrements << " zero odometry increments; laser " << fmt("%.3f m", r.laserX)
+    << " ahead of the robot centre ("
+    << (r.laserXLine > 0 ? "log line " + std::to_string(r.laserXLine) : std::string("not in the log: 0 or --laser-x"))
+    << ")\n";
   o << "relative error per metre of path (" << r.odometryRelative.position.count << " segments)\n";
   o << "                 position mean / median [m]   heading mean / median [deg]\n";
   o << fmt("  raw odometry   %.4f / %.4f              %.2f / %.2f\n", r.odometryRelative.position.mean,
@@ -417,6 +426,7 @@ report::Json resultJson(const ReplayResult& r) {
               {"odometry_absolute", errors(r.odometryAbsolute.position, r.odometryAbsolute.heading)},
               {"localizer_absolute", errors(r.localizerAbsolute.position, r.localizerAbsolute.heading)},
               {"static_map", r.staticMap},
+              {"laser_x_m", r.laserX},
               {"localizer",
                {{"keypoints", r.keypoints},
                 {"used", r.used},

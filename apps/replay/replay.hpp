@@ -20,9 +20,13 @@ namespace replay {
 
 /// Settings of one replay (defaults: the fr079 run documented in docs/localization.md).
 struct ReplayOptions {
-  std::size_t maxScans = 0;               ///< 0: every scan of the log
-  double segmentLength = 1.0;             ///< [m] ground-truth path length of the relative-error segments
-  Pose2d laserMounting{-0.04, 0.0, 0.0};  ///< fr079: `robot_frontlaser_offset -0.04`
+  std::size_t maxScans = 0;    ///< 0: every scan of the log
+  double segmentLength = 1.0;  ///< [m] ground-truth path length of the relative-error segments
+  /// The laser in the robot frame. With `laserFromLog` (the default) its x is the log's
+  /// `PARAM robot_frontlaser_offset` (0 when the log has none: fr079 says -0.04, the other shared
+  /// logs 0); `--laser-x` sets it and clears `laserFromLog`.
+  Pose2d laserMounting{};
+  bool laserFromLog = true;
   /// Odometry noise of the unicycle input (variances grow with distance and rotation).
   UnicycleNoiseParams odometryNoise{};
   LocalizerParams localizer{};
@@ -101,6 +105,8 @@ struct ReplayResult {
   std::size_t rejectedDuplicate = 0;
   std::size_t rejectedUpdate = 0;
   std::size_t badCycles = 0;
+  double laserX = 0.0;          ///< [m] the laser offset used
+  std::size_t laserXLine = 0;   ///< the log line it came from (0: the options)
   std::size_t lostEvents = 0;   ///< times the localizer declared itself lost
   std::size_t mapRestarts = 0;  ///< of which the dynamic map was dropped and rebuilt (`resetWhenLost`)
   std::size_t expected = 0;     ///< landmarks expected in view, summed over the cycles

@@ -135,17 +135,39 @@ TEST_CASE("carmen log: the gmapping-corrected logs read completely", "[datasets]
   struct Expect {
     const char* file;
     std::size_t scans;
+    double laserOffset;  // the log's PARAM robot_frontlaser_offset (zcat | grep)
   };
-  const Expect sets[] = {{"intel/intel-corrected.log.gz", 910},
-                         {"fr079/freiburg-079-corrected.log.gz", 4791},
-                         {"mit-csail/csail-corrected.log.gz", 406},
-                         {"aces/aces-corrected.log.gz", 440}};
+  const Expect sets[] = {{"intel/intel-corrected.log.gz", 910, 0.0},
+                         {"fr079/freiburg-079-corrected.log.gz", 4791, -0.04},
+                         {"mit-csail/csail-corrected.log.gz", 406, 0.0},
+                         {"aces/aces-corrected.log.gz", 440, 0.0}};
   for (const auto& e : sets) {
     INFO(e.file);
     const CarmenLog log = mustRead(e.file);
     CHECK(log.issues.empty());
     CHECK(log.scans.size() == e.scans);
     CHECK(log.odometry.size() >= e.scans);
+    CHECK(log.frontLaserOffsetLine > 0U);
+    CHECK(log.frontLaserOffset == e.laserOffset);
+  }
+}
+
+TEST_CASE("carmen log: PARAM robot_frontlaser_offset is read with its line; a bad value is an issue", "[datasets]") {
+  const CarmenLog good = agv::datasets::parseCarmenLog(
+      "PARAM robot_allow_rear_motion off 1.0 host 1.0\nPARAM robot_frontlaser_offset -0.04 1.0 host 1.0\n");
+  CHECK(good.frontLaserOffset == -0.04);
+  CHECK(good.frontLaserOffsetLine == 2U);
+  CHECK(good.issues.empty());
+  const CarmenLog none = agv::datasets::parseCarmenLog("PARAM robot_front_laser_max 80 1.0 host 1.0\n");
+  CHECK(none.frontLaserOffsetLine == 0U);
+  CHECK(none.frontLaserOffset == 0.0);
+  for (const char* bad : {"PARAM robot_frontlaser_offset nan 1.0 h 1.0\n", "PARAM robot_frontlaser_offset 1e9 1 h 1\n",
+                          "PARAM robot_frontlaser_offset 0x10 1 h 1\n", "PARAM robot_frontlaser_offset\n"}) {
+    INFO(bad);
+    const CarmenLog log = agv::datasets::parseCarmenLog(bad);
+    CHECK(log.frontLaserOffsetLine == 0U);
+    REQUIRE(log.issues.size() == 1U);
+    CHECK(log.issues[0].line == 1U);
   }
 }
 

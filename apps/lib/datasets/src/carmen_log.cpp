@@ -109,6 +109,8 @@ class Parser {
       odom(tk, no);
     } else if (kind == "VERTEX2") {
       vertex(tk, no);
+    } else if (kind == "PARAM") {
+      param(tk, no);
     } else {
       ++log.ignoredLines;
     }
@@ -118,6 +120,22 @@ class Parser {
 
  private:
   void issue(std::size_t no, const char* what) { log.issues.push_back(LogIssue{no, what}); }
+
+  /// PARAM name value ...: only the front laser's offset is used (the rest are counted as ignored).
+  void param(Tokens& tk, std::size_t no) {
+    std::string_view name;
+    if (!tk.next(name) || name != "robot_frontlaser_offset") {
+      ++log.ignoredLines;
+      return;
+    }
+    double v = 0.0;
+    if (!tk.number(v) || std::fabs(v) > 10.0) {
+      issue(no, "PARAM robot_frontlaser_offset: not a number of at most 10 m");
+      return;
+    }
+    log.frontLaserOffset = v;
+    log.frontLaserOffsetLine = no;
+  }
 
   void robotLaser(Tokens& tk, std::size_t no) {
     LogScan s;

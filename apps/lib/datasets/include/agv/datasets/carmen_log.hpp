@@ -70,6 +70,10 @@ struct CarmenLog {
   std::vector<LogIssue> issues;  ///< malformed lines (skipped), with their line number
   std::size_t lines = 0;         ///< lines read
   std::size_t ignoredLines = 0;  ///< comments, PARAM, EDGE2, NEFF and other records not used
+  /// `PARAM robot_frontlaser_offset <m>`: the front laser's position ahead of the robot centre
+  /// (0 when `frontLaserOffsetLine` is 0: the log does not say).
+  double frontLaserOffset = 0.0;
+  std::size_t frontLaserOffsetLine = 0;  ///< the line it was read from (0: none)
 };
 
 /// Parses log text (one record per line). Malformed lines are reported in `issues` and skipped.
