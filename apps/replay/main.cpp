@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
   CLI::App app{"EKF localizer with a dynamic FALKO map replayed on a corrected CARMEN log"};
   std::string logPath = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/laser2d/fr079/freiburg-079-corrected.log.gz";
   std::string jsonPath;
+  bool skipBadLines = false;
   std::string svgPath;
   agv::replay::ReplayOptions options = agv::replay::fr079Defaults();
   double expectOdometry = 0.0;
@@ -78,6 +79,7 @@ int main(int argc, char** argv) {
   app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");
   app.add_option("--static-min-count", options.staticMinCount, "detections a static corner needs");
   app.add_option("--trace", options.tracePath, "write one CSV line per scan (health, errors)");
+  app.add_flag("--skip-bad-lines", skipBadLines, "replay a log with malformed lines without them (default: refuse it)");
   app.add_flag("--truth-odometry", options.truthOdometry,
                "diagnostic: predict with the ground-truth increments instead of the raw odometry");
   app.add_option("--laser-x", options.laserMounting.x,
@@ -100,7 +102,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (const auto& issue : log.issues) {
-    std::fprintf(stderr, "%s:%zu: %s (skipped)\n", logPath.c_str(), issue.line, issue.message.c_str());
+    std::fprintf(stderr, "%s:%zu: %s%s\n", logPath.c_str(), issue.line, issue.message.c_str(),
+                 skipBadLines ? " (skipped)" : "");
+  }
+  if (!log.issues.empty() && !skipBadLines) {
+    std::fprintf(stderr, "agvnav-replay: %s: %zu malformed line(s) refused (--skip-bad-lines to replay without them)\n",
+                 logPath.c_str(), log.issues.size());
+    return 2;
   }
   agv::replay::ReplayResult r;
   r.log = logPath.substr(logPath.find_last_of('/') + 1);

@@ -233,7 +233,48 @@ std::size_t odometryIncrements(const datasets::CarmenLog& log, std::size_t scans
   return zero;
 }
 
+bool checkReplayLog(const datasets::CarmenLog& log, std::string& error) {
+  if (!log.vertices.empty() || (!log.scans.empty() && log.scans.front().vertexId >= 0)) {
+    const std::size_t line = log.vertices.empty() ? log.scans.front().line : log.vertices.front().line;
+    error = "line " + std::to_string(line) +
+            ": a FLIRTLib log (ROBOTLASER1 + VERTEX2), not a gmapping-corrected CARMEN log (FLASER + ODOM)";
+    return false;
+  }
+  if (log.odometry.empty()) {
+    error = "no ODOM line: not a gmapping-corrected CARMEN log (FLASER + ODOM)";
+    return false;
+  }
+  const auto implausible = [](const Pose2d& a, const Pose2d& b, double dt) {
+    const double step = std::hypot(b.x - a.x, b.y - a.y);
+    return step > kMaxPlausibleStep && step > kMaxPlausibleSpeed * std::max(0.0, dt);
+  };
+  for (std::size_t i = 1; i < log.scans.size(); ++i) {
+    const datasets::LogScan& a = log.scans[i - 1];
+    const datasets::LogScan& b = log.scans[i];
+    if (implausible(a.robotPose, b.robotPose, b.timestamp - a.timestamp)) {
+      error = "line " + std::to_string(b.line) + ": the corrected pose jumps " +
+              fmt("%.1f m", std::hypot(b.robotPose.x - a.robotPose.x, b.robotPose.y - a.robotPose.y)) + " from line " +
+              std::to_string(a.line) + " (beyond physics)";
+      return false;
+    }
+  }
+  for (std::size_t i = 1; i < log.odometry.size(); ++i) {
+    const datasets::LogOdometry& a = log.odometry[i - 1];
+    const datasets::LogOdometry& b = log.odometry[i];
+    if (implausible(a.pose, b.pose, b.timestamp - a.timestamp)) {
+      error = "line " + std::to_string(b.line) + ": the odometry jumps " +
+              fmt("%.1f m", std::hypot(b.pose.x - a.pose.x, b.pose.y - a.pose.y)) + " from line " +
+              std::to_string(a.line) + " (beyond physics)";
+      return false;
+    }
+  }
+  return true;
+}
+
 bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, ReplayResult& r, std::string& error) {
+  if (!checkReplayLog(log, error)) {
+    return false;
+  }
   ReplayOptions options = optionsIn;
   if (options.laserFromLog) {
     options.laserMounting.x = log.frontLaserOffset;

@@ -53,6 +53,19 @@ struct ReplayOptions {
   std::string tracePath;
 };
 
+/// Longest plausible step of the robot between two consecutive scans of a log, unless the time
+/// between them allows more at `kMaxPlausibleSpeed` [m]: five times the longest step of the shared
+/// corrected logs (1.8 m, mit-csail).
+inline constexpr double kMaxPlausibleStep = 10.0;
+/// [m/s] faster than any indoor robot or forklift.
+inline constexpr double kMaxPlausibleSpeed = 20.0;
+
+/// Whether `log` can be replayed: a gmapping-corrected CARMEN log (FLASER lines with corrected
+/// poses, ODOM lines with the raw odometry), not a FLIRTLib log (ROBOTLASER1 + VERTEX2), with no
+/// robot step beyond physics (`kMaxPlausibleStep` and `kMaxPlausibleSpeed`) between consecutive
+/// scans, in the corrected poses or the raw odometry. False with `error` naming the line.
+bool checkReplayLog(const datasets::CarmenLog& log, std::string& error);
+
 /// Defaults for the fr079 run (see the docs for the derivation).
 ReplayOptions fr079Defaults();
 

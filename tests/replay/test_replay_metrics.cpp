@@ -158,3 +158,37 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   CHECK(svg.find("odd &quot;name&quot; &lt;1&gt;.log (3 scans)") != std::string::npos);
   CHECK(svg.find("<1>") == std::string::npos);
 }
+
+TEST_CASE("checkReplayLog: a FLIRTLib log, a missing odometry and pose jumps beyond physics are refused with the line",
+          "[replay]") {
+  namespace r = agv::replay;
+  // FLASER n r1..rn x y th odom_x odom_y odom_th ts host logger_ts
+  const auto flaser = [](double x, double ts) {
+    return "FLASER 3 1.0 2.0 3.0 " + std::to_string(x) + " 0 0 " + std::to_string(x) + " 0 0 " + std::to_string(ts) +
+           " h " + std::to_string(ts) + "\n";
+  };
+  const auto odom = [](double x, double ts) {
+    return "ODOM " + std::to_string(x) + " 0 0 0 0 0 " + std::to_string(ts) + " h " + std::to_string(ts) + "\n";
+  };
+  std::string error;
+  const std::string good = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(0.5, 2.0) + flaser(0.5, 2.0);
+  CHECK(r::checkReplayLog(agv::datasets::parseCarmenLog(good), error));
+
+  const std::string flirt = "VERTEX2 7 1.0 2.0 0.5\n" + good;
+  CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(flirt), error));
+  CHECK(error.find("line 1: a FLIRTLib log") != std::string::npos);
+
+  CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(flaser(0.0, 1.0) + flaser(0.5, 2.0)), error));
+  CHECK(error.find("no ODOM line") != std::string::npos);
+
+  // 2000 km in one second (line 4) is beyond physics; 12 m in one second is over the 10 m step but
+  // below 20 m/s: a fast robot, accepted.
+  const std::string jump = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(0.5, 2.0) + flaser(2.0e6, 2.0);
+  CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(jump), error));
+  CHECK(error.find("line 4: the corrected pose jumps") != std::string::npos);
+  const std::string fast = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(12.0, 2.0) + flaser(12.0, 2.0);
+  CHECK(r::checkReplayLog(agv::datasets::parseCarmenLog(fast), error));  // 12 m/s: a fast robot, not a jump
+  const std::string odoJump = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(500.0, 2.0) + flaser(0.5, 2.0);
+  CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(odoJump), error));
+  CHECK(error.find("line 3: the odometry jumps") != std::string::npos);
+}
