@@ -192,115 +192,147 @@ int runExport(const std::vector<std::pair<std::string, std::string>>& sets, cons
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"FALKO keypoints on recorded 2D laser scans"};
-  app.require_subcommand(1);
-
+/// The command line: the three subcommands and what they set.
+struct FeaturesCli {
+  CLI::App* detect = nullptr;
+  CLI::App* eval = nullptr;
+  CLI::App* exportCmd = nullptr;
+  // detect
   std::string logPath;
   std::size_t index = 0;
   std::string svgPath = "scan.svg";
-  CLI::App* detect = app.add_subcommand("detect", "keypoints of one scan of a log, as SVG");
-  detect->add_option("log", logPath, "CARMEN / FLIRTLib log (.log or .log.gz)")->required();
-  detect->add_option("-s,--scan", index, "index of the scan in the log (0-based)");
-  detect->add_option("-o,--svg", svgPath, "SVG output file");
   FalkoCli detectParams;
-  detectParams.addTo(detect);
-
+  // eval and export
   std::string dataDir = AGVNAV_DEFAULT_DATA_DIR;
   std::vector<std::string> names;
   agv::features::EvalOptions options;
   std::string jsonPath;
   std::string svgDir;
-  CLI::App* eval = app.add_subcommand("eval", "repeatability and descriptor matching on the shared logs");
-  eval->add_option("--data", dataDir, "folder holding laser2d/");
-  eval->add_option("--datasets", names, "subset of intel, fr079, mit-csail (default: all)");
-  eval->add_option("--max-scans", options.maxScans, "scans per dataset (0: all)");
-  eval->add_option("--json", jsonPath, "write the results as JSON");
-  eval->add_option("--svg-dir", svgDir, "write repeatability curves (SVG) into this folder");
-  eval->add_option("--match-distance", options.matchDistance, "[m] repeated keypoint tolerance");
   std::string keypointsIn;
-  eval->add_option("--keypoints", keypointsIn,
-                   "score the keypoints in this file (another detector's, see export) instead of detecting")
-      ->check(CLI::ExistingFile);
   FalkoCli evalParams;
-  evalParams.addTo(eval);
-
   std::string exportScans;
   std::string exportKeypoints;
   std::string exportPairs;
+  FalkoCli exportParams;
+};
+
+void addDetectCommand(CLI::App& app, FeaturesCli& cli) {
+  CLI::App* detect = app.add_subcommand("detect", "keypoints of one scan of a log, as SVG");
+  detect->add_option("log", cli.logPath, "CARMEN / FLIRTLib log (.log or .log.gz)")->required();
+  detect->add_option("-s,--scan", cli.index, "index of the scan in the log (0-based)");
+  detect->add_option("-o,--svg", cli.svgPath, "SVG output file");
+  cli.detectParams.addTo(detect);
+  cli.detect = detect;
+}
+
+void addEvalCommand(CLI::App& app, FeaturesCli& cli) {
+  CLI::App* eval = app.add_subcommand("eval", "repeatability and descriptor matching on the shared logs");
+  eval->add_option("--data", cli.dataDir, "folder holding laser2d/");
+  eval->add_option("--datasets", cli.names, "subset of intel, fr079, mit-csail (default: all)");
+  eval->add_option("--max-scans", cli.options.maxScans, "scans per dataset (0: all)");
+  eval->add_option("--json", cli.jsonPath, "write the results as JSON");
+  eval->add_option("--svg-dir", cli.svgDir, "write repeatability curves (SVG) into this folder");
+  eval->add_option("--match-distance", cli.options.matchDistance, "[m] repeated keypoint tolerance");
+  eval->add_option("--keypoints", cli.keypointsIn,
+                   "score the keypoints in this file (another detector's, see export) instead of detecting")
+      ->check(CLI::ExistingFile);
+  cli.evalParams.addTo(eval);
+  cli.eval = eval;
+}
+
+void addExportCommand(CLI::App& app, FeaturesCli& cli) {
   CLI::App* exportCmd =
       app.add_subcommand("export", "the scans eval uses, for another detector; this detector's keypoints; the pairs");
-  exportCmd->add_option("--data", dataDir, "folder holding laser2d/");
-  exportCmd->add_option("--datasets", names, "subset of intel, fr079, mit-csail (default: all)");
-  exportCmd->add_option("--max-scans", options.maxScans, "scans per dataset (0: all)");
-  exportCmd->add_option("--scans", exportScans, "write every scan of every variant here");
-  exportCmd->add_option("--keypoints", exportKeypoints,
+  exportCmd->add_option("--data", cli.dataDir, "folder holding laser2d/");
+  exportCmd->add_option("--datasets", cli.names, "subset of intel, fr079, mit-csail (default: all)");
+  exportCmd->add_option("--max-scans", cli.options.maxScans, "scans per dataset (0: all)");
+  exportCmd->add_option("--scans", cli.exportScans, "write every scan of every variant here");
+  exportCmd->add_option("--keypoints", cli.exportKeypoints,
                         "write this detector's keypoints here (eval --keypoints format)");
-  exportCmd->add_option("--pairs", exportPairs, "write the viewpoint scan pairs here");
-  FalkoCli exportParams;
-  exportParams.addTo(exportCmd);
+  exportCmd->add_option("--pairs", cli.exportPairs, "write the viewpoint scan pairs here");
+  cli.exportParams.addTo(exportCmd);
+  cli.exportCmd = exportCmd;
+}
 
-  CLI11_PARSE(app, argc, argv);
-
-  if (*detect) {
-    agv::FalkoParams params;
-    if (!detectParams.resolve(params)) {
-      return 2;
-    }
-    return runDetect(logPath, index, svgPath, params);
-  }
-  std::vector<std::pair<std::string, std::string>> sets;
-  if (!selectDatasets(names, dataDir, sets)) {
-    return 2;
-  }
-  if (*exportCmd) {
-    if (!exportParams.resolve(options.falko)) {
-      return 2;
-    }
-    return runExport(sets, options, exportScans, exportKeypoints, exportPairs);
-  }
-  if (!evalParams.resolve(options.falko)) {
-    return 2;
-  }
-  agv::features::KeypointTable external;
-  if (!keypointsIn.empty()) {
-    std::ifstream in(keypointsIn);
-    std::string err;
-    if (!in || !agv::features::readKeypointTable(in, external, err)) {
-      std::fprintf(stderr, "agvnav-features: %s: %s\n", keypointsIn.c_str(), in ? err.c_str() : "cannot read");
-      return 1;
-    }
-    std::printf("keypoints from %s (the detector is not run)\n", keypointsIn.c_str());
-  } else {
-    std::printf("%s\n", agv::features::paramsLine(options.falko).c_str());
-  }
-  std::vector<agv::features::DatasetResult> results;
-  for (const auto& set : sets) {
-    agv::features::DatasetResult r;
-    std::string err;
-    if (!agv::features::evaluateLog(set.first, set.second, options, r, err,
-                                    keypointsIn.empty() ? nullptr : &external)) {
-      std::fprintf(stderr, "agvnav-features: %s\n", err.c_str());
-      return 1;
-    }
-    results.push_back(std::move(r));
-  }
+/// The results as tables on stdout, JSON and SVG curves when asked; the exit code.
+int reportEval(const FeaturesCli& cli, const std::vector<agv::features::DatasetResult>& results) {
   std::fputs(agv::features::resultsToTables(results).c_str(), stdout);
   std::string error;
-  if (!jsonPath.empty() &&
-      !agv::report::writeJsonFile(jsonPath, agv::features::resultsToJson(results, options.falko, keypointsIn), error)) {
+  if (!cli.jsonPath.empty() &&
+      !agv::report::writeJsonFile(cli.jsonPath,
+                                  agv::features::resultsToJson(results, cli.options.falko, cli.keypointsIn), error)) {
     std::fprintf(stderr, "agvnav-features: %s\n", error.c_str());
     return 1;
   }
-  if (!svgDir.empty()) {
+  if (!cli.svgDir.empty()) {
     for (const char* test : {"viewpoint", "noise", "sampling"}) {
-      const std::string p = svgDir + "/repeatability_" + test + ".svg";
+      const std::string p = cli.svgDir + "/repeatability_" + test + ".svg";
       if (!writeFile(p, agv::features::curveSvg(results, test))) {
         return 1;
       }
     }
   }
   return 0;
+}
+
+/// eval: the detector's (or the --keypoints file's) keypoints scored on every dataset of `sets`.
+int runEval(const FeaturesCli& cli, const std::vector<std::pair<std::string, std::string>>& sets) {
+  agv::features::KeypointTable external;
+  if (!cli.keypointsIn.empty()) {
+    std::ifstream in(cli.keypointsIn);
+    std::string err;
+    if (!in || !agv::features::readKeypointTable(in, external, err)) {
+      std::fprintf(stderr, "agvnav-features: %s: %s\n", cli.keypointsIn.c_str(), in ? err.c_str() : "cannot read");
+      return 1;
+    }
+    std::printf("keypoints from %s (the detector is not run)\n", cli.keypointsIn.c_str());
+  } else {
+    std::printf("%s\n", agv::features::paramsLine(cli.options.falko).c_str());
+  }
+  std::vector<agv::features::DatasetResult> results;
+  for (const auto& set : sets) {
+    agv::features::DatasetResult r;
+    std::string err;
+    if (!agv::features::evaluateLog(set.first, set.second, cli.options, r, err,
+                                    cli.keypointsIn.empty() ? nullptr : &external)) {
+      std::fprintf(stderr, "agvnav-features: %s\n", err.c_str());
+      return 1;
+    }
+    results.push_back(std::move(r));
+  }
+  return reportEval(cli, results);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"FALKO keypoints on recorded 2D laser scans"};
+  app.require_subcommand(1);
+  FeaturesCli cli;
+  addDetectCommand(app, cli);
+  addEvalCommand(app, cli);
+  addExportCommand(app, cli);
+  CLI11_PARSE(app, argc, argv);
+
+  if (*cli.detect) {
+    agv::FalkoParams params;
+    if (!cli.detectParams.resolve(params)) {
+      return 2;
+    }
+    return runDetect(cli.logPath, cli.index, cli.svgPath, params);
+  }
+  std::vector<std::pair<std::string, std::string>> sets;
+  if (!selectDatasets(cli.names, cli.dataDir, sets)) {
+    return 2;
+  }
+  if (*cli.exportCmd) {
+    if (!cli.exportParams.resolve(cli.options.falko)) {
+      return 2;
+    }
+    return runExport(sets, cli.options, cli.exportScans, cli.exportKeypoints, cli.exportPairs);
+  }
+  if (!cli.evalParams.resolve(cli.options.falko)) {
+    return 2;
+  }
+  return runEval(cli, sets);
 }

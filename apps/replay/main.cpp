@@ -25,10 +25,8 @@ bool writeFile(const std::string& path, const std::string& text) {
   return true;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"EKF localizer with a dynamic FALKO map replayed on a corrected CARMEN log"};
+/// The command line: files, the replay's options, the check.
+struct ReplayCli {
   std::string logPath = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/laser2d/fr079/freiburg-079-corrected.log.gz";
   std::string jsonPath;
   bool skipBadLines = false;
@@ -37,11 +35,22 @@ int main(int argc, char** argv) {
   double expectOdometry = 0.0;
   double tolerance = 0.10;
   bool check = false;
-  app.add_option("log", logPath, "gmapping-corrected CARMEN log (FLASER + ODOM), default fr079");
+};
+
+/// The log, the outputs and the error segments.
+void addFileOptions(CLI::App& app, ReplayCli& cli) {
+  agv::replay::ReplayOptions& options = cli.options;
+  app.add_option("log", cli.logPath, "gmapping-corrected CARMEN log (FLASER + ODOM), default fr079");
   app.add_option("--max-scans", options.maxScans, "replay only the first N scans (0: all)");
-  app.add_option("--json", jsonPath, "write the figures as JSON");
-  app.add_option("--svg", svgPath, "write the trajectories as SVG");
+  app.add_option("--json", cli.jsonPath, "write the figures as JSON");
+  app.add_flag("--skip-bad-lines", cli.skipBadLines,
+               "replay a log with malformed lines without them (default: refuse it)");
+  app.add_option("--svg", cli.svgPath, "write the trajectories as SVG");
   app.add_option("--segment", options.segmentLength, "[m] path length of the relative-error segments");
+}
+
+/// The localizer's, the map's and the detector's parameters.
+void addLocalizerOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--corner-sigma", options.localizer.laser.kindSigma[1], "[m] extra corner position noise");
   app.add_option("--range-max", options.localizer.laser.rangeMax, "[m] farthest keypoint used");
   app.add_option("--odo-trans-var", options.odometryNoise.translationVariancePerMetre, "[m^2/m]");
@@ -74,12 +83,15 @@ int main(int argc, char** argv) {
   app.add_option("--insert-separation", options.localizer.map.insertSeparation, "[m]");
   app.add_option("--falko-max-score", options.falko.maxScore, "FALKO cornerness score limit");
   app.add_option("--falko-beta", options.falko.beta, "FALKO corner angle parameter");
+}
+
+/// The experiments and diagnostics: static map, trace, ground-truth odometry, mounting, no reset.
+void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_flag("--static-map-from-truth", options.staticMapFromTruth,
                "localization case: static corner map built first from the corrected poses (optimistic)");
   app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");
   app.add_option("--static-min-count", options.staticMinCount, "detections a static corner needs");
   app.add_option("--trace", options.tracePath, "write one CSV line per scan (health, errors)");
-  app.add_flag("--skip-bad-lines", skipBadLines, "replay a log with malformed lines without them (default: refuse it)");
   app.add_flag("--truth-odometry", options.truthOdometry,
                "diagnostic: predict with the ground-truth increments instead of the raw odometry");
   app.add_option("--laser-x", options.laserMounting.x,
@@ -88,49 +100,66 @@ int main(int argc, char** argv) {
   app.add_flag(
       "--no-reset", [&options](std::int64_t) { options.resetWhenLost = false; },
       "keep the latched lost state (no reinitialisation)");
-  app.add_option("--expect-odometry", expectOdometry,
+}
+
+void addCheckOptions(CLI::App& app, ReplayCli& cli) {
+  app.add_option("--expect-odometry", cli.expectOdometry,
                  "[m] expected mean per-metre position error of raw odometry; with --check");
-  app.add_option("--tolerance", tolerance, "relative tolerance of --expect-odometry");
-  app.add_flag("--check", check,
+  app.add_option("--tolerance", cli.tolerance, "relative tolerance of --expect-odometry");
+  app.add_flag("--check", cli.check,
                "exit 2 unless the odometry figure matches --expect-odometry and the localizer beats odometry");
+}
+
+/// --check: the odometry figure as expected and the localizer below it; 0 or 2.
+int checkResult(const ReplayCli& cli, const agv::replay::ReplayResult& r) {
+  const double odo = r.odometryRelative.position.mean;
+  const bool odoOk =
+      cli.expectOdometry > 0.0 && std::fabs(odo - cli.expectOdometry) <= cli.tolerance * cli.expectOdometry;
+  const bool locOk =
+      r.localizerRelative.position.mean < odo && r.localizerRelative.heading.mean < r.odometryRelative.heading.mean;
+  std::printf("check: odometry %.4f m/m vs expected %.4f (+-%.0f %%): %s; localizer below odometry: %s\n", odo,
+              cli.expectOdometry, cli.tolerance * 100.0, odoOk ? "ok" : "FAIL", locOk ? "ok" : "FAIL");
+  return odoOk && locOk ? 0 : 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"EKF localizer with a dynamic FALKO map replayed on a corrected CARMEN log"};
+  ReplayCli cli;
+  addFileOptions(app, cli);
+  addLocalizerOptions(app, cli.options);
+  addExperimentOptions(app, cli.options);
+  addCheckOptions(app, cli);
   CLI11_PARSE(app, argc, argv);
 
   agv::datasets::CarmenLog log;
   std::string err;
-  if (!agv::datasets::readCarmenLog(logPath, log, err)) {
+  if (!agv::datasets::readCarmenLog(cli.logPath, log, err)) {
     std::fprintf(stderr, "agvnav-replay: %s\n", err.c_str());
     return 1;
   }
   for (const auto& issue : log.issues) {
-    std::fprintf(stderr, "%s:%zu: %s%s\n", logPath.c_str(), issue.line, issue.message.c_str(),
-                 skipBadLines ? " (skipped)" : "");
+    std::fprintf(stderr, "%s:%zu: %s%s\n", cli.logPath.c_str(), issue.line, issue.message.c_str(),
+                 cli.skipBadLines ? " (skipped)" : "");
   }
-  if (!log.issues.empty() && !skipBadLines) {
+  if (!log.issues.empty() && !cli.skipBadLines) {
     std::fprintf(stderr, "agvnav-replay: %s: %zu malformed line(s) refused (--skip-bad-lines to replay without them)\n",
-                 logPath.c_str(), log.issues.size());
+                 cli.logPath.c_str(), log.issues.size());
     return 2;
   }
   agv::replay::ReplayResult r;
-  r.log = logPath.substr(logPath.find_last_of('/') + 1);
-  if (!agv::replay::replayLog(log, options, r, err)) {
+  r.log = cli.logPath.substr(cli.logPath.find_last_of('/') + 1);
+  if (!agv::replay::replayLog(log, cli.options, r, err)) {
     std::fprintf(stderr, "agvnav-replay: %s\n", err.c_str());
     return 1;
   }
   std::fputs(agv::replay::resultText(r).c_str(), stdout);
-  if (!jsonPath.empty() && !writeFile(jsonPath, agv::report::dumpJson(agv::replay::resultJson(r)))) {
+  if (!cli.jsonPath.empty() && !writeFile(cli.jsonPath, agv::report::dumpJson(agv::replay::resultJson(r)))) {
     return 1;
   }
-  if (!svgPath.empty() && !writeFile(svgPath, agv::replay::trajectorySvg(r))) {
+  if (!cli.svgPath.empty() && !writeFile(cli.svgPath, agv::replay::trajectorySvg(r))) {
     return 1;
   }
-  if (check) {
-    const double odo = r.odometryRelative.position.mean;
-    const bool odoOk = expectOdometry > 0.0 && std::fabs(odo - expectOdometry) <= tolerance * expectOdometry;
-    const bool locOk =
-        r.localizerRelative.position.mean < odo && r.localizerRelative.heading.mean < r.odometryRelative.heading.mean;
-    std::printf("check: odometry %.4f m/m vs expected %.4f (+-%.0f %%): %s; localizer below odometry: %s\n", odo,
-                expectOdometry, tolerance * 100.0, odoOk ? "ok" : "FAIL", locOk ? "ok" : "FAIL");
-    return odoOk && locOk ? 0 : 2;
-  }
-  return 0;
+  return cli.check ? checkResult(cli, r) : 0;
 }

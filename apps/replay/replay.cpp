@@ -59,22 +59,63 @@ report::Json statsJson(const ErrorStats& s, double scale) {
                       {"max", s.max * scale}};
 }
 
+/// Corners of the static map being clustered: sums of the world positions and their count.
+struct Cluster {
+  double sx = 0.0;
+  double sy = 0.0;
+  std::size_t count = 0;
+};
+
+/// Clusters in a grid of cells as wide as the clustering radius: cell key -> cluster indices.
+class ClusterGrid {
+ public:
+  explicit ClusterGrid(double cell) : cell_(cell) {}
+
+  /// The cluster whose mean is nearest `w` and closer than a cell, or `clusters.size()` when none.
+  std::size_t nearest(const std::vector<Cluster>& clusters, const Eigen::Vector2d& w) const {
+    std::size_t best = clusters.size();
+    double bestD = cell_;
+    const long long cx = static_cast<long long>(std::floor(w.x() / cell_));
+    const long long cy = static_cast<long long>(std::floor(w.y() / cell_));
+    for (long long dx = -1; dx <= 1; ++dx) {
+      for (long long dy = -1; dy <= 1; ++dy) {
+        const auto it =
+            grid_.find(key((static_cast<double>(cx + dx) + 0.5) * cell_, (static_cast<double>(cy + dy) + 0.5) * cell_));
+        if (it == grid_.end()) {
+          continue;
+        }
+        for (std::size_t c : it->second) {
+          const double mx = clusters[c].sx / static_cast<double>(clusters[c].count);
+          const double my = clusters[c].sy / static_cast<double>(clusters[c].count);
+          const double d = std::hypot(mx - w.x(), my - w.y());
+          if (d < bestD) {
+            bestD = d;
+            best = c;
+          }
+        }
+      }
+    }
+    return best;
+  }
+
+  void add(const Eigen::Vector2d& w, std::size_t cluster) { grid_[key(w.x(), w.y())].push_back(cluster); }
+
+ private:
+  long long key(double x, double y) const {
+    return (static_cast<long long>(std::floor(x / cell_)) << 32) ^
+           (static_cast<long long>(std::floor(y / cell_)) & 0xffffffffLL);
+  }
+
+  double cell_;
+  std::unordered_map<long long, std::vector<std::size_t>> grid_;
+};
+
 // Clusters the keypoints of every scan, placed in the world with the corrected poses, and adds
 // the clusters seen often enough to `map` as surveyed corners.
 std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const ReplayOptions& options,
                            LandmarkMap& map) {
-  struct Cluster {
-    double sx = 0.0;
-    double sy = 0.0;
-    std::size_t count = 0;
-  };
   std::vector<Cluster> clusters;
-  std::unordered_map<long long, std::vector<std::size_t>> grid;
-  const double cell = options.staticClusterRadius;
-  const auto key = [cell](double x, double y) {
-    return (static_cast<long long>(std::floor(x / cell)) << 32) ^
-           (static_cast<long long>(std::floor(y / cell)) & 0xffffffffLL);
-  };
+  ClusterGrid grid(options.staticClusterRadius);
   FalkoDetector detector(options.falko);
   auto scan = std::make_unique<LaserScan>();
   auto kps = std::make_unique<FalkoKeypoints>();
@@ -89,31 +130,10 @@ std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const 
         continue;
       }
       const auto w = laser.transformPoint(Eigen::Vector2d(static_cast<double>(k.x), static_cast<double>(k.y)));
-      std::size_t best = clusters.size();
-      double bestD = cell;
-      const long long cx = static_cast<long long>(std::floor(w.x() / cell));
-      const long long cy = static_cast<long long>(std::floor(w.y() / cell));
-      for (long long dx = -1; dx <= 1; ++dx) {
-        for (long long dy = -1; dy <= 1; ++dy) {
-          const auto it =
-              grid.find(key((static_cast<double>(cx + dx) + 0.5) * cell, (static_cast<double>(cy + dy) + 0.5) * cell));
-          if (it == grid.end()) {
-            continue;
-          }
-          for (std::size_t c : it->second) {
-            const double mx = clusters[c].sx / static_cast<double>(clusters[c].count);
-            const double my = clusters[c].sy / static_cast<double>(clusters[c].count);
-            const double d = std::hypot(mx - w.x(), my - w.y());
-            if (d < bestD) {
-              bestD = d;
-              best = c;
-            }
-          }
-        }
-      }
+      const std::size_t best = grid.nearest(clusters, w);
       if (best == clusters.size()) {
         clusters.push_back(Cluster{});
-        grid[key(w.x(), w.y())].push_back(best);
+        grid.add(w, best);
       }
       clusters[best].sx += w.x();
       clusters[best].sy += w.y();
@@ -271,6 +291,188 @@ bool checkReplayLog(const datasets::CarmenLog& log, std::string& error) {
   return true;
 }
 
+namespace {
+
+/// The ground truth (corrected poses), the raw odometry chained from `inc` and the path length of
+/// the first `n` scans.
+void recordTracks(const datasets::CarmenLog& log, std::size_t n, const std::vector<Pose2d>& inc, ReplayResult& r) {
+  r.truth.clear();
+  r.odometry.clear();
+  r.localizer.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    r.truth.push_back(log.scans[i].robotPose);
+    r.odometry.push_back(i == 0 ? r.truth[0] : r.odometry.back().compose(inc[i]));
+  }
+  r.pathLength = 0.0;
+  for (std::size_t i = 1; i < n; ++i) {
+    r.pathLength += std::hypot(r.truth[i].x - r.truth[i - 1].x, r.truth[i].y - r.truth[i - 1].y);
+  }
+}
+
+/// The localizer, its map and the corner detector stepped through the scans of one replay, with
+/// what the result tallies across scans; the large objects live on the heap.
+class ScanReplay {
+ public:
+  ScanReplay(const datasets::CarmenLog& log, const ReplayOptions& options, const std::vector<Pose2d>& inc,
+             ReplayResult& r)
+      : log_(log), options_(options), inc_(inc), r_(r), lp_(options.localizer) {
+    lp_.laser.mounting = options.laserMounting;
+    localizer_ = std::make_unique<Localizer>(lp_);
+    map_ = std::make_unique<LandmarkMap>(options.map);
+    detector_ = std::make_unique<FalkoDetector>(options.falko);
+    p0_(0, 0) = p0_(1, 1) = options.initialSigmaXY * options.initialSigmaXY;
+    p0_(2, 2) = options.initialSigmaTheta * options.initialSigmaTheta;
+  }
+  ScanReplay(const ScanReplay&) = delete;
+  ScanReplay& operator=(const ScanReplay&) = delete;
+  ~ScanReplay() { closeTrace(); }
+
+  /// The static map (when asked), the localizer at the first corrected pose, the trace file.
+  bool begin(std::size_t n, std::string& error) {
+    r_.staticMap = options_.staticMapFromTruth;
+    if (options_.staticMapFromTruth) {
+      (void)buildStaticMap(log_, n, options_, *map_);
+    }
+    last_ = Timestamp::fromSeconds(log_.scans[0].timestamp);
+    if (localizer_->reset(last_, r_.truth[0], p0_) != Status::Ok) {
+      error = "localizer refused the initial pose";
+      return false;
+    }
+    trace_ = options_.tracePath.empty() ? nullptr : std::fopen(options_.tracePath.c_str(), "w");
+    if (trace_ != nullptr) {
+      std::fputs(
+          "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
+          "map\n",
+          trace_);
+    }
+    return true;
+  }
+
+  /// Scan `i`: prediction to its stamp (after the first), its corners, the correction, the tally.
+  bool replayScan(std::size_t i, std::string& error) {
+    Timestamp stamp = Timestamp::fromSeconds(log_.scans[i].timestamp);
+    if (i > 0 && !predictTo(i, stamp, error)) {
+      return false;
+    }
+    (void)log_.scans[i].toLaserScan(*scan_);
+    detectCorners(stamp);
+    r_.keypoints += obs_->points.size();
+    const LocalizerHealth& h = localizer_->correct(*obs_, *scan_, *map_);
+    tally(h);
+    if (h.lost) {
+      ++r_.lostEvents;
+      if (options_.resetWhenLost) {
+        // Keep the estimate and its covariance (re-opening it would only grow it, cycle after
+        // cycle). A dynamic map that no longer matches the pose is dropped and rebuilt from here:
+        // without a surveyed map there is nothing else to return to.
+        (void)localizer_->reset(stamp, localizer_->pose(), localizer_->covariance());
+        if (map_->mode() == MapMode::Dynamic) {
+          map_->clear();
+          map_->setMode(MapMode::Dynamic);
+          ++r_.mapRestarts;
+        }
+      }
+    }
+    r_.localizer.push_back(localizer_->pose());
+    writeTrace(i, h);
+    return true;
+  }
+
+  void closeTrace() {
+    if (trace_ != nullptr) {
+      std::fclose(trace_);
+      trace_ = nullptr;
+    }
+  }
+
+  /// The mean test ratio and the map's figures into the result.
+  void finish() {
+    r_.meanTestRatio = ratioCount_ > 0 ? ratioSum_ / static_cast<double>(ratioCount_) : 0.0;
+    r_.mapSize = map_->size();
+    r_.mapInserted = map_->counters().inserted;
+    r_.mapDeleted = map_->counters().deleted;
+  }
+
+ private:
+  /// Predicts to `stamp` (strictly increasing: a repeated logger time is nudged by 1 us) with the
+  /// odometry increment of scan `i` (or the ground truth's, as a diagnostic).
+  bool predictTo(std::size_t i, Timestamp& stamp, std::string& error) {
+    if (!(last_ < stamp)) {
+      stamp = last_ + Duration::fromNanoseconds(1000);
+    }
+    const Pose2d delta = options_.truthOdometry ? between(r_.truth[i - 1], r_.truth[i]) : inc_[i];
+    const Status st = localizer_->predict(unicycleIncrement(stamp, delta, options_.odometryNoise));
+    if (st != Status::Ok) {
+      error = std::string("prediction refused at scan ") + std::to_string(i) + ": " + toString(st);
+      return false;
+    }
+    last_ = stamp;
+    return true;
+  }
+
+  /// The FALKO corners of the current scan as the observations at `stamp`.
+  void detectCorners(Timestamp stamp) {
+    obs_->stamp = stamp;
+    obs_->kindsDetected = landmarkKindBit(LandmarkKind::Corner);
+    obs_->points.clear();
+    if (detector_->detect(*scan_, *kps_) == Status::Ok) {
+      for (const FalkoKeypoint& k : *kps_) {
+        (void)obs_->points.push_back(
+            PointObservation{static_cast<double>(k.x), static_cast<double>(k.y), LandmarkKind::Corner});
+      }
+    }
+  }
+
+  /// One cycle's health summed into the result.
+  void tally(const LocalizerHealth& h) {
+    r_.used += h.used;
+    r_.fixCycles += h.used >= lp_.health.minMatchesForFix ? 1U : 0U;
+    r_.rejectedGate += h.rejectedGate;
+    r_.rejectedAmbiguous += h.rejectedAmbiguous;
+    r_.rejectedDuplicate += h.rejectedDuplicate;
+    r_.rejectedUpdate += h.rejectedUpdate;
+    r_.badCycles += hasFlag(h.flags, LocalizerFlag::BadCycle) ? 1U : 0U;
+    r_.expected += h.expectedInView;
+    r_.occluded += h.occluded + h.noReturn;
+    if (h.used > 0) {
+      ratioSum_ += h.meanTestRatio;
+      ++ratioCount_;
+    }
+  }
+
+  /// The CSV line of scan `i` (when tracing).
+  void writeTrace(std::size_t i, const LocalizerHealth& h) {
+    if (trace_ == nullptr) {
+      return;
+    }
+    const Pose2d& e = r_.localizer.back();
+    std::fprintf(trace_, "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu\n", i, obs_->points.size(),
+                 unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched}, unsigned{h.rejectedGate},
+                 unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma, h.headingSigma,
+                 std::hypot(e.x - r_.truth[i].x, e.y - r_.truth[i].y), normalizeAngle(e.theta - r_.truth[i].theta),
+                 map_->size());
+  }
+
+  const datasets::CarmenLog& log_;
+  const ReplayOptions& options_;
+  const std::vector<Pose2d>& inc_;
+  ReplayResult& r_;
+  LocalizerParams lp_;
+  std::unique_ptr<Localizer> localizer_;
+  std::unique_ptr<LandmarkMap> map_;
+  std::unique_ptr<FalkoDetector> detector_;
+  std::unique_ptr<LaserScan> scan_ = std::make_unique<LaserScan>();
+  std::unique_ptr<FalkoKeypoints> kps_ = std::make_unique<FalkoKeypoints>();
+  std::unique_ptr<ScanObservations> obs_ = std::make_unique<ScanObservations>();
+  Eigen::Matrix3d p0_ = Eigen::Matrix3d::Zero();
+  Timestamp last_;
+  double ratioSum_ = 0.0;
+  std::size_t ratioCount_ = 0;
+  std::FILE* trace_ = nullptr;
+};
+
+}  // namespace
+
 bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, ReplayResult& r, std::string& error) {
   if (!checkReplayLog(log, error)) {
     return false;
@@ -293,121 +495,21 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
   r.duration = log.scans[n - 1].timestamp - log.scans[0].timestamp;
   std::vector<Pose2d> inc;
   r.zeroIncrements = odometryIncrements(log, n, inc);
-  r.truth.clear();
-  r.odometry.clear();
-  r.localizer.clear();
-  for (std::size_t i = 0; i < n; ++i) {
-    r.truth.push_back(log.scans[i].robotPose);
-    r.odometry.push_back(i == 0 ? r.truth[0] : r.odometry.back().compose(inc[i]));
-  }
-  r.pathLength = 0.0;
-  for (std::size_t i = 1; i < n; ++i) {
-    r.pathLength += std::hypot(r.truth[i].x - r.truth[i - 1].x, r.truth[i].y - r.truth[i - 1].y);
-  }
+  recordTracks(log, n, inc, r);
 
-  LocalizerParams lp = options.localizer;
-  lp.laser.mounting = options.laserMounting;
-  auto localizer = std::make_unique<Localizer>(lp);
-  auto map = std::make_unique<LandmarkMap>(options.map);
-  auto detector = std::make_unique<FalkoDetector>(options.falko);
-  r.staticMap = options.staticMapFromTruth;
-  if (options.staticMapFromTruth) {
-    (void)buildStaticMap(log, n, options, *map);
-  }
-  auto scan = std::make_unique<LaserScan>();
-  auto kps = std::make_unique<FalkoKeypoints>();
-  auto obs = std::make_unique<ScanObservations>();
-  Eigen::Matrix3d p0 = Eigen::Matrix3d::Zero();
-  p0(0, 0) = p0(1, 1) = options.initialSigmaXY * options.initialSigmaXY;
-  p0(2, 2) = options.initialSigmaTheta * options.initialSigmaTheta;
-
-  // Strictly increasing stamps (a repeated logger time is nudged by 1 us).
-  Timestamp last = Timestamp::fromSeconds(log.scans[0].timestamp);
-  if (localizer->reset(last, r.truth[0], p0) != Status::Ok) {
-    error = "localizer refused the initial pose";
+  ScanReplay replay(log, options, inc, r);
+  if (!replay.begin(n, error)) {
     return false;
-  }
-  double ratioSum = 0.0;
-  std::size_t ratioCount = 0;
-  std::FILE* trace = options.tracePath.empty() ? nullptr : std::fopen(options.tracePath.c_str(), "w");
-  if (trace != nullptr) {
-    std::fputs(
-        "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
-        "map\n",
-        trace);
   }
   const auto t0 = std::chrono::steady_clock::now();
   for (std::size_t i = 0; i < n; ++i) {
-    Timestamp stamp = Timestamp::fromSeconds(log.scans[i].timestamp);
-    if (i > 0) {
-      if (!(last < stamp)) {
-        stamp = last + Duration::fromNanoseconds(1000);
-      }
-      const Pose2d delta = options.truthOdometry ? between(r.truth[i - 1], r.truth[i]) : inc[i];
-      const Status st = localizer->predict(unicycleIncrement(stamp, delta, options.odometryNoise));
-      if (st != Status::Ok) {
-        error = std::string("prediction refused at scan ") + std::to_string(i) + ": " + toString(st);
-        return false;
-      }
-      last = stamp;
-    }
-    (void)log.scans[i].toLaserScan(*scan);
-    obs->stamp = stamp;
-    obs->kindsDetected = landmarkKindBit(LandmarkKind::Corner);
-    obs->points.clear();
-    if (detector->detect(*scan, *kps) == Status::Ok) {
-      for (const FalkoKeypoint& k : *kps) {
-        (void)obs->points.push_back(
-            PointObservation{static_cast<double>(k.x), static_cast<double>(k.y), LandmarkKind::Corner});
-      }
-    }
-    r.keypoints += obs->points.size();
-    const LocalizerHealth& h = localizer->correct(*obs, *scan, *map);
-    r.used += h.used;
-    r.fixCycles += h.used >= lp.health.minMatchesForFix ? 1U : 0U;
-    r.rejectedGate += h.rejectedGate;
-    r.rejectedAmbiguous += h.rejectedAmbiguous;
-    r.rejectedDuplicate += h.rejectedDuplicate;
-    r.rejectedUpdate += h.rejectedUpdate;
-    r.badCycles += hasFlag(h.flags, LocalizerFlag::BadCycle) ? 1U : 0U;
-    r.expected += h.expectedInView;
-    r.occluded += h.occluded + h.noReturn;
-    if (h.used > 0) {
-      ratioSum += h.meanTestRatio;
-      ++ratioCount;
-    }
-    if (h.lost) {
-      ++r.lostEvents;
-      if (options.resetWhenLost) {
-        // Keep the estimate and its covariance (re-opening it would only grow it, cycle after
-        // cycle). A dynamic map that no longer matches the pose is dropped and rebuilt from here:
-        // without a surveyed map there is nothing else to return to.
-        (void)localizer->reset(stamp, localizer->pose(), localizer->covariance());
-        if (map->mode() == MapMode::Dynamic) {
-          map->clear();
-          map->setMode(MapMode::Dynamic);
-          ++r.mapRestarts;
-        }
-      }
-    }
-    r.localizer.push_back(localizer->pose());
-    if (trace != nullptr) {
-      const Pose2d& e = r.localizer.back();
-      std::fprintf(trace, "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu\n", i, obs->points.size(),
-                   unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched}, unsigned{h.rejectedGate},
-                   unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma, h.headingSigma,
-                   std::hypot(e.x - r.truth[i].x, e.y - r.truth[i].y), normalizeAngle(e.theta - r.truth[i].theta),
-                   map->size());
+    if (!replay.replayScan(i, error)) {
+      return false;
     }
   }
-  if (trace != nullptr) {
-    std::fclose(trace);
-  }
+  replay.closeTrace();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  r.meanTestRatio = ratioCount > 0 ? ratioSum / static_cast<double>(ratioCount) : 0.0;
-  r.mapSize = map->size();
-  r.mapInserted = map->counters().inserted;
-  r.mapDeleted = map->counters().deleted;
+  replay.finish();
   r.odometryRelative = relativeError(r.truth, r.odometry, options.segmentLength);
   r.localizerRelative = relativeError(r.truth, r.localizer, options.segmentLength);
   r.odometryAbsolute = absoluteError(r.truth, r.odometry);

@@ -168,6 +168,264 @@ std::string resolve(const std::string& base, const std::string& p) {
   return (p.empty() || p[0] == '/') ? p : directoryOf(base) + p;
 }
 
+using LineOf = std::map<std::string, std::size_t>;
+
+/// The configuration being read, with what the checks across keys need: which optional keys were given, the PDO layouts
+/// before they are packed, the angle offset as written.
+struct ConfigDraft {
+  VehicleConfig c;
+  bool driveCob = false;
+  bool steerCob = false;
+  bool laserPort = false;
+  long long driveOffset = 0;
+  long long driveSize = 4;
+  long long steerOffset = 0;
+  long long steerSize = 4;
+  std::string angleOffsetText;
+};
+
+/// can.interface and the bus timing.
+void addCanBusKeys(Specs& specs, ConfigDraft& d) {
+  drivers::canopen::CanopenEncodersConfig& co = d.c.can.canopen;
+  specs["can.interface"] =
+      KeySpec{true, [&d](const std::string& v, std::string& why) {
+                if (v.empty() || v.size() > 15 || v.find_first_of(" \t/") != std::string::npos) {
+                  why = "expected an interface name of 1..15 characters (e.g. can0), got '" + v + "'";
+                  return false;
+                }
+                d.c.canInterface = v;
+                return true;
+              }};
+  specs["can.heartbeat_timeout"] = seconds(false, 0.0, 10.0, co.heartbeatTimeout);
+  specs["can.sync_period"] = seconds(false, 0.0, 1.0, co.syncPeriod);
+  specs["can.pairing_window"] = seconds(false, 0.0, 1.0, co.pairingWindow);
+  specs["can.trigger"] = choice(false, {"both", "drive"}, [&co](std::size_t i) {
+    co.trigger = i == 0 ? drivers::canopen::SampleTrigger::BothUpdated : drivers::canopen::SampleTrigger::DriveUpdated;
+  });
+}
+
+/// can.drive.*: the drive encoder's node and TPDO.
+void addCanDriveKeys(Specs& specs, ConfigDraft& d) {
+  drivers::canopen::CanopenEncodersConfig& co = d.c.can.canopen;
+  specs["can.drive.node"] =
+      integer(false, 1, 127, [&co](long long x) { co.drive.nodeId = static_cast<std::uint8_t>(x); });
+  specs["can.drive.pdo_cob_id"] = integer(false, 0x181, 0x57F, [&d, &co](long long x) {
+    co.drive.pdo.cobId = static_cast<std::uint16_t>(x);
+    d.driveCob = true;
+  });
+  specs["can.drive.pdo_offset"] = integer(false, 0, 7, [&d](long long x) { d.driveOffset = x; });
+  specs["can.drive.pdo_size"] = integer(false, 1, 4, [&d](long long x) { d.driveSize = x; });
+  specs["can.drive.direction"] = direction(co.drive.direction);
+}
+
+/// can.steering.*: the steering encoder's node, TPDO and scaling.
+void addCanSteeringKeys(Specs& specs, ConfigDraft& d) {
+  drivers::canopen::CanopenEncodersConfig& co = d.c.can.canopen;
+  specs["can.steering.node"] =
+      integer(false, 1, 127, [&co](long long x) { co.steering.nodeId = static_cast<std::uint8_t>(x); });
+  specs["can.steering.pdo_cob_id"] = integer(false, 0x181, 0x57F, [&d, &co](long long x) {
+    co.steering.pdo.cobId = static_cast<std::uint16_t>(x);
+    d.steerCob = true;
+  });
+  specs["can.steering.pdo_offset"] = integer(false, 0, 7, [&d](long long x) { d.steerOffset = x; });
+  specs["can.steering.pdo_size"] = integer(false, 1, 4, [&d](long long x) { d.steerSize = x; });
+  specs["can.steering.direction"] = direction(co.steering.direction);
+  specs["can.steering.rad_per_count"] =
+      number(true, 1e-9, 1.0, "rad/count", [&co](double v) { co.steering.radiansPerCount = v; });
+  specs["can.steering.zero_count"] =
+      integer(false, 0, 0xFFFFFFFFLL, [&co](long long x) { co.steering.zeroCount = static_cast<std::uint32_t>(x); });
+  specs["can.steering.counts_per_revolution"] = integer(
+      false, 0, 0xFFFFFFFFLL, [&co](long long x) { co.steering.countsPerRevolution = static_cast<std::uint32_t>(x); });
+}
+
+/// laser.*: the model, its address and the timeouts, the angle offset.
+void addLaserKeys(Specs& specs, ConfigDraft& d) {
+  VehicleConfig& c = d.c;
+  specs["laser.model"] = choice(true, {"lms1xx", "lms5xx", "tim", "nav350"}, [&c](std::size_t i) {
+    const drivers::SickLaserModel models[] = {drivers::SickLaserModel::Lms1xx, drivers::SickLaserModel::Lms5xx,
+                                              drivers::SickLaserModel::Tim, drivers::SickLaserModel::Nav350};
+    c.laser.model = models[i];
+  });
+  specs["laser.address"] = ipv4(true, c.laser.tcp.host);
+  specs["laser.port"] = integer(false, 1, 65535, [&d](long long x) {
+    d.c.laser.tcp.port = static_cast<std::uint16_t>(x);
+    d.laserPort = true;
+  });
+  specs["laser.scan_timeout"] = seconds(false, 0.05, 60.0, c.laser.scanTimeout);
+  specs["laser.connect_timeout"] = seconds(false, 0.001, 10.0, c.laser.connectBudget);
+  specs["laser.reconnect_interval"] = seconds(false, 0.01, 60.0, c.laser.tcp.reconnectInterval);
+  specs["laser.angle_offset"] =
+      KeySpec{false, [&d](const std::string& v, std::string& why) {
+                double x = 0.0;
+                if (!parseDouble(v, x) || std::fabs(x) > kTwoPi) {
+                  why = "expected a number in " + range(-kTwoPi, kTwoPi, "rad") + ", got '" + v + "'";
+                  return false;
+                }
+                d.angleOffsetText = v;
+                d.c.laser.scan.angleOffset = x;
+                d.c.laser.nav.angleOffset = x;
+                return true;
+              }};
+}
+
+/// modbus.*: the PLC link's role, address, register layout and timeouts.
+void addModbusKeys(Specs& specs, VehicleConfig& c) {
+  specs["modbus.role"] = choice(true, {"server", "client"}, [&c](std::size_t i) {
+    c.modbus.role = i == 0 ? drivers::PlcLinkRole::Server : drivers::PlcLinkRole::Client;
+  });
+  specs["modbus.address"] = ipv4(false, c.modbus.address);
+  specs["modbus.port"] = integer(false, 1, 65535, [&c](long long x) { c.modbus.port = static_cast<std::uint16_t>(x); });
+  specs["modbus.word_order"] = choice(false, {"abcd", "cdab", "badc", "dcba"}, [&c](std::size_t i) {
+    const drivers::plc::WordOrder orders[] = {drivers::plc::WordOrder::ABCD, drivers::plc::WordOrder::CDAB,
+                                              drivers::plc::WordOrder::BADC, drivers::plc::WordOrder::DCBA};
+    c.modbus.map.wordOrder = orders[i];
+  });
+  specs["modbus.remote_status_base"] =
+      integer(false, 0, 65535 - 40, [&c](long long x) { c.modbus.remoteStatusBase = static_cast<std::uint16_t>(x); });
+  specs["modbus.remote_command_base"] =
+      integer(false, 0, 65535 - 9, [&c](long long x) { c.modbus.remoteCommandBase = static_cast<std::uint16_t>(x); });
+  specs["modbus.max_abs_position"] = number(false, 1.0, 1e6, "m", [&c](double v) { c.modbus.map.maxAbsPosition = v; });
+  specs["modbus.response_timeout"] = seconds(false, 0.001, 10.0, c.modbus.responseTimeout);
+  specs["modbus.reconnect_interval"] = seconds(false, 0.01, 60.0, c.modbus.reconnectInterval);
+  specs["modbus.plc_heartbeat_timeout"] = seconds(false, 0.01, 60.0, c.modbus.plcHeartbeatTimeout);
+  specs["modbus.max_connections"] =
+      integer(false, 1, 8, [&c](long long x) { c.modbus.maxConnections = static_cast<int>(x); });
+}
+
+/// calibration.file, map.file and map.mode.
+void addFileKeys(Specs& specs, VehicleConfig& c) {
+  specs["calibration.file"] = filePath(c.calibrationFile);
+  specs["map.file"] = filePath(c.mapFile);
+  specs["map.mode"] = choice(false, {"static", "dynamic"},
+                             [&c](std::size_t i) { c.mapMode = i == 0 ? MapMode::Static : MapMode::Dynamic; });
+}
+
+/// localization.*: corners as observations, the initial pose.
+void addLocalizationKeys(Specs& specs, VehicleConfig& c) {
+  specs["localization.corners"] = choice(false, {"false", "true"}, [&c](std::size_t i) { c.useCorners = i == 1; });
+  specs["localization.initial_pose"] =
+      KeySpec{false, [&c](const std::string& v, std::string& why) {
+                const std::vector<std::string> w = words(v);
+                double x = 0, y = 0, th = 0;
+                if (w.size() != 3 || !parseDouble(w[0], x) || !parseDouble(w[1], y) || !parseDouble(w[2], th) ||
+                    std::fabs(x) > 1e6 || std::fabs(y) > 1e6 || std::fabs(th) > kTwoPi) {
+                  why = "expected 'x y theta' in m, m, rad (|x|,|y| <= 1e6, |theta| <= 2 pi), got '" + v + "'";
+                  return false;
+                }
+                c.initialPose = Pose2d(x, y, th);
+                c.haveInitialPose = true;
+                return true;
+              }};
+}
+
+/// loop.*: the cycle and publication periods.
+void addLoopKeys(Specs& specs, VehicleConfig& c) {
+  specs["loop.period"] = seconds(false, 0.0002, 0.1, c.cyclePeriod);
+  specs["loop.publish_period"] = seconds(false, 0.001, 1.0, c.publishPeriod);
+}
+
+/// Fills `error` (at `line` of `path`, or the file when 0); always false.
+bool fail(ConfigError& error, const std::string& path, std::size_t line, const std::string& key,
+          const std::string& message) {
+  error.where = line > 0 ? path + ":" + std::to_string(line) : path;
+  error.key = key;
+  error.message = message;
+  return false;
+}
+
+/// Applies every `key = value` line of `text` (comments after '#', blank lines skipped); `lineOf` records where each
+/// key was given. False at the first malformed line, unknown, repeated or refused key.
+bool applyLines(const std::string& text, const std::string& path, const Specs& specs, LineOf& lineOf,
+                ConfigError& error) {
+  std::istringstream in(text);
+  std::string raw;
+  std::size_t lineNo = 0;
+  while (std::getline(in, raw)) {
+    ++lineNo;
+    const std::size_t hash = raw.find('#');
+    const std::string line = trim(hash == std::string::npos ? raw : raw.substr(0, hash));
+    if (line.empty()) {
+      continue;
+    }
+    const std::size_t eq = line.find('=');
+    if (eq == std::string::npos) {
+      return fail(error, path, lineNo, "", "expected 'key = value', got '" + line + "'");
+    }
+    const std::string key = trim(line.substr(0, eq));
+    const std::string value = trim(line.substr(eq + 1));
+    const auto spec = specs.find(key);
+    if (spec == specs.end()) {
+      return fail(error, path, lineNo, key, "unknown key");
+    }
+    if (lineOf.count(key) != 0U) {
+      return fail(error, path, lineNo, key, "given twice (first on line " + std::to_string(lineOf[key]) + ")");
+    }
+    lineOf[key] = lineNo;
+    std::string why;
+    if (!spec->second.apply(value, why)) {
+      return fail(error, path, lineNo, key, why);
+    }
+  }
+  for (const auto& [key, spec] : specs) {
+    if (spec.required && lineOf.count(key) == 0U) {
+      return fail(error, path, 0, key, "missing (required key)");
+    }
+  }
+  return true;
+}
+
+/// Packs the CAN encoders' TPDO layouts (default COB-IDs from the node ids), then checks them across keys, reported at
+/// the later of the lines involved.
+bool settleCan(ConfigDraft& d, const LineOf& lineOf, const std::string& path, ConfigError& error) {
+  drivers::canopen::CanopenEncodersConfig& co = d.c.can.canopen;
+  co.drive.pdo.byteOffset = static_cast<std::uint8_t>(d.driveOffset);
+  co.drive.pdo.size = static_cast<std::uint8_t>(d.driveSize);
+  co.steering.pdo.byteOffset = static_cast<std::uint8_t>(d.steerOffset);
+  co.steering.pdo.size = static_cast<std::uint8_t>(d.steerSize);
+  if (!d.driveCob) {
+    co.drive.pdo.cobId = static_cast<std::uint16_t>(0x180U + co.drive.nodeId);
+  }
+  if (!d.steerCob) {
+    co.steering.pdo.cobId = static_cast<std::uint16_t>(0x180U + co.steering.nodeId);
+  }
+  const auto failAt = [&](const char* k, const std::string& message) {
+    const auto it = lineOf.find(k);
+    return fail(error, path, it != lineOf.end() ? it->second : std::size_t{0}, k, message);
+  };
+  if (co.drive.nodeId == co.steering.nodeId) {
+    return failAt("can.steering.node", "same node id as can.drive.node");
+  }
+  if (d.driveOffset + d.driveSize > 8) {
+    return failAt("can.drive.pdo_size", "pdo_offset + pdo_size exceeds 8 bytes");
+  }
+  if (d.steerOffset + d.steerSize > 8) {
+    return failAt("can.steering.pdo_size", "pdo_offset + pdo_size exceeds 8 bytes");
+  }
+  if (co.drive.pdo.cobId == co.steering.pdo.cobId) {
+    return failAt("can.steering.pdo_cob_id", "same COB-ID as the drive's TPDO");
+  }
+  if (co.steering.countsPerRevolution != 0U && co.steering.zeroCount >= co.steering.countsPerRevolution) {
+    return failAt("can.steering.zero_count", "must be below can.steering.counts_per_revolution");
+  }
+  return true;
+}
+
+/// The laser's model defaults (port, range limits; an explicit angle offset survives) and the file paths resolved
+/// against the configuration file's folder.
+void applyDefaults(ConfigDraft& d, const std::string& path) {
+  VehicleConfig& c = d.c;
+  if (!d.laserPort) {
+    c.laser.tcp.port = drivers::defaultPort(c.laser.model);
+  }
+  drivers::applyModelRanges(c.laser.model, c.laser.scan, c.laser.nav);
+  if (d.angleOffsetText.empty()) {
+    c.laser.nav.angleOffset = 0.0;  // the NAV350 reports in its own frame
+  }
+  c.laser.tcp.connectTimeout = c.laser.connectBudget;
+  c.calibrationFile = resolve(path, c.calibrationFile);
+  c.mapFile = resolve(path, c.mapFile);
+}
+
 }  // namespace
 
 std::string ConfigError::text() const {
@@ -193,216 +451,26 @@ bool readTextFile(const std::string& path, std::string& out) {
 }
 
 bool parseVehicleConfig(const std::string& text, const std::string& path, VehicleConfig& out, ConfigError& error) {
-  VehicleConfig c;
-  drivers::canopen::CanopenEncodersConfig& co = c.can.canopen;
-  bool driveCob = false;
-  bool steerCob = false;
-  bool laserPort = false;
-  bool modbusAddress = false;
-  long long driveOffset = 0;
-  long long driveSize = 4;
-  long long steerOffset = 0;
-  long long steerSize = 4;
-  std::string angleOffsetText;
-
+  ConfigDraft d;
   Specs specs;
-  specs["can.interface"] =
-      KeySpec{true, [&](const std::string& v, std::string& why) {
-                if (v.empty() || v.size() > 15 || v.find_first_of(" \t/") != std::string::npos) {
-                  why = "expected an interface name of 1..15 characters (e.g. can0), got '" + v + "'";
-                  return false;
-                }
-                c.canInterface = v;
-                return true;
-              }};
-  specs["can.drive.node"] =
-      integer(false, 1, 127, [&](long long x) { co.drive.nodeId = static_cast<std::uint8_t>(x); });
-  specs["can.drive.pdo_cob_id"] = integer(false, 0x181, 0x57F, [&](long long x) {
-    co.drive.pdo.cobId = static_cast<std::uint16_t>(x);
-    driveCob = true;
-  });
-  specs["can.drive.pdo_offset"] = integer(false, 0, 7, [&](long long x) { driveOffset = x; });
-  specs["can.drive.pdo_size"] = integer(false, 1, 4, [&](long long x) { driveSize = x; });
-  specs["can.drive.direction"] = direction(co.drive.direction);
-  specs["can.steering.node"] =
-      integer(false, 1, 127, [&](long long x) { co.steering.nodeId = static_cast<std::uint8_t>(x); });
-  specs["can.steering.pdo_cob_id"] = integer(false, 0x181, 0x57F, [&](long long x) {
-    co.steering.pdo.cobId = static_cast<std::uint16_t>(x);
-    steerCob = true;
-  });
-  specs["can.steering.pdo_offset"] = integer(false, 0, 7, [&](long long x) { steerOffset = x; });
-  specs["can.steering.pdo_size"] = integer(false, 1, 4, [&](long long x) { steerSize = x; });
-  specs["can.steering.direction"] = direction(co.steering.direction);
-  specs["can.steering.rad_per_count"] =
-      number(true, 1e-9, 1.0, "rad/count", [&](double d) { co.steering.radiansPerCount = d; });
-  specs["can.steering.zero_count"] =
-      integer(false, 0, 0xFFFFFFFFLL, [&](long long x) { co.steering.zeroCount = static_cast<std::uint32_t>(x); });
-  specs["can.steering.counts_per_revolution"] = integer(
-      false, 0, 0xFFFFFFFFLL, [&](long long x) { co.steering.countsPerRevolution = static_cast<std::uint32_t>(x); });
-  specs["can.heartbeat_timeout"] = seconds(false, 0.0, 10.0, co.heartbeatTimeout);
-  specs["can.sync_period"] = seconds(false, 0.0, 1.0, co.syncPeriod);
-  specs["can.pairing_window"] = seconds(false, 0.0, 1.0, co.pairingWindow);
-  specs["can.trigger"] = choice(false, {"both", "drive"}, [&](std::size_t i) {
-    co.trigger = i == 0 ? drivers::canopen::SampleTrigger::BothUpdated : drivers::canopen::SampleTrigger::DriveUpdated;
-  });
+  addCanBusKeys(specs, d);
+  addCanDriveKeys(specs, d);
+  addCanSteeringKeys(specs, d);
+  addLaserKeys(specs, d);
+  addModbusKeys(specs, d.c);
+  addFileKeys(specs, d.c);
+  addLocalizationKeys(specs, d.c);
+  addLoopKeys(specs, d.c);
 
-  specs["laser.model"] = choice(true, {"lms1xx", "lms5xx", "tim", "nav350"}, [&](std::size_t i) {
-    const drivers::SickLaserModel models[] = {drivers::SickLaserModel::Lms1xx, drivers::SickLaserModel::Lms5xx,
-                                              drivers::SickLaserModel::Tim, drivers::SickLaserModel::Nav350};
-    c.laser.model = models[i];
-  });
-  specs["laser.address"] = ipv4(true, c.laser.tcp.host);
-  specs["laser.port"] = integer(false, 1, 65535, [&](long long x) {
-    c.laser.tcp.port = static_cast<std::uint16_t>(x);
-    laserPort = true;
-  });
-  specs["laser.scan_timeout"] = seconds(false, 0.05, 60.0, c.laser.scanTimeout);
-  specs["laser.connect_timeout"] = seconds(false, 0.001, 10.0, c.laser.connectBudget);
-  specs["laser.reconnect_interval"] = seconds(false, 0.01, 60.0, c.laser.tcp.reconnectInterval);
-  specs["laser.angle_offset"] =
-      KeySpec{false, [&](const std::string& v, std::string& why) {
-                double d = 0.0;
-                if (!parseDouble(v, d) || std::fabs(d) > kTwoPi) {
-                  why = "expected a number in " + range(-kTwoPi, kTwoPi, "rad") + ", got '" + v + "'";
-                  return false;
-                }
-                angleOffsetText = v;
-                c.laser.scan.angleOffset = d;
-                c.laser.nav.angleOffset = d;
-                return true;
-              }};
-
-  specs["modbus.role"] = choice(true, {"server", "client"}, [&](std::size_t i) {
-    c.modbus.role = i == 0 ? drivers::PlcLinkRole::Server : drivers::PlcLinkRole::Client;
-  });
-  specs["modbus.address"] = ipv4(false, c.modbus.address);
-  specs["modbus.port"] = integer(false, 1, 65535, [&](long long x) { c.modbus.port = static_cast<std::uint16_t>(x); });
-  specs["modbus.word_order"] = choice(false, {"abcd", "cdab", "badc", "dcba"}, [&](std::size_t i) {
-    const drivers::plc::WordOrder orders[] = {drivers::plc::WordOrder::ABCD, drivers::plc::WordOrder::CDAB,
-                                              drivers::plc::WordOrder::BADC, drivers::plc::WordOrder::DCBA};
-    c.modbus.map.wordOrder = orders[i];
-  });
-  specs["modbus.remote_status_base"] =
-      integer(false, 0, 65535 - 40, [&](long long x) { c.modbus.remoteStatusBase = static_cast<std::uint16_t>(x); });
-  specs["modbus.remote_command_base"] =
-      integer(false, 0, 65535 - 9, [&](long long x) { c.modbus.remoteCommandBase = static_cast<std::uint16_t>(x); });
-  specs["modbus.max_abs_position"] = number(false, 1.0, 1e6, "m", [&](double d) { c.modbus.map.maxAbsPosition = d; });
-  specs["modbus.response_timeout"] = seconds(false, 0.001, 10.0, c.modbus.responseTimeout);
-  specs["modbus.reconnect_interval"] = seconds(false, 0.01, 60.0, c.modbus.reconnectInterval);
-  specs["modbus.plc_heartbeat_timeout"] = seconds(false, 0.01, 60.0, c.modbus.plcHeartbeatTimeout);
-  specs["modbus.max_connections"] =
-      integer(false, 1, 8, [&](long long x) { c.modbus.maxConnections = static_cast<int>(x); });
-
-  specs["calibration.file"] = filePath(c.calibrationFile);
-  specs["map.file"] = filePath(c.mapFile);
-  specs["map.mode"] = choice(false, {"static", "dynamic"},
-                             [&](std::size_t i) { c.mapMode = i == 0 ? MapMode::Static : MapMode::Dynamic; });
-  specs["localization.corners"] = choice(false, {"false", "true"}, [&](std::size_t i) { c.useCorners = i == 1; });
-  specs["localization.initial_pose"] =
-      KeySpec{false, [&](const std::string& v, std::string& why) {
-                const std::vector<std::string> w = words(v);
-                double x = 0, y = 0, th = 0;
-                if (w.size() != 3 || !parseDouble(w[0], x) || !parseDouble(w[1], y) || !parseDouble(w[2], th) ||
-                    std::fabs(x) > 1e6 || std::fabs(y) > 1e6 || std::fabs(th) > kTwoPi) {
-                  why =
-                      "expected 'x y theta' in m, m, rad (|x|,|y| <= 1e6, |theta| "
-                      "<= 2 pi), got '" +
-                      v + "'";
-                  return false;
-                }
-                c.initialPose = Pose2d(x, y, th);
-                c.haveInitialPose = true;
-                return true;
-              }};
-  specs["loop.period"] = seconds(false, 0.0002, 0.1, c.cyclePeriod);
-  specs["loop.publish_period"] = seconds(false, 0.001, 1.0, c.publishPeriod);
-
-  std::map<std::string, std::size_t> lineOf;
-  std::istringstream in(text);
-  std::string raw;
-  std::size_t lineNo = 0;
-  auto fail = [&](std::size_t line, const std::string& key, const std::string& message) {
-    error.where = line > 0 ? path + ":" + std::to_string(line) : path;
-    error.key = key;
-    error.message = message;
+  LineOf lineOf;
+  if (!applyLines(text, path, specs, lineOf, error) || !settleCan(d, lineOf, path, error)) {
     return false;
-  };
-  while (std::getline(in, raw)) {
-    ++lineNo;
-    const std::size_t hash = raw.find('#');
-    const std::string line = trim(hash == std::string::npos ? raw : raw.substr(0, hash));
-    if (line.empty()) {
-      continue;
-    }
-    const std::size_t eq = line.find('=');
-    if (eq == std::string::npos) {
-      return fail(lineNo, "", "expected 'key = value', got '" + line + "'");
-    }
-    const std::string key = trim(line.substr(0, eq));
-    const std::string value = trim(line.substr(eq + 1));
-    const auto spec = specs.find(key);
-    if (spec == specs.end()) {
-      return fail(lineNo, key, "unknown key");
-    }
-    if (lineOf.count(key) != 0U) {
-      return fail(lineNo, key, "given twice (first on line " + std::to_string(lineOf[key]) + ")");
-    }
-    lineOf[key] = lineNo;
-    std::string why;
-    if (!spec->second.apply(value, why)) {
-      return fail(lineNo, key, why);
-    }
   }
-  for (const auto& [key, spec] : specs) {
-    if (spec.required && lineOf.count(key) == 0U) {
-      return fail(0, key, "missing (required key)");
-    }
+  if (d.c.modbus.role == drivers::PlcLinkRole::Client && lineOf.count("modbus.address") == 0U) {
+    return fail(error, path, 0, "modbus.address", "missing (required with modbus.role = client: the PLC's address)");
   }
-
-  // Checks across keys, reported at the later of the lines involved.
-  co.drive.pdo.byteOffset = static_cast<std::uint8_t>(driveOffset);
-  co.drive.pdo.size = static_cast<std::uint8_t>(driveSize);
-  co.steering.pdo.byteOffset = static_cast<std::uint8_t>(steerOffset);
-  co.steering.pdo.size = static_cast<std::uint8_t>(steerSize);
-  if (!driveCob) {
-    co.drive.pdo.cobId = static_cast<std::uint16_t>(0x180U + co.drive.nodeId);
-  }
-  if (!steerCob) {
-    co.steering.pdo.cobId = static_cast<std::uint16_t>(0x180U + co.steering.nodeId);
-  }
-  auto lineOfKey = [&](const char* k) { return lineOf.count(k) != 0U ? lineOf[k] : std::size_t{0}; };
-  if (co.drive.nodeId == co.steering.nodeId) {
-    return fail(lineOfKey("can.steering.node"), "can.steering.node", "same node id as can.drive.node");
-  }
-  if (driveOffset + driveSize > 8) {
-    return fail(lineOfKey("can.drive.pdo_size"), "can.drive.pdo_size", "pdo_offset + pdo_size exceeds 8 bytes");
-  }
-  if (steerOffset + steerSize > 8) {
-    return fail(lineOfKey("can.steering.pdo_size"), "can.steering.pdo_size", "pdo_offset + pdo_size exceeds 8 bytes");
-  }
-  if (co.drive.pdo.cobId == co.steering.pdo.cobId) {
-    return fail(lineOfKey("can.steering.pdo_cob_id"), "can.steering.pdo_cob_id", "same COB-ID as the drive's TPDO");
-  }
-  if (co.steering.countsPerRevolution != 0U && co.steering.zeroCount >= co.steering.countsPerRevolution) {
-    return fail(lineOfKey("can.steering.zero_count"), "can.steering.zero_count",
-                "must be below can.steering.counts_per_revolution");
-  }
-  if (c.modbus.role == drivers::PlcLinkRole::Client && lineOf.count("modbus.address") == 0U) {
-    return fail(0, "modbus.address", "missing (required with modbus.role = client: the PLC's address)");
-  }
-  (void)modbusAddress;
-  if (!laserPort) {
-    c.laser.tcp.port = drivers::defaultPort(c.laser.model);
-  }
-  // Range limits of the model; an explicit angle offset survives.
-  drivers::applyModelRanges(c.laser.model, c.laser.scan, c.laser.nav);
-  if (angleOffsetText.empty()) {
-    c.laser.nav.angleOffset = 0.0;  // the NAV350 reports in its own frame
-  }
-  c.laser.tcp.connectTimeout = c.laser.connectBudget;
-  c.calibrationFile = resolve(path, c.calibrationFile);
-  c.mapFile = resolve(path, c.mapFile);
-  out = c;
+  applyDefaults(d, path);
+  out = d.c;
   out.can.interfaceName = nullptr;  // set by the user of the config from canInterface (stable storage)
   return true;
 }
