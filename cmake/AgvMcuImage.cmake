@@ -32,3 +32,15 @@ function(agv_add_mcu_heap_check name)
     set_tests_properties("${test}" PROPERTIES WILL_FAIL TRUE)
   endif()
 endfunction()
+
+# agv_add_mcu_expected_failure(<name> EXPECT <regex>)
+#   CTest test "<prefix><name>.fails": runs <name>.elf on QEMU; passes only when the image exits
+#   with failure and prints <regex> (cmake/McuExpectFailure.cmake). Proves that a check can fail.
+function(agv_add_mcu_expected_failure name)
+  cmake_parse_arguments(F "" "EXPECT" "" ${ARGN})
+  set(test "${AGVNAV_TEST_PREFIX}${name}.fails")
+  string(REPLACE ";" "|" emulator "${CMAKE_CROSSCOMPILING_EMULATOR}")
+  add_test(NAME "${test}" COMMAND ${CMAKE_COMMAND} "-DEMULATOR=${emulator}" -DIMAGE=$<TARGET_FILE:${name}>
+                                  "-DEXPECT=${F_EXPECT}" -P "${PROJECT_SOURCE_DIR}/cmake/McuExpectFailure.cmake")
+  set_tests_properties("${test}" PROPERTIES LABELS "unit;${AGVNAV_TEST_LABEL}" TIMEOUT 120)
+endfunction()

@@ -16,7 +16,8 @@ struct Registrar {
 /// Records a failed check (prints file:line and the expression).
 void fail(const char* file, int line, const char* expr) noexcept;
 
-/// Runs every registered test; returns the number of failed checks.
+/// Runs every registered test; returns the number of failed test cases plus runner errors (no test
+/// ran, fewer run than registered, stack guard overwritten, registry overflow): 0 = pass.
 int runAll() noexcept;
 
 }  // namespace agv::mcutest
