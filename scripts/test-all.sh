@@ -6,7 +6,7 @@
 #                     aarch64 Linux, run under qemu-aarch64
 #   build/armhf     : the same for armhf Linux, run under qemu-arm
 #   build/cortex-m7 : the portable parts bare-metal for Cortex-M7 (FPv5-SP), test image run on
-#                     qemu-system-arm mps2-an500, size report, heap-symbol check
+#                     qemu-system-arm mps2-an500, size report (per library too), heap-symbol check
 # The other trees are built first; the native tree's ctest includes their tests
 # (AGVNAV_AGGREGATE_TEST_DIRS), labelled asan / aarch64 / armhf / cortex-m7.
 set -euo pipefail
