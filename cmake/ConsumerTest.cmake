@@ -1,6 +1,6 @@
 # cmake -DAGVNAV_BUILD_DIR=.. -DCONSUMER_SOURCE_DIR=.. -DWORK_DIR=.. -DCMAKE_CXX_COMPILER=.. -P ConsumerTest.cmake
 # Installs the built library into a private prefix, then configures, builds and runs a separate
-# project that only does find_package(agvnav) and links agv::core.
+# project that only does find_package(agvnav) and links agv::core and agv::drivers_protocol.
 file(REMOVE_RECURSE "${WORK_DIR}")
 set(prefix "${WORK_DIR}/prefix")
 function(run)

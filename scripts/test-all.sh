@@ -2,10 +2,11 @@
 # README command 2: the whole test suite, ending in ONE ctest run whose summary counts everything:
 #   native tree (build/ci, warnings as errors): unit, allocation, consumer-package, app tests
 #   build/asan      : the unit tests again under AddressSanitizer + UndefinedBehaviorSanitizer
-#   build/aarch64   : core/ and its tests for aarch64 Linux, run under qemu-aarch64
-#   build/armhf     : core/ and its tests for armhf Linux, run under qemu-arm
-#   build/cortex-m7 : core/ bare-metal for Cortex-M7 (FPv5-SP), test image run on qemu-system-arm
-#                     mps2-an500, size report, heap-symbol check
+#   build/aarch64   : the portable parts (core/, hal/, drivers/protocol/) and their tests for
+#                     aarch64 Linux, run under qemu-aarch64
+#   build/armhf     : the same for armhf Linux, run under qemu-arm
+#   build/cortex-m7 : the portable parts bare-metal for Cortex-M7 (FPv5-SP), test image run on
+#                     qemu-system-arm mps2-an500, size report (per library too), heap-symbol check
 # The other trees are built first; the native tree's ctest includes their tests
 # (AGVNAV_AGGREGATE_TEST_DIRS), labelled asan / aarch64 / armhf / cortex-m7.
 set -euo pipefail

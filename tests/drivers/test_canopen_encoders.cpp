@@ -1,6 +1,7 @@
 // CANopen encoder decoding with frames: NMT/SYNC/heartbeat/EMCY layouts (CiA 301), TPDO positions
 // with wraparound, direction, scaling and mapping; heartbeat timeouts; round trip against the
-// simulator's encoder on a simulated drive across the 32-bit wrap.
+// simulator's encoder on a simulated drive across the 32-bit wrap. Also runs in the Cortex-M7
+// image (MCU): only the portable subset of agv_test.hpp (INFO is a no-op there).
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -334,8 +335,10 @@ TEST_CASE("Simulator frames decode back to the true motion across the 32-bit wra
       agv::hal::EncoderSample s;
       if (dec.takeSample(s)) {
         ++samples;
-        if (s.driveTicks != truth || std::fabs(s.steeringAngle - angle) > 0.5 * perCount + 1e-12) {
-          FAIL_CHECK("sample " << i << " ticks " << s.driveTicks << " vs " << truth);
+        const bool match = s.driveTicks == truth && std::fabs(s.steeringAngle - angle) <= 0.5 * perCount + 1e-12;
+        if (!match) {  // the message only on failure: building it allocates on the host
+          INFO("sample " << i << " ticks " << s.driveTicks << " vs " << truth);
+          CHECK(match);
           break;
         }
       }

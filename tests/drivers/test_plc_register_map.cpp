@@ -1,7 +1,6 @@
-// PLC register map: word orders checked against libmodbus's readers, status encoding, the
-// command whitelist and bounds.
-#include <modbus.h>
-
+// PLC register map: word orders checked against the IEEE-754 byte layout, status encoding, the
+// command whitelist and bounds. Portable (every tree); the agreement with libmodbus's own float
+// readers is checked in test_plc_register_map_libmodbus.cpp on the host.
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -17,18 +16,31 @@ using agv::Status;
 using namespace agv::drivers::plc;
 
 namespace {
-float libmodbusGet(const std::uint16_t* r, WordOrder o) {
+/// Reference reader written from the definition: the float's bits are A B C D (A = sign and high
+/// exponent byte); ABCD sends A B in the first register (A in its high byte), CDAB swaps the
+/// registers, BADC swaps the bytes in each register, DCBA does both.
+float referenceGet(const std::uint16_t* r, WordOrder o) {
+  const auto hi = [](std::uint16_t w) { return static_cast<std::uint32_t>(w >> 8U); };
+  const auto lo = [](std::uint16_t w) { return static_cast<std::uint32_t>(w & 0xFFU); };
+  std::uint32_t a = 0, b = 0, c = 0, d = 0;
   switch (o) {
     case WordOrder::ABCD:
-      return modbus_get_float_abcd(r);
+      a = hi(r[0]), b = lo(r[0]), c = hi(r[1]), d = lo(r[1]);
+      break;
     case WordOrder::CDAB:
-      return modbus_get_float_cdab(r);
+      a = hi(r[1]), b = lo(r[1]), c = hi(r[0]), d = lo(r[0]);
+      break;
     case WordOrder::BADC:
-      return modbus_get_float_badc(r);
+      a = lo(r[0]), b = hi(r[0]), c = lo(r[1]), d = hi(r[1]);
+      break;
     case WordOrder::DCBA:
-      return modbus_get_float_dcba(r);
+      a = lo(r[1]), b = hi(r[1]), c = lo(r[0]), d = hi(r[0]);
+      break;
   }
-  return 0.0F;
+  const std::uint32_t bits = (a << 24U) | (b << 16U) | (c << 8U) | d;
+  float f;
+  std::memcpy(&f, &bits, sizeof f);
+  return f;
 }
 const WordOrder kOrders[] = {WordOrder::ABCD, WordOrder::CDAB, WordOrder::BADC, WordOrder::DCBA};
 
@@ -37,7 +49,8 @@ bool sameBits(float a, float b) {
 }
 }  // namespace
 
-TEST_CASE("Float word orders: the IEEE-754 layout of 1.0f and agreement with modbus_get_float_*", "[drivers][modbus]") {
+TEST_CASE("Float word orders: the IEEE-754 layout of 1.0f and agreement with the byte-layout reader",
+          "[drivers][modbus]") {
   std::uint16_t r[2];
   // 1.0f = 0x3F800000: A=3F B=80 C=00 D=00 (from the IEEE-754 definition).
   packFloat(1.0F, WordOrder::ABCD, r);
@@ -63,30 +76,10 @@ TEST_CASE("Float word orders: the IEEE-754 layout of 1.0f and agreement with mod
   for (WordOrder o : kOrders) {
     for (float v : values) {
       packFloat(v, o, r);
-      REQUIRE(sameBits(libmodbusGet(r, o), v));
+      REQUIRE(sameBits(referenceGet(r, o), v));
       REQUIRE(sameBits(unpackFloat(r, o), v));
     }
   }
-}
-
-TEST_CASE("libmodbus 3.1.6 modbus_set_float_abcd does not produce ABCD on this host (why we pack ourselves)",
-          "[drivers][modbus]") {
-  std::uint16_t ours[2];
-  std::uint16_t theirs[2];
-  packFloat(1.0F, WordOrder::ABCD, ours);
-  modbus_set_float_abcd(1.0F, theirs);
-  const bool hostLittleEndian = [] {
-    const std::uint16_t one = 1;
-    std::uint8_t b;
-    std::memcpy(&b, &one, 1);
-    return b == 1;
-  }();
-  // Informative: on a little-endian host libmodbus 3.1.6 writes BADC under the ABCD name; our
-  // packing is what modbus_get_float_abcd (checked above) reads.
-  if (hostLittleEndian && LIBMODBUS_VERSION_HEX == 0x030106) {
-    CHECK_FALSE((ours[0] == theirs[0] && ours[1] == theirs[1]));
-  }
-  CHECK(modbus_get_float_abcd(ours) == 1.0F);
 }
 
 TEST_CASE("Status block: every field decodes back in the configured word order", "[drivers][modbus]") {
@@ -119,7 +112,7 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     CHECK(table[1] == 2);
     CHECK(table[2] == 5);
     CHECK(table[3] == static_cast<std::uint16_t>(Status::Rejected));
-    auto f = [&](int a) { return static_cast<double>(libmodbusGet(&table[static_cast<std::size_t>(a)], o)); };
+    auto f = [&](int a) { return static_cast<double>(referenceGet(&table[static_cast<std::size_t>(a)], o)); };
     AGV_CHECK_NEAR(f(4), 123.456, 1e-5);
     AGV_CHECK_NEAR(f(6), -78.9, 1e-5);
     AGV_CHECK_NEAR(f(8), -2.5, 1e-7);

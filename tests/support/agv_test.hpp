@@ -2,7 +2,8 @@
 /// @file agv_test.hpp
 /// The one include of every core test. On Linux targets it is Catch2; on the bare-metal MCU image
 /// (AGV_TEST_MCU) it is a tiny runner with the same spelling for the subset core tests may use on
-/// both: TEST_CASE(name, tags), CHECK, REQUIRE, CHECK_FALSE, REQUIRE_FALSE, and AGV_CHECK_NEAR.
+/// both: TEST_CASE(name, tags), CHECK, REQUIRE, CHECK_FALSE, REQUIRE_FALSE, and AGV_CHECK_NEAR
+/// (INFO compiles on both and is a no-op on the MCU).
 /// Tests that need more of Catch2 (SECTION, generators, matchers) are host-only: register them
 /// without the MCU flag in CMake.
 

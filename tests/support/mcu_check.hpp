@@ -16,7 +16,8 @@ struct Registrar {
 /// Records a failed check (prints file:line and the expression).
 void fail(const char* file, int line, const char* expr) noexcept;
 
-/// Runs every registered test; returns the number of failed checks.
+/// Runs every registered test; returns the number of failed test cases plus runner errors (no test
+/// ran, fewer run than registered, stack guard overwritten, registry overflow): 0 = pass.
 int runAll() noexcept;
 
 }  // namespace agv::mcutest
@@ -44,3 +45,7 @@ int runAll() noexcept;
     }                                                         \
   } while (0)
 #define REQUIRE_FALSE(...) REQUIRE(!(__VA_ARGS__))
+// Context messages need a string stream: not on the MCU. The message is not evaluated.
+#define INFO(...) \
+  do {            \
+  } while (0)
