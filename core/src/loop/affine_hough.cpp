@@ -40,10 +40,7 @@ Status AffineHoughMatcher::match(Span<const Eigen::Vector2f> first, Span<const E
                                  PointAssociation& out) noexcept {
   out = PointAssociation{};
   peak_ = 0;
-  if (!isValid(params_)) {
-    return Status::InvalidArgument;
-  }
-  const Status st = detail::checkPointSets(first, second);
+  const Status st = detail::checkMatchInput(isValid(params_), first, second);
   if (st != Status::Ok) {
     return st;
   }
@@ -55,14 +52,7 @@ Status AffineHoughMatcher::match(Span<const Eigen::Vector2f> first, Span<const E
                                  Span<const PointPair> candidates, PointAssociation& out) noexcept {
   out = PointAssociation{};
   peak_ = 0;
-  if (!isValid(params_)) {
-    return Status::InvalidArgument;
-  }
-  Status st = detail::checkPointSets(first, second);
-  if (st != Status::Ok) {
-    return st;
-  }
-  st = detail::checkCandidates(candidates, first.size(), second.size());
+  const Status st = detail::checkMatchInput(isValid(params_), first, second, &candidates);
   if (st != Status::Ok) {
     return st;
   }

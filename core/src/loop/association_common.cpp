@@ -40,6 +40,18 @@ Status checkPointSets(Span<const Eigen::Vector2f> first, Span<const Eigen::Vecto
   return Status::Ok;
 }
 
+Status checkMatchInput(bool paramsValid, Span<const Eigen::Vector2f> first, Span<const Eigen::Vector2f> second,
+                       const Span<const PointPair>* candidates) noexcept {
+  if (!paramsValid) {
+    return Status::InvalidArgument;
+  }
+  const Status st = checkPointSets(first, second);
+  if (st != Status::Ok || candidates == nullptr) {
+    return st;
+  }
+  return checkCandidates(*candidates, first.size(), second.size());
+}
+
 Status checkCandidates(Span<const PointPair> candidates, std::size_t nFirst, std::size_t nSecond) noexcept {
   if (candidates.empty()) {
     return Status::EmptyInput;

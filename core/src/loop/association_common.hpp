@@ -22,6 +22,12 @@ Status checkPointSets(Span<const Eigen::Vector2f> first, Span<const Eigen::Vecto
 /// CapacityExceeded above CandidatePairs' capacity.
 Status checkCandidates(Span<const PointPair> candidates, std::size_t nFirst, std::size_t nSecond) noexcept;
 
+/// The checks every matcher's `match` starts with, in order: `InvalidArgument` when the
+/// parameters are not valid (`paramsValid` false), then `checkPointSets`, then, when `candidates`
+/// is given, `checkCandidates`.
+Status checkMatchInput(bool paramsValid, Span<const Eigen::Vector2f> first, Span<const Eigen::Vector2f> second,
+                       const Span<const PointPair>* candidates = nullptr) noexcept;
+
 /// Fills out.transform (fitRigid2d over the pairs, identity below 3 pairs) and out.rms.
 void fitPairs(Span<const Eigen::Vector2f> first, Span<const Eigen::Vector2f> second, PointAssociation& out) noexcept;
 

@@ -47,10 +47,7 @@ Status CorrespondenceGraphMatcher::match(Span<const Eigen::Vector2f> first, Span
   out = PointAssociation{};
   vertices_ = 0;
   edges_ = 0;
-  if (!isValid(params_)) {
-    return Status::InvalidArgument;
-  }
-  const Status st = detail::checkPointSets(first, second);
+  const Status st = detail::checkMatchInput(isValid(params_), first, second);
   if (st != Status::Ok) {
     return st;
   }
@@ -71,14 +68,7 @@ Status CorrespondenceGraphMatcher::match(Span<const Eigen::Vector2f> first, Span
   out = PointAssociation{};
   vertices_ = 0;
   edges_ = 0;
-  if (!isValid(params_)) {
-    return Status::InvalidArgument;
-  }
-  Status st = detail::checkPointSets(first, second);
-  if (st != Status::Ok) {
-    return st;
-  }
-  st = detail::checkCandidates(candidates, first.size(), second.size());
+  const Status st = detail::checkMatchInput(isValid(params_), first, second, &candidates);
   if (st != Status::Ok) {
     return st;
   }

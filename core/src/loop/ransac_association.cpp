@@ -19,10 +19,7 @@ Status RansacMatcher::match(Span<const Eigen::Vector2f> first, Span<const Eigen:
                             PointAssociation& out) noexcept {
   out = PointAssociation{};
   hypotheses_ = 0;
-  if (!isValid(params_)) {
-    return Status::InvalidArgument;
-  }
-  const Status st = detail::checkPointSets(first, second);
+  const Status st = detail::checkMatchInput(isValid(params_), first, second);
   if (st != Status::Ok) {
     return st;
   }
@@ -34,14 +31,7 @@ Status RansacMatcher::match(Span<const Eigen::Vector2f> first, Span<const Eigen:
                             Span<const PointPair> candidates, PointAssociation& out) noexcept {
   out = PointAssociation{};
   hypotheses_ = 0;
-  if (!isValid(params_)) {
-    return Status::InvalidArgument;
-  }
-  Status st = detail::checkPointSets(first, second);
-  if (st != Status::Ok) {
-    return st;
-  }
-  st = detail::checkCandidates(candidates, first.size(), second.size());
+  const Status st = detail::checkMatchInput(isValid(params_), first, second, &candidates);
   if (st != Status::Ok) {
     return st;
   }
