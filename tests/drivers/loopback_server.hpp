@@ -19,14 +19,15 @@ namespace agv::test {
 
 class LoopbackServer {
  public:
-  LoopbackServer() {
+  /// Listens on 127.0.0.1:`port` (0: an ephemeral port).
+  explicit LoopbackServer(std::uint16_t port = 0) {
     listenFd_ = ::socket(AF_INET, SOCK_STREAM, 0);
     const int one = 1;
     ::setsockopt(listenFd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
     sockaddr_in a{};
     a.sin_family = AF_INET;
     a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    a.sin_port = 0;
+    a.sin_port = htons(port);
     ok_ = ::bind(listenFd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 && ::listen(listenFd_, 4) == 0;
     socklen_t len = sizeof a;
     ::getsockname(listenFd_, reinterpret_cast<sockaddr*>(&a), &len);

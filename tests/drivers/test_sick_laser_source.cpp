@@ -303,3 +303,102 @@ TEST_CASE("SICK laser model names", "[drivers][laser]") {
   CHECK(agv::drivers::defaultPort(SickLaserModel::Nav350) == 2112U);
   CHECK(agv::drivers::defaultPort(SickLaserModel::Tim) == 2111U);
 }
+
+TEST_CASE("SICK laser source: with scanTimeout equal to reconnectInterval a rebooted laser is back within one interval",
+          "[drivers][laser]") {
+  // The laser is down (connections refused) while the source polls: the connect attempts and the
+  // silence check both run every 300 ms, in step. When the laser is back, the connection that an
+  // attempt opens must get a whole scanTimeout to deliver: the silence check used to close it in
+  // the cycle that opened it, at every attempt, forever.
+  const std::uint16_t port = agv::test::closedPort();
+  SickLaserSourceConfig config = loopbackConfig(SickLaserModel::Lms1xx, port);
+  config.scanTimeout = Duration::fromMilliseconds(300);
+  config.tcp.reconnectInterval = Duration::fromMilliseconds(300);
+  SickLaserSource src(config);
+  static LaserMeasurement m;
+  Poller p{src};
+  CHECK(p.poll(m, Status::Ok, 1000) == Status::Timeout);  // down: 3 attempts, 3 silences
+  agv::test::LoopbackServer server(port);
+  REQUIRE(server.ok());
+  const auto scan = agv::test::colaScanTelegram(2, 2000);
+  std::atomic<bool> done{false};
+  std::atomic<int> connections{0};
+  server.start([&](agv::test::LoopbackServer& s) {
+    for (int c = 0; c < 10 && !done.load(); ++c) {  // every connection the source opens is served
+      const int fd = s.accept(1000);
+      if (fd < 0)
+        continue;
+      ++connections;
+      if (receiveExactly(fd, kSubscribe, 1000)) {
+        for (int i = 0; i < 100 && !done.load(); ++i) {  // a scan every 20 ms until the source leaves
+          if (::send(fd, scan.data(), scan.size(), MSG_NOSIGNAL) < 0)
+            break;
+          sleepMs(20);
+        }
+      }
+      ::close(fd);
+    }
+  });
+  const agv::Timestamp up = agv::drivers::monotonicNow();
+  const Status s = p.poll(m, Status::Ok, 3000);
+  const double recovery = (agv::drivers::monotonicNow() - up).seconds();
+  done = true;
+  server.join();
+  INFO("recovered after " << recovery << " s; " << src.counters().silenceReconnects << " silence reconnects, "
+                          << src.tcpCounters().connects << " connects");
+  REQUIRE(s == Status::Ok);
+  AGV_CHECK_NEAR(m.scan.ranges[0], 2.0, 1e-6);
+  CHECK(recovery < 0.3 + 0.3 + 0.3);  // one interval to connect, one timeout to deliver, a margin
+  CHECK(src.tcpCounters().connects == 1U);
+  CHECK(connections.load() == 1);
+  CHECK(src.health() == Status::Ok);
+}
+
+TEST_CASE("SICK laser source: a NAV350 answering only with error replies is a device fault after scanTimeout",
+          "[drivers][laser]") {
+  agv::test::LoopbackServer server;
+  REQUIRE(server.ok());
+  std::uint8_t payload[32];
+  const std::size_t n = agv::drivers::sick::encodeNav350PoseRequest(
+      true, agv::drivers::sick::Nav350Mask::PoseReflectorsScan, agv::Span<std::uint8_t>(payload));
+  const auto request = agv::test::colaB(std::vector<std::uint8_t>(payload, payload + n));
+  agv::test::NavReplyFields good;
+  good.reflectors.resize(1);
+  good.reflectors[0].distMm = 4000;
+  good.reflectors[0].phiMdeg = 30000;
+  const auto reply = agv::test::colaB(agv::test::buildNavReply(good));
+  agv::test::NavReplyFields bad;
+  bad.errorCode = 4;  // no position
+  bad.pose = false;
+  bad.poseDetails = false;
+  bad.landmarks = false;
+  const auto failed = agv::test::colaB(agv::test::buildNavReply(bad));
+  std::atomic<bool> done{false};
+  server.start([&](agv::test::LoopbackServer& s) {
+    const int fd = s.accept();
+    if (fd < 0)
+      return;
+    for (int i = 0; i < 400 && !done.load(); ++i) {  // one good reply, then errors only
+      if (!receiveExactly(fd, request, 1000))
+        break;
+      s.send(fd, i == 0 ? reply : failed);
+    }
+    ::close(fd);
+  });
+  SickLaserSource src(loopbackConfig(SickLaserModel::Nav350, server.port()));
+  static LaserMeasurement m;
+  Poller p{src};
+  REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
+  CHECK(src.health() == Status::Ok);
+  REQUIRE(p.poll(m, Status::DeviceFault, 3000) == Status::DeviceFault);
+  // Error replies keep coming: the device is heard, so not a timeout, but no sweep for longer than
+  // scanTimeout (300 ms) is no longer "laser ok".
+  for (int i = 0; i < 600 && src.health() == Status::Ok; ++i) {
+    (void)src.read(m);
+    sleepMs(1);
+  }
+  CHECK(src.health() == Status::DeviceFault);
+  CHECK(src.counters().deviceErrors > 1U);
+  done = true;
+  server.join();
+}

@@ -103,13 +103,27 @@ Status SickLaserSource::health() const noexcept {
   if (!started_) {
     return Status::NotInitialized;
   }
-  if (monotonicNow() - lastHeard_ > config_.scanTimeout) {
+  const Timestamp now = monotonicNow();
+  if (now - lastHeard_ > config_.scanTimeout) {
     return Status::Timeout;
+  }
+  // Answering, but with error replies only (a NAV350 reporting a fault) for longer than the
+  // timeout: a fault, not "ok" on the strength of an old sweep.
+  if (now - (haveSweep_ ? lastGood_ : startedAt_) > config_.scanTimeout) {
+    return Status::DeviceFault;
   }
   return haveSweep_ ? Status::Ok : Status::NotInitialized;
 }
 
 Status SickLaserSource::silence(Timestamp now) noexcept {
+  // A connection opened since the last sweep gets a whole scanTimeout to deliver one: otherwise,
+  // with scanTimeout <= reconnectInterval, the cycle that opens a connection would close it again
+  // before the laser could answer, forever.
+  const std::uint32_t connects = tcpCounters().connects;
+  if (connects != connectsSeen_) {
+    connectsSeen_ = connects;
+    lastSweep_ = now;
+  }
   if (now - lastHeard_ <= config_.scanTimeout) {
     return Status::NotFound;
   }
@@ -169,6 +183,7 @@ Status SickLaserSource::read(hal::LaserMeasurement& out) noexcept {
   const Timestamp now = monotonicNow();
   if (!started_) {
     started_ = true;
+    startedAt_ = now;
     lastSweep_ = now;
     lastHeard_ = now;
   }
@@ -195,6 +210,7 @@ Status SickLaserSource::read(hal::LaserMeasurement& out) noexcept {
     haveSweep_ = true;
     lastSweep_ = now;
     lastHeard_ = now;
+    lastGood_ = now;
   }
   return s;
 }

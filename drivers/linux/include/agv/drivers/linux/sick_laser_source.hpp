@@ -76,8 +76,10 @@ class SickLaserSource final : public hal::LaserSource {
   /// a telegram failed to decode in this call; `DeviceFault` for a NAV350 error reply.
   Status read(hal::LaserMeasurement& out) noexcept override;
 
-  /// `Ok` when a sweep arrived within `scanTimeout`, `NotInitialized` before the first one
-  /// (within `scanTimeout` of the first `read()`), `Timeout` otherwise.
+  /// `Ok` when a sweep arrived within `scanTimeout`; `NotInitialized` before the first one (within
+  /// `scanTimeout` of the first `read()`); `Timeout` when nothing was heard for `scanTimeout`;
+  /// `DeviceFault` when the device answers but gave no sweep for `scanTimeout` (NAV350 error
+  /// replies).
   Status health() const noexcept override;
 
   bool connected() const noexcept;
@@ -98,8 +100,11 @@ class SickLaserSource final : public hal::LaserSource {
   sick::Nav350PoseReply reply_{};
   bool started_ = false;
   bool haveSweep_ = false;
-  Timestamp lastSweep_{};  ///< last sweep, or the first read(), or the last silence reconnect
-  Timestamp lastHeard_{};  ///< last sweep, or the first read()
+  Timestamp lastSweep_{};           ///< last sweep, or the first read(), or the last silence reconnect
+  Timestamp lastHeard_{};           ///< last sweep or error reply, or the first read()
+  Timestamp lastGood_{};            ///< last sweep returned
+  Timestamp startedAt_{};           ///< the first read()
+  std::uint32_t connectsSeen_ = 0;  ///< TCP connects seen by the silence check
   SickLaserSourceCounters counters_{};
 };
 
