@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "agv/report/number.hpp"
+#include "agv/report/text_file.hpp"
 
 namespace agv::vehicle {
 namespace {
@@ -436,20 +437,6 @@ std::string ConfigError::text() const {
   return t + message;
 }
 
-bool readTextFile(const std::string& path, std::string& out) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    return false;
-  }
-  std::ostringstream s;
-  s << f.rdbuf();
-  if (f.bad()) {
-    return false;
-  }
-  out = s.str();
-  return true;
-}
-
 bool parseVehicleConfig(const std::string& text, const std::string& path, VehicleConfig& out, ConfigError& error) {
   ConfigDraft d;
   Specs specs;
@@ -477,10 +464,11 @@ bool parseVehicleConfig(const std::string& text, const std::string& path, Vehicl
 
 bool loadVehicleConfig(const std::string& path, VehicleConfig& out, ConfigError& error) {
   std::string text;
-  if (!readTextFile(path, text)) {
+  std::string why;
+  if (!report::readTextFile(path, text, why)) {
     error.where = path;
     error.key.clear();
-    error.message = std::string("cannot read the configuration file (") + std::strerror(errno) + ")";
+    error.message = "configuration file refused: " + why;
     return false;
   }
   return parseVehicleConfig(text, path, out, error);

@@ -49,7 +49,4 @@ bool parseVehicleConfig(const std::string& text, const std::string& path, Vehicl
 /// Reads and parses the file `path`. A missing or unreadable file is an error too.
 bool loadVehicleConfig(const std::string& path, VehicleConfig& out, ConfigError& error);
 
-/// Reads a whole file into `out`; false when it cannot be read.
-bool readTextFile(const std::string& path, std::string& out);
-
 }  // namespace agv::vehicle

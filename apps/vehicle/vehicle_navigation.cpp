@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "agv/localization/landmark_map_io.hpp"
+#include "agv/report/text_file.hpp"
 
 namespace agv::vehicle {
 namespace {
@@ -70,8 +71,9 @@ std::string mapErrorText(Status s) {
 
 bool loadVehicleFiles(const VehicleConfig& config, VehicleFiles& files, ConfigError& error) {
   std::string text;
-  if (!readTextFile(config.calibrationFile, text)) {
-    error = ConfigError{config.calibrationFile, "calibration.file", "cannot read the calibration file"};
+  std::string why;
+  if (!report::readTextFile(config.calibrationFile, text, why)) {
+    error = ConfigError{config.calibrationFile, "calibration.file", "refused: " + why};
     return false;
   }
   CalibrationFileReport crep;
@@ -81,8 +83,8 @@ bool loadVehicleFiles(const VehicleConfig& config, VehicleFiles& files, ConfigEr
                         "calibration.file", "refused: " + calibrationErrorText(cs, crep)};
     return false;
   }
-  if (!readTextFile(config.mapFile, text)) {
-    error = ConfigError{config.mapFile, "map.file", "cannot read the map file"};
+  if (!report::readTextFile(config.mapFile, text, why)) {
+    error = ConfigError{config.mapFile, "map.file", "refused: " + why};
     return false;
   }
   LandmarkMapParams mp;

@@ -1,6 +1,8 @@
 // The agvnav-vehicle configuration file: a good file and what it sets, every key with a bad value
 // (refused with the file, line and key named), unknown, repeated and missing keys, checks across
 // keys, a missing file, and the calibration and map files it names.
+#include <sys/stat.h>
+
 #include <cmath>
 #include <sstream>
 #include <string>
@@ -291,6 +293,41 @@ TEST_CASE("a missing configuration file is refused", "[vehicle]") {
   CHECK_FALSE(agv::vehicle::loadVehicleConfig("/nonexistent/agvnav/vehicle.conf", c, e));
   CHECK(e.where == "/nonexistent/agvnav/vehicle.conf");
   CHECK(e.message.find("cannot read") != std::string::npos);
+}
+
+TEST_CASE("special files and directories are refused at once, naming what they are", "[vehicle]") {
+  // /dev/zero used to be read until std::bad_alloc (16-19 s), a FIFO hung, a directory was "cannot read".
+  agv::test::TempFolder dir;
+  REQUIRE(dir.ok());
+  const std::string fifo = dir.track("vehicle.fifo");
+  REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
+  struct Case {
+    std::string path;
+    const char* says;
+  };
+  const Case cases[] = {{"/dev/zero", "not a regular file"}, {fifo, "not a regular file"}, {dir.path(), "a directory"}};
+  for (const Case& k : cases) {
+    INFO(k.path);
+    VehicleConfig c;
+    ConfigError e;
+    CHECK_FALSE(agv::vehicle::loadVehicleConfig(k.path, c, e));
+    CHECK(e.where == k.path);
+    CHECK(e.message.find(k.says) != std::string::npos);
+    // The same for the calibration and the map file.
+    VehicleConfig files;
+    files.calibrationFile = k.path;
+    files.mapFile = dir.write("landmarks.txt", agv::test::goodMap());
+    agv::vehicle::VehicleFiles loaded;
+    ConfigError fe;
+    CHECK_FALSE(agv::vehicle::loadVehicleFiles(files, loaded, fe));
+    CHECK(fe.key == "calibration.file");
+    CHECK(fe.message.find(k.says) != std::string::npos);
+    files.calibrationFile = dir.write("calibration.txt", agv::test::goodCalibration());
+    files.mapFile = k.path;
+    CHECK_FALSE(agv::vehicle::loadVehicleFiles(files, loaded, fe));
+    CHECK(fe.key == "map.file");
+    CHECK(fe.message.find(k.says) != std::string::npos);
+  }
 }
 
 TEST_CASE("the calibration and map files are loaded, a bad one is refused by file, line and key", "[vehicle]") {
