@@ -442,3 +442,64 @@ TEST_CASE("The link as hal::PlcLink: PoseReport published, PLC command read as h
   CHECK(cmd.kind == agv::hal::PlcCommandKind::Calibrate);
   CHECK(hal.readCommand(cmd) == Status::NotFound);
 }
+
+TEST_CASE("Vehicle as Modbus server: non-Modbus frames are discarded, unserved function codes get exception 01",
+          "[drivers][modbus]") {
+  ModbusPlcLinkConfig cfg;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = 0;
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(link.boundPort());
+  REQUIRE(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  std::uint16_t heartbeat = 0;
+  // Sends `adu`, serves a few cycles, returns what came back (empty: nothing within ~100 ms).
+  auto exchange = [&](const std::vector<std::uint8_t>& adu) {
+    REQUIRE(::send(fd, adu.data(), adu.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(adu.size()));
+    std::vector<std::uint8_t> reply;
+    for (int i = 0; i < 10 && reply.empty(); ++i) {
+      REQUIRE(link.cycle(sampleStatus(heartbeat++), monotonicNow(), Duration::fromMilliseconds(10)) == Status::Ok);
+      pollfd p{fd, POLLIN, 0};
+      if (::poll(&p, 1, 0) == 1) {
+        std::uint8_t buf[260];
+        const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+        if (n > 0) {
+          reply.assign(buf, buf + n);
+        }
+      }
+    }
+    return reply;
+  };
+  // FC 06 to the PLC heartbeat register (108) with MBAP protocol id 0xFFFF: not Modbus, discarded.
+  const std::vector<std::uint8_t> notModbus = {0x00, 0x01, 0xFF, 0xFF, 0x00, 0x06, 0xFF, 0x06, 0x00, 108, 0x12, 0x34};
+  CHECK(exchange(notModbus).empty());
+  CHECK(link.counters().refusedRequests == 1U);
+  // The register is untouched: a proper FC 03 read of 108 gives 0.
+  const std::vector<std::uint8_t> read108 = {0x00, 0x02, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x03, 0x00, 108, 0x00, 0x01};
+  const std::vector<std::uint8_t> value = exchange(read108);
+  REQUIRE(value.size() == 11U);
+  CHECK(value[7] == 0x03);
+  CHECK((value[9] == 0x00 && value[10] == 0x00));
+  // Function codes the map does not serve, well-formed: exception 01 (function | 0x80); report
+  // server id (17) no longer tells the library and its version. (Codes libmodbus does not know,
+  // 00 and 07 among them, are refused by its receive before the link sees them.)
+  const std::vector<std::vector<std::uint8_t>> unserved = {
+      {0x00, 0x03, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x01, 0x00, 0x00, 0x00, 0x08},  // read coils
+      {0x00, 0x04, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x04, 0x00, 0x00, 0x00, 0x02},  // read input registers
+      {0x00, 0x05, 0x00, 0x00, 0x00, 0x02, 0xFF, 0x11}};                         // report server id
+  for (const std::vector<std::uint8_t>& request : unserved) {
+    const std::uint8_t function = request[7];
+    INFO("function " << static_cast<int>(function));
+    const std::vector<std::uint8_t> reply = exchange(request);
+    REQUIRE(reply.size() == 9U);
+    CHECK(reply[7] == static_cast<std::uint8_t>(function | 0x80U));
+    CHECK(reply[8] == 0x01);
+  }
+  CHECK(link.counters().refusedRequests == 4U);
+  CHECK(link.connected());  // refused, not dropped
+  ::close(fd);
+}

@@ -290,6 +290,28 @@ void ModbusPlcLink::handleRequest(int fd, Timestamp now) noexcept {
   const auto len = static_cast<std::size_t>(rc);
   const auto h = static_cast<std::size_t>(hl);
   const std::uint8_t function = query[h];
+  // MBAP protocol identifier 0 (Modbus): anything else is not a Modbus request and is discarded
+  // unanswered, as the Modbus TCP specification says (a write with protocol id 0xFFFF used to be
+  // applied).
+  if (h >= 7 && (query[2] != 0U || query[3] != 0U)) {
+    ++counters_.refusedRequests;
+    return;
+  }
+  // Only the functions of the register map are served: read holding registers (03), write single
+  // register (06), write multiple registers (16), read/write registers (23); the coil and mask
+  // writes below are refused as writes. Every other code (00, diagnostics 07/08, report server id
+  // 17, which would tell the library and its version, an exception-flagged 0x80+ code ...) gets
+  // exception 01, without touching the command state.
+  const bool served = function == MODBUS_FC_READ_HOLDING_REGISTERS || function == MODBUS_FC_WRITE_SINGLE_REGISTER ||
+                      function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS || function == MODBUS_FC_WRITE_AND_READ_REGISTERS;
+  const bool refusedWrite = function == MODBUS_FC_MASK_WRITE_REGISTER || function == MODBUS_FC_WRITE_SINGLE_COIL ||
+                            function == MODBUS_FC_WRITE_MULTIPLE_COILS;
+  if (!served && !refusedWrite) {
+    ++counters_.refusedRequests;
+    (void)modbus_reply_exception(ctx_, query, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
+    ++counters_.requests;
+    return;
+  }
   modbus_mapping_t* m = asMapping(mapping_);
   const Span<const std::uint16_t> table(m->tab_registers, static_cast<std::size_t>(m->nb_registers));
   std::uint16_t values[MODBUS_MAX_WRITE_REGISTERS];

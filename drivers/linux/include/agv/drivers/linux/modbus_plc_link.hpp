@@ -54,6 +54,9 @@ struct PlcLinkCounters {
   std::uint32_t disconnects = 0;
   std::uint32_t connectFailures = 0;  ///< client attempts failed; server connections refused (full)
   std::uint32_t requestErrors = 0;    ///< failed exchanges (timeouts, broken connections)
+  /// server: requests refused before the map: not Modbus (MBAP protocol id not 0: discarded) or a
+  /// function code the map does not serve (exception 01)
+  std::uint32_t refusedRequests = 0;
 };
 
 /// Also the HAL's `hal::PlcLink` (publish a `hal::PoseReport`, read `hal::PlcCommand`s).
