@@ -318,176 +318,191 @@ float FalkoDetector::scoreOf(const Side& left, const Side& right, float c, float
   return pairs > 0.0F ? total / pairs : 0.0F;
 }
 
-bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept {
+namespace {
+
+/// The refinement window of one candidate (pass 1): the points within refineRadiusFactor * r of
+/// it, relative to it, in beam order.
+struct RefineWindow {
+  std::size_t count = 0;     ///< points in the window
+  std::size_t mLeft = 0;     ///< points before the candidate (the candidate is point mLeft)
+  std::size_t qStart = 0;    ///< first point at most kSplit beams from the candidate
+  std::size_t qEnd = 0;      ///< one past the last such point
+  float splitReach2 = 0.0F;  ///< squared distance from the candidate within which a split may lie
+};
+
+/// A corner relative to the candidate point, and the two wall lines meeting there.
+struct Corner {
+  float x = 0.0F;
+  float y = 0.0F;
+  Line left;
+  Line right;
+};
+
+/// What passes 2 and 3 keep of a window (candidate point in the sensor frame, distances squared).
+struct RefitLimits {
+  float mxAbs = 0.0F;
+  float myAbs = 0.0F;
+  float reach2 = 0.0F;     ///< window disc around the corner
+  float gap2 = 0.0F;       ///< points this close to the corner are left out
+  float tol = 0.0F;        ///< largest distance of a point to its side's line
+  float minPts = 0.0F;     ///< least points per line
+  float maxShift2 = 0.0F;  ///< farthest corner from the candidate point
+};
+
+/// Collects the window of candidate i in beam order into (wx, wy) (earlier beams farthest first).
+/// Branch-free compaction: every beam is written, the count advances only for points within reach
+/// (at most one write beyond the kept points, inside the buffer: the window never exceeds the
+/// scan). The split point is the one nearest the corner, which lies within subbeamMaxShift of the
+/// candidate: no point more than kSplit beams away can be that close, so [qStart, qEnd) holds the
+/// only split points worth trying (farther splits could only be rejected).
+RefineWindow collectWindow(const ScanPoints& pts, std::size_t i, float reach, float subbeamMaxShift, float* wx,
+                           float* wy) noexcept {
   const float mxAbs = pts.x(i);
   const float myAbs = pts.y(i);
-  const float maxShift2 = params_.subbeamMaxShift * params_.subbeamMaxShift;
-  Line lineL;
-  Line lineR;
-  float cx = 0.0F;
-  float cy = 0.0F;
-  // Pass 1: the best two-line split of the points within refineRadiusFactor * r of the candidate,
-  // in beam order: every split point s (excluded from both lines: it is the one nearest the
-  // corner) with at least minSidePoints + 1 points on each side is tried, and the one with the
-  // least total squared orthogonal residual wins. Incremental sums make it linear in the window.
-  // The side buffers are reused for the window (the side sums stay in `left` / `right`).
-  const float reach = params_.refineRadiusFactor * kp.radius;
   const float reach2 = reach * reach;
-  bool ok = false;
-  std::size_t windowCount = 0;
-  {
-    float* wx = leftX_.data();
-    float* wy = leftY_.data();
-    std::size_t m = 0;
-    const std::size_t kmax = pts.maxOffsetAt(i, reach);
-    // The split point is the one nearest the corner, which lies within subbeamMaxShift of the
-    // candidate: farther splits are not tried (cheaper, and they could only be rejected). No
-    // point more than kSplit beams away can be that close.
-    const float splitReach = params_.subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
-    const float splitReach2 = splitReach * splitReach;
-    const std::size_t kSplitBound = pts.maxOffsetAt(i, splitReach);
-    const std::size_t kSplit = kSplitBound < kmax ? kSplitBound : kmax;
-    // Window in beam order (earlier beams farthest first). Branch-free compaction: every beam is
-    // written, the count advances only for points within reach (at most one write beyond the
-    // kept points, inside the buffer: the window never exceeds the scan). The window indices
-    // [qStart, qEnd) hold the points at most kSplit beams from the candidate.
-    auto take = [&](std::size_t j) {
-      const float qx = pts.x(j) - mxAbs;
-      const float qy = pts.y(j) - myAbs;
-      wx[m] = qx;
-      wy[m] = qy;
-      m += qx * qx + qy * qy <= reach2 ? 1U : 0U;  // invalid readings are far away
-    };
-    falko_detail::walkBeamsInOrder(pts, i, -1, kSplit + 1, kmax, take);
-    const std::size_t qStart = m;
-    falko_detail::walkBeamsInOrder(pts, i, -1, 1, kSplit, take);
-    const std::size_t mLeft = m;
-    take(i);
-    falko_detail::walkBeamsInOrder(pts, i, 1, 1, kSplit, take);
-    const std::size_t qEnd = m;
-    falko_detail::walkBeamsInOrder(pts, i, 1, kSplit + 1, kmax, take);
-    // Sums: the earlier points nearest first, then the candidate and the later points.
-    LineAcc total;
-    for (std::size_t a = mLeft; a > 0; --a) {
-      total.add(wx[a - 1], wy[a - 1]);
-    }
-    for (std::size_t a = mLeft; a < m; ++a) {
-      total.add(wx[a], wy[a]);
-    }
-    windowCount = m;
-    const std::size_t minSide = params_.minSidePoints + 1;
-    LineAcc before;  // points [0, q)
-    float bestCost = std::numeric_limits<float>::infinity();
-    LineAcc bestL;
-    LineAcc bestR;
-    if (m >= 2 * minSide + 1) {
-      const std::size_t qLast = m - minSide - 1;  // the last split point with minSide after it
-      // Split points beyond qEnd are outside the split reach: `before` is not needed there.
-      const std::size_t qStop = qEnd <= qLast ? qEnd : qLast + 1;
-      for (std::size_t q = 0; q < minSide; ++q) {
-        before.add(wx[q], wy[q]);
-      }
-      std::size_t q = minSide;
-      for (; q < qStart && q < qStop; ++q) {
-        before.add(wx[q], wy[q]);
-      }
-      for (; q < qStop; ++q) {
-        if (wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
-          const float costL = before.residual();
-          // The residual of the points before the split only grows with q (a line through more
-          // points fits no better), so no later split can beat the best one any more.
-          if (!(costL < bestCost)) {
-            break;
-          }
-          LineAcc after = total;
-          after.subtract(before);
-          after.remove(wx[q], wy[q]);
-          const float cost = costL + after.residual();
-          if (cost < bestCost) {
-            bestCost = cost;
-            bestL = before;
-            bestR = after;
-          }
-        }
-        before.add(wx[q], wy[q]);
-      }
-    }
-    // One line explaining the window almost as well as two: a noisy straight wall, not a corner.
-    if (bestCost < std::numeric_limits<float>::infinity() &&
-        total.residual() <= params_.minCornerResidualRatio * bestCost) {
-      return false;
-    }
-    ok = bestCost < std::numeric_limits<float>::infinity() && bestL.fit(lineL) && bestR.fit(lineR) &&
-         intersect(lineL, lineR, cx, cy);
-    if (ok && cx * cx + cy * cy > maxShift2) {
-      // The two walls meet farther than subbeamMaxShift away: this candidate sees a corner
-      // elsewhere (e.g. beside an acute corner), whose own candidates will report it.
-      return false;
-    }
+  const std::size_t kmax = pts.maxOffsetAt(i, reach);
+  const float splitReach = subbeamMaxShift + 2.0F * pts.range(i) * pts.angleIncrement();
+  const std::size_t kSplitBound = pts.maxOffsetAt(i, splitReach);
+  const std::size_t kSplit = kSplitBound < kmax ? kSplitBound : kmax;
+  RefineWindow w;
+  w.splitReach2 = splitReach * splitReach;
+  std::size_t m = 0;
+  auto take = [&](std::size_t j) {
+    const float qx = pts.x(j) - mxAbs;
+    const float qy = pts.y(j) - myAbs;
+    wx[m] = qx;
+    wy[m] = qy;
+    m += qx * qx + qy * qy <= reach2 ? 1U : 0U;  // invalid readings are far away
+  };
+  falko_detail::walkBeamsInOrder(pts, i, -1, kSplit + 1, kmax, take);
+  w.qStart = m;
+  falko_detail::walkBeamsInOrder(pts, i, -1, 1, kSplit, take);
+  w.mLeft = m;
+  take(i);
+  falko_detail::walkBeamsInOrder(pts, i, 1, 1, kSplit, take);
+  w.qEnd = m;
+  falko_detail::walkBeamsInOrder(pts, i, 1, kSplit + 1, kmax, take);
+  w.count = m;
+  return w;
+}
+
+/// Sums of the whole window: the earlier points nearest first, then the candidate and the later
+/// points.
+LineAcc windowSums(const float* wx, const float* wy, std::size_t mLeft, std::size_t count) noexcept {
+  LineAcc total;
+  for (std::size_t a = mLeft; a > 0; --a) {
+    total.add(wx[a - 1], wy[a - 1]);
   }
-  if (ok) {
-    // Passes 2 and 3: the neighbourhood holds few points per side at long range, and the
-    // candidate beam may lie a beam or two off the corner. Re-split the points of a wider disc at
-    // the bearing of the estimated corner, keep those close to their side's line and not within
-    // 1.5 beam spacings of the corner, and fit again.
-    const float gap = 1.5F * pts.range(i) * pts.angleIncrement();
-    const float gap2 = gap * gap;
-    const float tol = params_.refineInlierDistance;
-    for (int pass = 0; pass < 2; ++pass) {
-      const float ccx = mxAbs + cx;
-      const float ccy = myAbs + cy;
-      LineAcc l;
-      LineAcc r;
-      for (std::size_t q = 0; q < windowCount; ++q) {
-        const float qx = leftX_[q];
-        const float qy = leftY_[q];
-        const float ex = qx - cx;
-        const float ey = qy - cy;
-        const float e2 = ex * ex + ey * ey;
-        if (e2 > reach2 || e2 < gap2) {
-          continue;
-        }
-        // Sign of cross(corner, point) in the sensor frame: negative = clockwise = earlier beam.
-        const bool isLeft = ccx * (myAbs + qy) - ccy * (mxAbs + qx) < 0.0F;
-        const Line& ln = isLeft ? lineL : lineR;
-        const float dist = std::fabs(ln.dx * (qy - ln.my) - ln.dy * (qx - ln.mx));
-        if (dist > tol) {
-          continue;
-        }
-        (isLeft ? l : r).add(qx, qy);
-      }
-      Line nl;
-      Line nr;
-      float c2x = 0.0F;
-      float c2y = 0.0F;
-      const auto minPts = static_cast<float>(params_.minSidePoints);
-      if (!(l.n >= minPts && r.n >= minPts && l.fit(nl) && r.fit(nr) && intersect(nl, nr, c2x, c2y) &&
-            c2x * c2x + c2y * c2y <= maxShift2)) {
+  for (std::size_t a = mLeft; a < count; ++a) {
+    total.add(wx[a], wy[a]);
+  }
+  return total;
+}
+
+/// The best two-line split of the window: every split point q within the split reach (excluded
+/// from both lines: it is the one nearest the corner) with at least minSide points on each side
+/// is tried, and the least total squared orthogonal residual wins. Incremental sums make it
+/// linear in the window. Returns the least total residual (+inf: no split tried) and the sums of
+/// the points before (bestL) and after (bestR) the best split point.
+float bestSplit(const float* wx, const float* wy, const RefineWindow& w, const LineAcc& total, std::size_t minSide,
+                LineAcc& bestL, LineAcc& bestR) noexcept {
+  float bestCost = std::numeric_limits<float>::infinity();
+  const std::size_t m = w.count;
+  const std::size_t qStart = w.qStart;
+  const std::size_t qEnd = w.qEnd;
+  const float splitReach2 = w.splitReach2;
+  if (m < 2 * minSide + 1) {
+    return bestCost;
+  }
+  const std::size_t qLast = m - minSide - 1;  // the last split point with minSide after it
+  // Split points beyond qEnd are outside the split reach: `before` is not needed there.
+  const std::size_t qStop = qEnd <= qLast ? qEnd : qLast + 1;
+  LineAcc before;  // points [0, q)
+  for (std::size_t q = 0; q < minSide; ++q) {
+    before.add(wx[q], wy[q]);
+  }
+  std::size_t q = minSide;
+  for (; q < qStart && q < qStop; ++q) {
+    before.add(wx[q], wy[q]);
+  }
+  for (; q < qStop; ++q) {
+    if (wx[q] * wx[q] + wy[q] * wy[q] <= splitReach2) {
+      const float costL = before.residual();
+      // The residual of the points before the split only grows with q (a line through more
+      // points fits no better), so no later split can beat the best one any more.
+      if (!(costL < bestCost)) {
         break;
       }
-      cx = c2x;
-      cy = c2y;
-      lineL = nl;
-      lineR = nr;
+      LineAcc after = total;
+      after.subtract(before);
+      after.remove(wx[q], wy[q]);
+      const float cost = costL + after.residual();
+      if (cost < bestCost) {
+        bestCost = cost;
+        bestL = before;
+        bestR = after;
+      }
     }
-  } else {
-    cx = 0.0F;
-    cy = 0.0F;
+    before.add(wx[q], wy[q]);
   }
-  kp.refined = ok;
-  kp.x = mxAbs + cx;
-  kp.y = myAbs + cy;
-  // Orientation: mean direction from the corner to the centroids of its two sides. Refined
-  // corners use the centroids of the points of each fitted wall, as unit vectors: the bisector
-  // of the corner, independent of how much of each wall the sensor sees. Unrefined ones use the
-  // neighbourhood sides as they are.
+  return bestCost;
+}
+
+/// One re-fit (passes 2 and 3): the window points within reach of the corner, not within the gap
+/// of it and close to their side's line, split at the bearing of the corner, fitted again. Returns
+/// false (corner unchanged) when a side has too few points, the lines do not meet, or they meet
+/// farther than maxShift from the candidate point.
+bool refitNearLines(const float* wx, const float* wy, std::size_t count, const RefitLimits& lim,
+                    Corner& corner) noexcept {
+  const float ccx = lim.mxAbs + corner.x;
+  const float ccy = lim.myAbs + corner.y;
+  LineAcc l;
+  LineAcc r;
+  for (std::size_t q = 0; q < count; ++q) {
+    const float qx = wx[q];
+    const float qy = wy[q];
+    const float ex = qx - corner.x;
+    const float ey = qy - corner.y;
+    const float e2 = ex * ex + ey * ey;
+    if (e2 > lim.reach2 || e2 < lim.gap2) {
+      continue;
+    }
+    // Sign of cross(corner, point) in the sensor frame: negative = clockwise = earlier beam.
+    const bool isLeft = ccx * (lim.myAbs + qy) - ccy * (lim.mxAbs + qx) < 0.0F;
+    const Line& ln = isLeft ? corner.left : corner.right;
+    const float dist = std::fabs(ln.dx * (qy - ln.my) - ln.dy * (qx - ln.mx));
+    if (dist > lim.tol) {
+      continue;
+    }
+    (isLeft ? l : r).add(qx, qy);
+  }
+  Line nl;
+  Line nr;
+  float c2x = 0.0F;
+  float c2y = 0.0F;
+  if (!(l.n >= lim.minPts && r.n >= lim.minPts && l.fit(nl) && r.fit(nr) && intersect(nl, nr, c2x, c2y) &&
+        c2x * c2x + c2y * c2y <= lim.maxShift2)) {
+    return false;
+  }
+  corner.x = c2x;
+  corner.y = c2y;
+  corner.left = nl;
+  corner.right = nr;
+  return true;
+}
+
+/// Orientation: mean direction from the corner to the centroids of its two sides. Refined corners
+/// use the centroids of the points of each fitted wall, as unit vectors: the bisector of the
+/// corner, independent of how much of each wall the sensor sees. Unrefined ones use the
+/// neighbourhood sides (sideX, sideY) as they are.
+float orientationOf(bool refined, const Corner& c, float sideX, float sideY) noexcept {
   float ox = 0.0F;
   float oy = 0.0F;
-  if (ok) {
-    const float lx = lineL.mx - cx;
-    const float ly = lineL.my - cy;
-    const float rx = lineR.mx - cx;
-    const float ry = lineR.my - cy;
+  if (refined) {
+    const float lx = c.left.mx - c.x;
+    const float ly = c.left.my - c.y;
+    const float rx = c.right.mx - c.x;
+    const float ry = c.right.my - c.y;
     const float ln = std::sqrt(lx * lx + ly * ly);
     const float rn = std::sqrt(rx * rx + ry * ry);
     if (ln > 0.0F && rn > 0.0F) {
@@ -496,28 +511,91 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
     }
   }
   if (ox == 0.0F && oy == 0.0F) {
-    ox = sideX - 2.0F * cx;
-    oy = sideY - 2.0F * cy;
+    ox = sideX - 2.0F * c.x;
+    oy = sideY - 2.0F * c.y;
   }
-  kp.orientation = std::atan2(oy, ox);
+  return std::atan2(oy, ox);
+}
+
+}  // namespace
+
+bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept {
+  const float maxShift2 = params_.subbeamMaxShift * params_.subbeamMaxShift;
+  const float reach = params_.refineRadiusFactor * kp.radius;
+  float* wx = leftX_.data();  // the side buffers hold the window (the side sums are in sideX/Y)
+  float* wy = leftY_.data();
+  // Pass 1, window: the points within refineRadiusFactor * r of the candidate, in beam order.
+  const RefineWindow w = collectWindow(pts, i, reach, params_.subbeamMaxShift, wx, wy);
+  // Pass 1, split: the two lines that explain the window with the least residual.
+  const LineAcc total = windowSums(wx, wy, w.mLeft, w.count);
+  LineAcc bestL;
+  LineAcc bestR;
+  const float bestCost = bestSplit(wx, wy, w, total, params_.minSidePoints + 1, bestL, bestR);
+  // Pass 1, acceptance: one line explaining the window almost as well as two is a noisy straight
+  // wall, not a corner; two walls meeting farther than subbeamMaxShift away are a corner
+  // elsewhere (e.g. beside an acute corner), whose own candidates will report it.
+  const bool splitFound = bestCost < std::numeric_limits<float>::infinity();
+  if (splitFound && total.residual() <= params_.minCornerResidualRatio * bestCost) {
+    return false;
+  }
+  Corner corner;
+  const bool ok = splitFound && bestL.fit(corner.left) && bestR.fit(corner.right) &&
+                  intersect(corner.left, corner.right, corner.x, corner.y);
+  if (ok && corner.x * corner.x + corner.y * corner.y > maxShift2) {
+    return false;
+  }
+  if (ok) {
+    // Passes 2 and 3: the neighbourhood holds few points per side at long range, and the
+    // candidate beam may lie a beam or two off the corner. Re-split the points of a wider disc at
+    // the bearing of the estimated corner, keep those close to their side's line and not within
+    // 1.5 beam spacings of the corner, and fit again.
+    const float gap = 1.5F * pts.range(i) * pts.angleIncrement();
+    RefitLimits lim;
+    lim.mxAbs = pts.x(i);
+    lim.myAbs = pts.y(i);
+    lim.reach2 = reach * reach;
+    lim.gap2 = gap * gap;
+    lim.tol = params_.refineInlierDistance;
+    lim.minPts = static_cast<float>(params_.minSidePoints);
+    lim.maxShift2 = maxShift2;
+    for (int pass = 0; pass < 2; ++pass) {
+      if (!refitNearLines(wx, wy, w.count, lim, corner)) {
+        break;
+      }
+    }
+  } else {
+    corner.x = 0.0F;
+    corner.y = 0.0F;
+  }
+  // Acceptance: the corner in the sensor frame, and its orientation.
+  kp.refined = ok;
+  kp.x = pts.x(i) + corner.x;
+  kp.y = pts.y(i) + corner.y;
+  kp.orientation = orientationOf(ok, corner, sideX, sideY);
   return true;
 }
 
-Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out) noexcept {
-  out.clear();
-  candidateCount_ = 0;
-  if (!isValid(params_)) {
-    return Status::InvalidArgument;
+namespace {
+/// Triangle front (fx, fy) / candidate (origin) / back (bx, by): base and height at least minLen.
+bool triangleHolds(float minLen, float fx, float fy, float bx, float by) noexcept {
+  const float base2 = (bx - fx) * (bx - fx) + (by - fy) * (by - fy);
+  if (base2 < minLen * minLen) {
+    return false;
   }
-  const std::size_t n = pts.size();
-  const FalkoParams& p = params_;
-  const float invBeta = 1.0F / p.beta;
-  std::size_t candidates = 0;
+  const float cross = fx * by - fy * bx;  // = base * height
+  return !(cross * cross < base2 * minLen * minLen);
+}
 
-  // 0. Radius and beam window of every candidate beam, in a loop of its own: the exponential and
-  //    the window bound then overlap from beam to beam instead of waiting behind the searches
-  //    below. Beams that are no candidate get an empty window.
-  for (std::size_t i = 0; i < n; ++i) {
+/// Side extents of a survivor packed in one word (both below 2^16).
+std::uint32_t packExtents(std::size_t kLeft, std::size_t kRight) noexcept {
+  return static_cast<std::uint32_t>(kLeft << 16U | kRight);
+}
+static_assert(kMaxScanBeams < (std::size_t{1} << 16U), "side extents are packed in 16 bits");
+}  // namespace
+
+void FalkoDetector::radiiAndWindows(const ScanPoints& pts) noexcept {
+  const FalkoParams& p = params_;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
     const float rho = pts.range(i);
     float radius = p.neighA * std::exp(p.neighB * rho);
     const float maxRadius = p.maxRadiusRangeRatio * rho;
@@ -528,33 +606,15 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     radius_[i] = radius;
     window_[i] = candidate ? static_cast<std::uint32_t>(pts.maxOffsetAt(i, radius)) : 0U;
   }
+}
 
-  // 1. Early rejection of every beam: the triangle test needs only the first (front) and last
-  //    (back) neighbours, found from the window edges inwards; most beams (walls) stop here. The
-  //    survivors are listed in order_ with their side extents packed in window_ (kLeft << 16 |
-  //    kRight, both below 2^16), so that the full neighbourhood and the score run in a loop of
-  //    their own.
-  std::size_t survivors = 0;
-  // Triangle front / candidate (origin) / back: base and height at least r / beta; survivors are
-  // listed with their side extents.
-  auto triangle = [&](std::size_t i, std::size_t kLeft, float fx, float fy, std::size_t kRight, float bx, float by) {
-    const float minLen = radius_[i] * invBeta;
-    const float base2 = (bx - fx) * (bx - fx) + (by - fy) * (by - fy);
-    if (base2 < minLen * minLen) {
-      return;
-    }
-    const float cross = fx * by - fy * bx;  // = base * height
-    if (cross * cross < base2 * minLen * minLen) {
-      return;
-    }
-    order_[survivors++] = static_cast<std::uint32_t>(i);
-    window_[i] = static_cast<std::uint32_t>(kLeft << 16U | kRight);
-  };
-  auto earlyRejection = [&](std::size_t i) {
+std::size_t FalkoDetector::rejectOneByOne(const ScanPoints& pts, std::size_t begin, std::size_t end, float invBeta,
+                                          std::size_t survivors) noexcept {
+  for (std::size_t i = begin; i < end; ++i) {
     score_[i] = kNotCandidate;
     const std::size_t kmax = window_[i];
     if (kmax == 0) {
-      return;
+      continue;
     }
     const float r2 = radius_[i] * radius_[i];
     float fx = 0.0F;
@@ -563,61 +623,74 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     float by = 0.0F;
     const std::size_t kLeft = farthestWithin(pts, i, -1, kmax, r2, fx, fy);
     if (kLeft == 0) {
-      return;
+      continue;
     }
     const std::size_t kRight = farthestWithin(pts, i, 1, kmax, r2, bx, by);
-    if (kRight == 0) {
-      return;
+    if (kRight == 0 || !triangleHolds(radius_[i] * invBeta, fx, fy, bx, by)) {
+      continue;
     }
-    triangle(i, kLeft, fx, fy, kRight, bx, by);
-  };
-  // Four candidates at a time where the lockstep search exists and no window reaches a scan end;
-  // one at a time elsewhere. Both give the same survivors.
-  std::size_t i0 = 0;
-  if (falko_detail::kLockstep4) {
-    const float* xs = pts.xData();
-    const float* ys = pts.yData();
-    for (; i0 + 4 <= n; i0 += 4) {
-      const std::size_t kTop =
-          std::max(std::max(window_[i0], window_[i0 + 1]), std::max(window_[i0 + 2], window_[i0 + 3]));
-      if (kTop == 0 || kTop > i0 || i0 + 3 + kTop >= n) {
-        for (std::size_t i = i0; i < i0 + 4; ++i) {
-          earlyRejection(i);
-        }
-        continue;
-      }
-      float kmax[4];
-      float r2[4];
-      for (std::size_t l = 0; l < 4; ++l) {
-        score_[i0 + l] = kNotCandidate;
-        kmax[l] = static_cast<float>(window_[i0 + l]);
-        r2[l] = radius_[i0 + l] * radius_[i0 + l];
-      }
-      float left[4];
-      float right[4];
-      falko_detail::farthestWithin4(xs, ys, i0, -1, kTop, kmax, r2, left);
-      if (left[0] == 0.0F && left[1] == 0.0F && left[2] == 0.0F && left[3] == 0.0F) {
-        continue;
-      }
-      falko_detail::farthestWithin4(xs, ys, i0, 1, kTop, kmax, r2, right);
-      for (std::size_t l = 0; l < 4; ++l) {
-        if (left[l] == 0.0F || right[l] == 0.0F) {
-          continue;
-        }
-        const std::size_t i = i0 + l;
-        const auto kLeft = static_cast<std::size_t>(static_cast<int>(left[l]));
-        const auto kRight = static_cast<std::size_t>(static_cast<int>(right[l]));
-        triangle(i, kLeft, xs[i - kLeft] - xs[i], ys[i - kLeft] - ys[i], kRight, xs[i + kRight] - xs[i],
-                 ys[i + kRight] - ys[i]);
-      }
-    }
+    order_[survivors++] = static_cast<std::uint32_t>(i);
+    window_[i] = packExtents(kLeft, kRight);
   }
-  for (std::size_t i = i0; i < n; ++i) {
-    earlyRejection(i);
-  }
-  static_assert(kMaxScanBeams < (std::size_t{1} << 16U), "side extents are packed in 16 bits");
+  return survivors;
+}
 
-  // 2. Sides and score of the survivors.
+std::size_t FalkoDetector::rejectInFours(const ScanPoints& pts, float invBeta, std::size_t& next) noexcept {
+  const std::size_t n = pts.size();
+  const float* xs = pts.xData();
+  const float* ys = pts.yData();
+  std::size_t survivors = 0;
+  std::size_t i0 = 0;
+  for (; i0 + 4 <= n; i0 += 4) {
+    const std::size_t kTop =
+        std::max(std::max(window_[i0], window_[i0 + 1]), std::max(window_[i0 + 2], window_[i0 + 3]));
+    if (kTop == 0 || kTop > i0 || i0 + 3 + kTop >= n) {
+      survivors = rejectOneByOne(pts, i0, i0 + 4, invBeta, survivors);  // a window reaches a scan end
+      continue;
+    }
+    float kmax[4];
+    float r2[4];
+    for (std::size_t l = 0; l < 4; ++l) {
+      score_[i0 + l] = kNotCandidate;
+      kmax[l] = static_cast<float>(window_[i0 + l]);
+      r2[l] = radius_[i0 + l] * radius_[i0 + l];
+    }
+    float left[4];
+    float right[4];
+    falko_detail::farthestWithin4(xs, ys, i0, -1, kTop, kmax, r2, left);
+    if (left[0] == 0.0F && left[1] == 0.0F && left[2] == 0.0F && left[3] == 0.0F) {
+      continue;
+    }
+    falko_detail::farthestWithin4(xs, ys, i0, 1, kTop, kmax, r2, right);
+    for (std::size_t l = 0; l < 4; ++l) {
+      if (left[l] == 0.0F || right[l] == 0.0F) {
+        continue;
+      }
+      const std::size_t i = i0 + l;
+      const auto kLeft = static_cast<std::size_t>(static_cast<int>(left[l]));
+      const auto kRight = static_cast<std::size_t>(static_cast<int>(right[l]));
+      if (triangleHolds(radius_[i] * invBeta, xs[i - kLeft] - xs[i], ys[i - kLeft] - ys[i], xs[i + kRight] - xs[i],
+                        ys[i + kRight] - ys[i])) {
+        order_[survivors++] = static_cast<std::uint32_t>(i);
+        window_[i] = packExtents(kLeft, kRight);
+      }
+    }
+  }
+  next = i0;
+  return survivors;
+}
+
+std::size_t FalkoDetector::rejectEarly(const ScanPoints& pts) noexcept {
+  const float invBeta = 1.0F / params_.beta;
+  // Four candidates at a time where the lockstep search exists; one at a time elsewhere and for
+  // the last beams. Both give the same survivors.
+  std::size_t i0 = 0;
+  const std::size_t survivors = falko_detail::kLockstep4 ? rejectInFours(pts, invBeta, i0) : 0;
+  return rejectOneByOne(pts, i0, pts.size(), invBeta, survivors);
+}
+
+std::size_t FalkoDetector::scoreSurvivors(const ScanPoints& pts, std::size_t survivors) noexcept {
+  std::size_t candidates = 0;
   for (std::size_t o = 0; o < survivors; ++o) {
     const std::size_t i = order_[o];
     const float radius = radius_[i];
@@ -633,20 +706,17 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
       continue;
     }
     const float score = scoreOf(left, right, ox / on, oy / on);
-    if (score <= p.maxScore) {
+    if (score <= params_.maxScore) {
       score_[i] = score;
       sideX_[i] = ox;
       sideY_[i] = oy;
       ++candidates;
     }
   }
-  candidateCount_ = candidates;
+  return candidates;
+}
 
-  // 3. Greedy non-maxima suppression, best score first (ties to the lower beam index): a
-  //    candidate whose beam point lies within nmsRadius of an accepted corner is suppressed;
-  //    otherwise it is refined, and accepted unless the refinement rejects it or it lands within
-  //    nmsRadius of an accepted corner. A rejected candidate suppresses nothing, so the next best
-  //    candidate of the same corner gets its turn. O(candidates x accepted).
+std::size_t FalkoDetector::candidatesByScore(std::size_t n) noexcept {
   std::size_t nc = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (score_[i] != kNotCandidate) {
@@ -656,38 +726,40 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
   const float* sc = score_.data();
   std::sort(order_.begin(), order_.begin() + static_cast<std::ptrdiff_t>(nc),
             [sc](std::uint32_t a, std::uint32_t b) { return sc[a] < sc[b] || (sc[a] == sc[b] && a < b); });
-  const float nms2 = p.nmsRadius * p.nmsRadius;
-  std::size_t kept = 0;
-  for (std::size_t o = 0; o < nc; ++o) {
-    const std::size_t i = order_[o];
-    const float xi = pts.x(i);
-    const float yi = pts.y(i);
-    bool suppressed = false;
-    for (std::size_t c = 0; c < kept && !suppressed; ++c) {
-      const float dx = cands_[c].x - xi;
-      const float dy = cands_[c].y - yi;
-      suppressed = dx * dx + dy * dy <= nms2;
+  return nc;
+}
+
+bool FalkoDetector::nearAccepted(float x, float y, std::size_t kept, float nms2) const noexcept {
+  for (std::size_t c = 0; c < kept; ++c) {
+    const float dx = cands_[c].x - x;
+    const float dy = cands_[c].y - y;
+    if (dx * dx + dy * dy <= nms2) {
+      return true;
     }
-    if (suppressed) {
+  }
+  return false;
+}
+
+std::size_t FalkoDetector::suppressAndRefine(const ScanPoints& pts, std::size_t candidates) noexcept {
+  const float nms2 = params_.nmsRadius * params_.nmsRadius;
+  std::size_t kept = 0;
+  for (std::size_t o = 0; o < candidates; ++o) {
+    const std::size_t i = order_[o];
+    if (nearAccepted(pts.x(i), pts.y(i), kept, nms2)) {
       continue;
     }
     FalkoKeypoint kp;
     kp.beamIndex = static_cast<std::uint32_t>(i);
     kp.radius = radius_[i];
     kp.score = score_[i];
-    if (!refine(pts, i, sideX_[i], sideY_[i], kp)) {
-      continue;
-    }
-    for (std::size_t c = 0; c < kept && !suppressed; ++c) {
-      const float dx = cands_[c].x - kp.x;
-      const float dy = cands_[c].y - kp.y;
-      suppressed = dx * dx + dy * dy <= nms2;
-    }
-    if (!suppressed) {
+    if (refine(pts, i, sideX_[i], sideY_[i], kp) && !nearAccepted(kp.x, kp.y, kept, nms2)) {
       cands_[kept++] = kp;
     }
   }
-  // Output in beam order.
+  return kept;
+}
+
+Status FalkoDetector::emitInBeamOrder(std::size_t kept, IVector<FalkoKeypoint>& out) noexcept {
   std::sort(cands_.begin(), cands_.begin() + static_cast<std::ptrdiff_t>(kept),
             [](const FalkoKeypoint& a, const FalkoKeypoint& b) { return a.beamIndex < b.beamIndex; });
   Status result = Status::Ok;
@@ -697,6 +769,27 @@ Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out)
     }
   }
   return result;
+}
+
+Status FalkoDetector::detect(const ScanPoints& pts, IVector<FalkoKeypoint>& out) noexcept {
+  out.clear();
+  candidateCount_ = 0;
+  if (!isValid(params_)) {
+    return Status::InvalidArgument;
+  }
+  // 0. Radius and beam window of every beam, in a loop of its own: the exponential and the window
+  //    bound then overlap from beam to beam instead of waiting behind the searches below.
+  radiiAndWindows(pts);
+  // 1. Early rejection by the triangle test, four candidates in lockstep where possible; the
+  //    survivors are listed in order_ with their side extents packed in window_.
+  const std::size_t survivors = rejectEarly(pts);
+  // 2. Sides and score of the survivors; the candidates keep their score in score_.
+  candidateCount_ = scoreSurvivors(pts, survivors);
+  // 3. Non-maxima suppression, best score first, with the sub-beam refinement of every candidate
+  //    not suppressed.
+  const std::size_t kept = suppressAndRefine(pts, candidatesByScore(pts.size()));
+  // 4. Output in beam order.
+  return emitInBeamOrder(kept, out);
 }
 
 }  // namespace agv

@@ -87,6 +87,40 @@ class FalkoDetector {
   /// (sideX, sideY): sum of the side centroids relative to the candidate (orientation fallback).
   bool refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept;
 
+  // The stages of detect, in order.
+  /// Neighbourhood radius (radius_) and beam window (window_, 0 for beams that are no candidate)
+  /// of every beam.
+  void radiiAndWindows(const ScanPoints& pts) noexcept;
+  /// Early rejection of every beam by the triangle test, which needs only the first (front) and
+  /// last (back) neighbours, found from the window edges inwards; most beams (walls) stop here.
+  /// Marks every beam not a candidate in score_; lists the survivors in order_ with their side
+  /// extents packed in window_ (kLeft << 16 | kRight). Returns the number of survivors.
+  std::size_t rejectEarly(const ScanPoints& pts) noexcept;
+  /// Early rejection of the beams [begin, end) one at a time; survivors appended to order_ after
+  /// the first `survivors`. Returns the new number of survivors.
+  std::size_t rejectOneByOne(const ScanPoints& pts, std::size_t begin, std::size_t end, float invBeta,
+                             std::size_t survivors) noexcept;
+  /// Early rejection of the beams in groups of four in lockstep (falko_detail::farthestWithin4),
+  /// one at a time in the groups where a window reaches a scan end; survivors listed in order_.
+  /// `next`: the first beam not handled (fewer than four left). Returns the number of survivors.
+  std::size_t rejectInFours(const ScanPoints& pts, float invBeta, std::size_t& next) noexcept;
+  /// Sides, orientation and score of the survivors; the candidates (score <= maxScore) get their
+  /// score in score_ and their side sums in sideX_/sideY_. Returns the number of candidates.
+  std::size_t scoreSurvivors(const ScanPoints& pts, std::size_t survivors) noexcept;
+  /// Lists the candidates among the n beams in order_, best score first (ties to the lower beam
+  /// index); returns their number.
+  std::size_t candidatesByScore(std::size_t n) noexcept;
+  /// Greedy non-maxima suppression of the first `candidates` of order_: a candidate whose beam
+  /// point lies within nmsRadius of an accepted corner is suppressed; otherwise it is refined, and
+  /// accepted unless the refinement rejects it or it lands within nmsRadius of an accepted corner.
+  /// A rejected candidate suppresses nothing, so the next best candidate of the same corner gets
+  /// its turn. O(candidates x accepted). Returns the number accepted (in cands_).
+  std::size_t suppressAndRefine(const ScanPoints& pts, std::size_t candidates) noexcept;
+  /// True when (x, y) lies within sqrt(nms2) of one of the first `kept` accepted corners.
+  bool nearAccepted(float x, float y, std::size_t kept, float nms2) const noexcept;
+  /// Appends the `kept` accepted corners to `out` in beam order.
+  Status emitInBeamOrder(std::size_t kept, IVector<FalkoKeypoint>& out) noexcept;
+
   FalkoParams params_;
   ScanPoints points_;
   std::array<float, kMaxScanBeams> leftX_{};
