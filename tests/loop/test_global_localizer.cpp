@@ -44,8 +44,10 @@ GlobalLocalizer& localizer() {
 }
 
 Eigen::Vector2d g_poles[kPoles];
+LandmarkKind g_kinds[kPoles];
 
-void buildWarehouse(std::uint64_t seed) {
+/// Random poles; every `cornerEvery`-th one (0: none) is a FALKO corner instead of a reflector.
+void buildWarehouse(std::uint64_t seed, std::size_t cornerEvery = 0) {
   LoopRng rng{seed};
   static Eigen::Vector2f pts[kPoles];
   agv::test::randomPoints(rng, kPoles, 0.0, 0.0, kSide, kSide, 3.0, pts);
@@ -53,9 +55,8 @@ void buildWarehouse(std::uint64_t seed) {
   map.clear();
   for (std::size_t i = 0; i < kPoles; ++i) {
     g_poles[i] = pts[i].cast<double>();
-    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, g_poles[i].x(), g_poles[i].y(), 0.005,
-                            static_cast<std::uint32_t>(i + 1))
-                .ok());
+    g_kinds[i] = cornerEvery != 0 && i % cornerEvery == 0 ? LandmarkKind::Corner : LandmarkKind::Reflector;
+    REQUIRE(map.addSurveyed(g_kinds[i], g_poles[i].x(), g_poles[i].y(), 0.005, static_cast<std::uint32_t>(i + 1)).ok());
   }
 }
 
@@ -75,7 +76,7 @@ std::size_t scan(const Pose2d& truth, LoopRng& rng, PointObservation* out, std::
     }
     out[n].x = p.x() + kSigma * rng.normal();
     out[n].y = p.y() + kSigma * rng.normal();
-    out[n].kind = LandmarkKind::Reflector;
+    out[n].kind = g_kinds[i];
     ++n;
     ++real;
   }
@@ -189,6 +190,30 @@ TEST_CASE("global localizer: whole hall, edges included, never a wrong pose", "[
   CHECK(found * 10U >= kHallTrials * 6U);
 }
 
+TEST_CASE("global localizer: mixed map of reflectors and corners, kinds respected", "[loop][reloc]") {
+  buildWarehouse(41, 3);  // a third of the landmarks are FALKO corners
+  GlobalLocalizer& loc = localizer();
+  loc.setParams(params());
+  LoopRng rng{43};
+  static PointObservation obs[kMaxLoopPoints];
+  std::size_t found = 0;
+  std::size_t wrong = 0;
+  for (std::size_t t = 0; t < kHallTrials; ++t) {
+    const Pose2d truth{rng.uniform(20.0, kSide - 20.0), rng.uniform(20.0, kSide - 20.0), rng.uniform(-3.14, 3.14)};
+    std::size_t n = 0;
+    (void)scan(truth, rng, obs, n);
+    RelocReport r;
+    if (loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::Ok) {
+      (posError(r.pose, truth) > 0.05 || angError(r.pose, truth) > 0.5 * kDeg ? wrong : found) += 1;
+    }
+  }
+#ifndef AGV_TEST_MCU
+  WARN("reloc mixed kinds: found " << found << " of " << kHallTrials << ", wrong " << wrong);
+#endif
+  CHECK(wrong == 0U);
+  CHECK(found * 10U >= kHallTrials * 9U);
+}
+
 TEST_CASE("global localizer: symmetric reflector layouts are refused as ambiguous", "[loop][reloc]") {
   LandmarkMap& map = warehouseMap();
   GlobalLocalizer& loc = localizer();
@@ -206,6 +231,7 @@ TEST_CASE("global localizer: symmetric reflector layouts are refused as ambiguou
       const double* p = layout == 0 ? rect[i] : rot[i];
       REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p[0], p[1], 0.005, static_cast<std::uint32_t>(i + 1)).ok());
       g_poles[i] = Eigen::Vector2d(p[0], p[1]);
+      g_kinds[i] = LandmarkKind::Reflector;
     }
     for (std::size_t i = count; i < kPoles; ++i) {
       g_poles[i] = Eigen::Vector2d(1e4, 1e4);  // out of range
@@ -239,6 +265,7 @@ TEST_CASE("global localizer: symmetric reflector layouts are refused as ambiguou
     ++count;
   }
   for (std::size_t i = 0; i < count; ++i) {
+    g_kinds[i] = LandmarkKind::Reflector;
     REQUIRE(map.addSurveyed(LandmarkKind::Reflector, g_poles[i].x(), g_poles[i].y(), 0.005,
                             static_cast<std::uint32_t>(i + 1))
                 .ok());
@@ -350,6 +377,7 @@ void buildGrid(double pitch, double jitter, std::uint64_t seed) {
   for (std::size_t i = 0; i < kPoles; ++i) {
     g_poles[i] = Eigen::Vector2d(static_cast<double>(i % 16) * pitch + rng.uniform(-jitter, jitter),
                                  static_cast<double>(i / 16) * pitch + rng.uniform(-jitter, jitter));
+    g_kinds[i] = LandmarkKind::Reflector;
     REQUIRE(map.addSurveyed(LandmarkKind::Reflector, g_poles[i].x(), g_poles[i].y(), 0.005,
                             static_cast<std::uint32_t>(i + 1))
                 .ok());
