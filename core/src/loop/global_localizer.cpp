@@ -1,0 +1,345 @@
+#include "agv/loop/global_localizer.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "agv/calib/rigid_fit.hpp"
+#include "agv/core/angle.hpp"
+
+namespace agv {
+
+static_assert(kMaxLoopPoints <= kMaxObservations, "a localizer scan must fit a pose check");
+
+namespace {
+
+bool finite(double v) noexcept {
+  return std::isfinite(v);
+}
+
+bool poseFinite(const Pose2d& p) noexcept {
+  return finite(p.x) && finite(p.y) && finite(p.theta);
+}
+
+}  // namespace
+
+bool isValid(const GlobalLocalizerParams& p) noexcept {
+  return poseFinite(p.laserMount) && std::isfinite(p.epsilon) && p.epsilon > 0.0F && finite(p.inlierGate) &&
+         p.inlierGate > 0.0 && p.minSupport >= 3 && p.anchorCount >= 1 && finite(p.ambiguityDistance) &&
+         p.ambiguityDistance > 0.0 && finite(p.ambiguityAngle) && p.ambiguityAngle > 0.0 && p.maxNodesPerWindow >= 1 &&
+         p.maxTotalNodes >= 1;
+}
+
+Status toStatus(RelocOutcome outcome) noexcept {
+  switch (outcome) {
+    case RelocOutcome::Found:
+      return Status::Ok;
+    case RelocOutcome::InvalidParams:
+      return Status::InvalidArgument;
+    case RelocOutcome::EmptyInput:
+      return Status::EmptyInput;
+    case RelocOutcome::NonFiniteInput:
+      return Status::NonFiniteInput;
+    case RelocOutcome::OverCapacity:
+    case RelocOutcome::WindowOverCapacity:
+      return Status::CapacityExceeded;
+    case RelocOutcome::WeakSupport:
+      return Status::NotEnoughData;
+    case RelocOutcome::Ambiguous:
+      return Status::Rejected;
+    case RelocOutcome::WorkBoundHit:
+      return Status::NotConverged;
+  }
+  return Status::InvalidArgument;
+}
+
+PoseCheck checkPose(const LandmarkMap& map, Span<const PointObservation> observations, const Pose2d& laserMount,
+                    const Pose2d& pose, double gate) noexcept {
+  PoseCheck out;
+  out.refit = pose;
+  const std::size_t n = observations.size();
+  if (n == 0 || n > kMaxObservations || !poseFinite(pose) || !poseFinite(laserMount) || !(gate > 0.0)) {
+    return out;
+  }
+  std::array<Eigen::Vector2d, kMaxObservations> vehicle;
+  std::array<Eigen::Vector2d, kMaxObservations> landmark;
+  std::array<std::uint16_t, kMaxObservations> pairOf;
+  double sum = 0.0;
+  for (std::size_t j = 0; j < n; ++j) {
+    const PointObservation& o = observations[j];
+    pairOf[j] = kNoPair;
+    vehicle[j] = laserMount.transformPoint(Eigen::Vector2d(o.x, o.y));
+    landmark[j] = Eigen::Vector2d::Zero();
+    if (!finite(o.x) || !finite(o.y)) {
+      continue;
+    }
+    const Eigen::Vector2d w = pose.transformPoint(vehicle[j]);
+    double bestD2 = gate * gate;
+    bool found = false;
+    map.forEachNear(w.x(), w.y(), gate, [&](LandmarkIndex /*index*/, const Landmark& l) {
+      if (l.kind != o.kind) {
+        return;
+      }
+      const double d2 = (Eigen::Vector2d(l.x, l.y) - w).squaredNorm();
+      if (d2 <= bestD2) {
+        bestD2 = d2;
+        landmark[j] = Eigen::Vector2d(l.x, l.y);
+        found = true;
+      }
+    });
+    if (found) {
+      pairOf[j] = static_cast<std::uint16_t>(j);
+      sum += bestD2;
+      ++out.inliers;
+    }
+  }
+  if (out.inliers > 0) {
+    out.rms = std::sqrt(sum / static_cast<double>(out.inliers));
+  }
+  if (out.inliers >= 3) {
+    out.refit = fitRigid2d(Span<const Eigen::Vector2d>(landmark.data(), n),
+                           Span<const Eigen::Vector2d>(vehicle.data(), n), Span<const std::uint16_t>(pairOf.data(), n));
+  }
+  return out;
+}
+
+GlobalLocalizer::GlobalLocalizer(const GlobalLocalizerParams& params) noexcept : params_(params) {}
+
+Status GlobalLocalizer::finish(RelocReport& out, RelocOutcome outcome) noexcept {
+  out.outcome = outcome;
+  if (outcome != RelocOutcome::Found) {
+    out.pose = Pose2d{};
+  }
+  return toStatus(outcome);
+}
+
+bool GlobalLocalizer::distinct(const Pose2d& a, const Pose2d& b) const noexcept {
+  const double dx = a.x - b.x;
+  const double dy = a.y - b.y;
+  return std::sqrt(dx * dx + dy * dy) > params_.ambiguityDistance ||
+         std::fabs(angleDiff(a.theta, b.theta)) > params_.ambiguityAngle;
+}
+
+void GlobalLocalizer::offer(const Hypothesis& h) noexcept {
+  if (!best_.valid) {
+    best_ = h;
+    return;
+  }
+  if (!distinct(h.pose, best_.pose)) {
+    if (h.inliers > best_.inliers || (h.inliers == best_.inliers && h.rms < best_.rms)) {
+      best_ = h;
+      if (second_.valid && !distinct(second_.pose, best_.pose)) {
+        second_ = Hypothesis{};
+      }
+    }
+    return;
+  }
+  if (h.inliers > best_.inliers || (h.inliers == best_.inliers && h.rms < best_.rms)) {
+    second_ = best_;
+    best_ = h;
+    return;
+  }
+  if (!second_.valid || h.inliers > second_.inliers) {
+    second_ = h;
+  }
+}
+
+std::size_t GlobalLocalizer::lowerBound(float x) const noexcept {
+  const MapPoint* begin = map_.data();
+  const MapPoint* it = std::lower_bound(begin, begin + mapSize_, x, [](const MapPoint& p, float v) { return p.x < v; });
+  return static_cast<std::size_t>(it - begin);
+}
+
+Status GlobalLocalizer::localize(const LandmarkMap& map, Span<const PointObservation> observations,
+                                 RelocReport& out) noexcept {
+  out = RelocReport{};
+  best_ = Hypothesis{};
+  second_ = Hypothesis{};
+  if (!isValid(params_)) {
+    return finish(out, RelocOutcome::InvalidParams);
+  }
+  const std::size_t n = observations.size();
+  if (n == 0 || map.size() == 0) {
+    return finish(out, RelocOutcome::EmptyInput);
+  }
+  if (n > kMaxLoopPoints) {
+    out.refusedObservations = n - kMaxLoopPoints;
+    return finish(out, RelocOutcome::OverCapacity);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const PointObservation& o = observations[i];
+    if (!finite(o.x) || !finite(o.y) || std::fabs(o.x) > kMaxMapCoordinate || std::fabs(o.y) > kMaxMapCoordinate) {
+      return finish(out, RelocOutcome::NonFiniteInput);
+    }
+    const Eigen::Vector2d v = params_.laserMount.transformPoint(Eigen::Vector2d(o.x, o.y));
+    obs_[i] = v.cast<float>();
+  }
+
+  // Sorted copy of the map (by x), so that a window's landmarks are one contiguous x-range.
+  mapSize_ = 0;
+  map.forEach([&](LandmarkIndex /*index*/, const Landmark& l) {
+    if (mapSize_ < map_.size()) {
+      map_[mapSize_++] = MapPoint{static_cast<float>(l.x), static_cast<float>(l.y), l.kind};
+    }
+  });
+  std::sort(map_.begin(), map_.begin() + static_cast<std::ptrdiff_t>(mapSize_),
+            [](const MapPoint& a, const MapPoint& b) { return a.x < b.x; });
+
+  // Anchors: the nearest observations (in the laser frame), up to anchorCount.
+  std::array<std::uint16_t, kMaxLoopPoints> order{};
+  for (std::size_t i = 0; i < n; ++i) {
+    order[i] = static_cast<std::uint16_t>(i);
+  }
+  auto rangeOf = [&](std::uint16_t i) { return std::hypot(observations[i].x, observations[i].y); };
+  std::sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(n),
+            [&](std::uint16_t a, std::uint16_t b) { return rangeOf(a) < rangeOf(b); });
+  const std::size_t anchors = std::min(params_.anchorCount, n);
+
+  CorrespondenceGraphParams cg;
+  cg.epsilon = params_.epsilon;
+  cg.maxNodes = params_.maxNodesPerWindow;
+  cg.minPairs = 3;
+  matcher_.setParams(cg);
+  const float eps = params_.epsilon;
+  const Span<const Eigen::Vector2f> second(obs_.data(), n);
+  bool totalBudgetHit = false;
+
+  for (std::size_t ai = 0; ai < anchors && !totalBudgetHit; ++ai) {
+    const std::size_t a = order[ai];
+    const LandmarkKind anchorKind = observations[a].kind;
+    float extent = 0.0F;
+    for (std::size_t i = 0; i < n; ++i) {
+      anchorDist_[i] = (obs_[i] - obs_[a]).norm();
+      extent = std::max(extent, anchorDist_[i]);
+    }
+    const float radius = extent + eps;
+    for (std::size_t j = 0; j < mapSize_ && !totalBudgetHit; ++j) {
+      const MapPoint& lj = map_[j];
+      if (lj.kind != anchorKind) {
+        continue;
+      }
+      ++out.windows;
+      candidates_.clear();
+      std::size_t nLocal = 1;
+      local_[0] = Eigen::Vector2f(lj.x, lj.y);
+      localSource_[0] = static_cast<std::uint32_t>(j);
+      (void)candidates_.push_back(PointPair{0, static_cast<std::uint16_t>(a)});
+      bool over = false;
+      for (std::size_t k = lowerBound(lj.x - radius); k < mapSize_ && map_[k].x <= lj.x + radius && !over; ++k) {
+        if (k == j) {
+          continue;
+        }
+        const MapPoint& lk = map_[k];
+        const float dy = lk.y - lj.y;
+        if (std::fabs(dy) > radius) {
+          continue;
+        }
+        const float dx = lk.x - lj.x;
+        const float r = std::sqrt(dx * dx + dy * dy);
+        std::size_t localIndex = kMaxLoopPoints;  // assigned on the first pair
+        for (std::size_t i = 0; i < n; ++i) {
+          if (i == a || observations[i].kind != lk.kind || std::fabs(r - anchorDist_[i]) >= eps) {
+            continue;
+          }
+          if (localIndex == kMaxLoopPoints) {
+            if (nLocal == kMaxLoopPoints) {
+              over = true;
+              break;
+            }
+            localIndex = nLocal++;
+            local_[localIndex] = Eigen::Vector2f(lk.x, lk.y);
+            localSource_[localIndex] = static_cast<std::uint32_t>(k);
+          }
+          if (candidates_.push_back(PointPair{static_cast<std::uint16_t>(localIndex), static_cast<std::uint16_t>(i)}) !=
+              Status::Ok) {
+            over = true;
+            break;
+          }
+        }
+      }
+      if (over) {
+        ++out.windowsOverCapacity;
+        continue;
+      }
+      if (candidates_.size() < 3) {
+        continue;  // no clique of 3 pairs can exist
+      }
+      const Status st = matcher_.match(Span<const Eigen::Vector2f>(local_.data(), nLocal), second,
+                                       Span<const PointPair>(candidates_.data(), candidates_.size()), assoc_);
+      out.nodes += assoc_.work;
+      if (assoc_.budgetHit) {
+        ++out.windowsBudgetHit;
+      }
+      if (out.nodes >= params_.maxTotalNodes) {
+        totalBudgetHit = true;
+      }
+      if ((st != Status::Ok && st != Status::NotConverged) || assoc_.pairs.size() < 3) {
+        continue;
+      }
+      const PoseCheck first = checkPose(map, observations, params_.laserMount, assoc_.transform, params_.inlierGate);
+      const PoseCheck refined = checkPose(map, observations, params_.laserMount, first.refit, params_.inlierGate);
+      Hypothesis h;
+      h.valid = true;
+      const bool useRefined = refined.inliers >= first.inliers;
+      h.pose = useRefined ? first.refit.normalized() : assoc_.transform.normalized();
+      h.inliers = useRefined ? refined.inliers : first.inliers;
+      h.rms = useRefined ? refined.rms : first.rms;
+      h.clique = assoc_.pairs.size();
+      offer(h);
+    }
+  }
+
+  if (best_.valid) {
+    out.pose = best_.pose;
+    out.inliers = best_.inliers;
+    out.rms = best_.rms;
+    out.clique = best_.clique;
+  }
+  if (second_.valid) {
+    out.hasSecond = true;
+    out.secondPose = second_.pose;
+    out.secondInliers = second_.inliers;
+  }
+  if (totalBudgetHit || out.windowsBudgetHit > 0) {
+    return finish(out, RelocOutcome::WorkBoundHit);
+  }
+  if (out.windowsOverCapacity > 0) {
+    return finish(out, RelocOutcome::WindowOverCapacity);
+  }
+  if (!best_.valid || best_.inliers < params_.minSupport) {
+    return finish(out, RelocOutcome::WeakSupport);
+  }
+  if (second_.valid && second_.inliers + params_.ambiguityMargin >= best_.inliers) {
+    return finish(out, RelocOutcome::Ambiguous);
+  }
+  return finish(out, RelocOutcome::Found);
+}
+
+void RelocConfirmer::start(const Pose2d& candidate) noexcept {
+  pose_ = candidate;
+  confirmed_ = 0;
+  state_ = poseFinite(candidate) ? RelocConfirmState::Pending : RelocConfirmState::Rejected;
+}
+
+RelocConfirmState RelocConfirmer::step(const Pose2d& odometry, const LandmarkMap& map,
+                                       Span<const PointObservation> observations, const Pose2d& laserMount) noexcept {
+  if (state_ != RelocConfirmState::Pending) {
+    return state_;  // Idle, Rejected and Confirmed stay until start()
+  }
+  if (!poseFinite(odometry) || observations.size() == 0) {
+    state_ = RelocConfirmState::Rejected;
+    return state_;
+  }
+  pose_ = pose_.compose(odometry).normalized();
+  const PoseCheck c = checkPose(map, observations, laserMount, pose_, params_.inlierGate);
+  const double fraction = static_cast<double>(c.inliers) / static_cast<double>(observations.size());
+  if (c.inliers < params_.minInliers || fraction < params_.minInlierFraction) {
+    state_ = RelocConfirmState::Rejected;
+    return state_;
+  }
+  pose_ = c.refit.normalized();
+  ++confirmed_;
+  state_ = confirmed_ >= params_.scansToConfirm ? RelocConfirmState::Confirmed : RelocConfirmState::Pending;
+  return state_;
+}
+
+}  // namespace agv

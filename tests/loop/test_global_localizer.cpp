@@ -1,0 +1,428 @@
+// Global localization against a LandmarkMap: a synthetic warehouse of 256 reflector poles (no ray
+// casting, but physically honest: every pole within 30 m and 360 deg is seen with 1 cm noise, 10 %
+// are missed, 2 spurious detections per scan, a laser mounted off the logical point), random true
+// poses; symmetric layouts refused as ambiguous; weak, empty, NaN and over-capacity inputs refused;
+// zero wrong poses over 200 trials; the multi-scan confirmation; no allocation.
+// Portable: also runs in the Cortex-M7 image (big objects are static).
+#include <cmath>
+#include <cstddef>
+
+#include "agv/localization/landmark_map.hpp"
+#include "agv/loop/global_localizer.hpp"
+#include "agv_test.hpp"
+#include "loop_test_util.hpp"
+
+using namespace agv;
+using agv::test::LoopRng;
+
+namespace {
+
+constexpr std::size_t kPoles = 256;
+constexpr double kSide = 220.0;  // [m] hall side: ~15 poles within 30 m on average
+constexpr double kRange = 30.0;  // [m] laser range
+constexpr double kSigma = 0.01;  // [m] detection noise per coordinate
+constexpr double kMiss = 0.10;   // probability of missing a pole
+constexpr std::size_t kSpurious = 2;
+constexpr double kDeg = 0.017453292519943295;
+#ifdef AGV_TEST_MCU
+constexpr std::size_t kTrials = 40;  // emulated Cortex-M7: fewer trials, same checks
+constexpr std::size_t kHallTrials = 20;
+#else
+constexpr std::size_t kTrials = 200;
+constexpr std::size_t kHallTrials = 100;
+#endif
+
+const Pose2d kMount{0.85, 0.05, 0.02};  // laser in the vehicle frame
+
+LandmarkMap& warehouseMap() {
+  static LandmarkMap map;
+  return map;
+}
+GlobalLocalizer& localizer() {
+  static GlobalLocalizer loc;
+  return loc;
+}
+
+Eigen::Vector2d g_poles[kPoles];
+LandmarkKind g_kinds[kPoles];
+
+/// Random poles; every `cornerEvery`-th one (0: none) is a FALKO corner instead of a reflector.
+void buildWarehouse(std::uint64_t seed, std::size_t cornerEvery = 0) {
+  LoopRng rng{seed};
+  static Eigen::Vector2f pts[kPoles];
+  agv::test::randomPoints(rng, kPoles, 0.0, 0.0, kSide, kSide, 3.0, pts);
+  LandmarkMap& map = warehouseMap();
+  map.clear();
+  for (std::size_t i = 0; i < kPoles; ++i) {
+    g_poles[i] = pts[i].cast<double>();
+    g_kinds[i] = cornerEvery != 0 && i % cornerEvery == 0 ? LandmarkKind::Corner : LandmarkKind::Reflector;
+    REQUIRE(map.addSurveyed(g_kinds[i], g_poles[i].x(), g_poles[i].y(), 0.005, static_cast<std::uint32_t>(i + 1)).ok());
+  }
+}
+
+/// One scan seen from vehicle pose `truth` (laser frame); returns the number of true detections.
+std::size_t scan(const Pose2d& truth, LoopRng& rng, PointObservation* out, std::size_t& n, bool spurious = true,
+                 double miss = kMiss) {
+  const Pose2d laser = truth.compose(kMount);
+  n = 0;
+  std::size_t real = 0;
+  for (std::size_t i = 0; i < kPoles && n < kMaxLoopPoints; ++i) {
+    const Eigen::Vector2d p = laser.inverseTransformPoint(g_poles[i]);
+    if (p.norm() > kRange) {
+      continue;
+    }
+    if (rng.uniform() < miss) {
+      continue;
+    }
+    out[n].x = p.x() + kSigma * rng.normal();
+    out[n].y = p.y() + kSigma * rng.normal();
+    out[n].kind = g_kinds[i];
+    ++n;
+    ++real;
+  }
+  for (std::size_t s = 0; spurious && s < kSpurious && n < kMaxLoopPoints; ++s) {
+    const double r = rng.uniform(1.0, kRange);
+    const double a = rng.uniform(-3.14159, 3.14159);
+    out[n].x = r * std::cos(a);
+    out[n].y = r * std::sin(a);
+    out[n].kind = LandmarkKind::Reflector;
+    ++n;
+  }
+  return real;
+}
+
+double posError(const Pose2d& a, const Pose2d& b) {
+  return std::hypot(a.x - b.x, a.y - b.y);
+}
+double angError(const Pose2d& a, const Pose2d& b) {
+  return std::fabs(angleDiff(a.theta, b.theta));
+}
+
+GlobalLocalizerParams params() {
+  GlobalLocalizerParams p;
+  p.laserMount = kMount;
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("global localizer: finds random poses in a 256-pole warehouse, never a wrong one", "[loop][reloc]") {
+  buildWarehouse(17);
+  GlobalLocalizer& loc = localizer();
+  loc.setParams(params());
+  LoopRng rng{2024};
+  static PointObservation obs[kMaxLoopPoints];
+  std::size_t found = 0;
+  std::size_t refused = 0;
+  std::size_t wrong = 0;
+  std::size_t ambiguous = 0;
+  std::size_t weak = 0;
+  std::size_t other = 0;
+  double worstPos = 0.0;
+  double worstAng = 0.0;
+  for (std::size_t t = 0; t < kTrials; ++t) {
+    // Interior poses: a 30 m range sees poles all round (~15 detections on average).
+    const Pose2d truth{rng.uniform(20.0, kSide - 20.0), rng.uniform(20.0, kSide - 20.0), rng.uniform(-3.14, 3.14)};
+    std::size_t n = 0;
+    (void)scan(truth, rng, obs, n);
+    RelocReport r;
+    const Status st = loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r);
+    if (st == Status::Ok) {
+      const double e = posError(r.pose, truth);
+      const double ea = angError(r.pose, truth);
+      if (e > 0.05 || ea > 0.5 * kDeg) {
+        ++wrong;
+      } else {
+        ++found;
+        worstPos = e > worstPos ? e : worstPos;
+        worstAng = ea > worstAng ? ea : worstAng;
+      }
+    } else {
+      ++refused;
+      if (r.outcome == RelocOutcome::Ambiguous) {
+        ++ambiguous;
+      } else if (r.outcome == RelocOutcome::WeakSupport) {
+        ++weak;
+      } else {
+        ++other;
+      }
+    }
+  }
+  INFO("found " << found << " refused " << refused << " (ambiguous " << ambiguous << ", weak " << weak << ", other "
+                << other << ") wrong " << wrong << " worst " << worstPos << " m " << worstAng / kDeg << " deg");
+#ifndef AGV_TEST_MCU
+  WARN("reloc trials: found " << found << " refused " << refused << " (ambiguous " << ambiguous << ", weak " << weak
+                              << ", other " << other << ") wrong " << wrong << "; worst " << worstPos << " m, "
+                              << worstAng / kDeg << " deg");
+#endif
+  CHECK(wrong == 0U);
+  CHECK(other == 0U);
+  CHECK(found * 10U >= kTrials * 9U);
+  CHECK(worstPos <= 0.05);
+  CHECK(worstAng <= 0.5 * kDeg);
+}
+
+TEST_CASE("global localizer: whole hall, edges included, never a wrong pose", "[loop][reloc]") {
+  buildWarehouse(99);
+  GlobalLocalizer& loc = localizer();
+  loc.setParams(params());
+  LoopRng rng{7};
+  static PointObservation obs[kMaxLoopPoints];
+  std::size_t wrong = 0;
+  std::size_t found = 0;
+  for (std::size_t t = 0; t < kHallTrials; ++t) {
+    const Pose2d truth{rng.uniform(0.0, kSide), rng.uniform(0.0, kSide), rng.uniform(-3.14, 3.14)};
+    std::size_t n = 0;
+    (void)scan(truth, rng, obs, n);
+    RelocReport r;
+    if (n > 0 && loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::Ok) {
+      if (posError(r.pose, truth) > 0.05 || angError(r.pose, truth) > 0.5 * kDeg) {
+        ++wrong;
+      } else {
+        ++found;
+      }
+    }
+  }
+#ifndef AGV_TEST_MCU
+  WARN("reloc whole hall: found " << found << " of " << kHallTrials << ", wrong " << wrong);
+#endif
+  CHECK(wrong == 0U);
+  CHECK(found * 10U >= kHallTrials * 6U);
+}
+
+TEST_CASE("global localizer: mixed map of reflectors and corners, kinds respected", "[loop][reloc]") {
+  buildWarehouse(41, 3);  // a third of the landmarks are FALKO corners
+  GlobalLocalizer& loc = localizer();
+  loc.setParams(params());
+  LoopRng rng{43};
+  static PointObservation obs[kMaxLoopPoints];
+  std::size_t found = 0;
+  std::size_t wrong = 0;
+  for (std::size_t t = 0; t < kHallTrials; ++t) {
+    const Pose2d truth{rng.uniform(20.0, kSide - 20.0), rng.uniform(20.0, kSide - 20.0), rng.uniform(-3.14, 3.14)};
+    std::size_t n = 0;
+    (void)scan(truth, rng, obs, n);
+    RelocReport r;
+    if (loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::Ok) {
+      (posError(r.pose, truth) > 0.05 || angError(r.pose, truth) > 0.5 * kDeg ? wrong : found) += 1;
+    }
+  }
+#ifndef AGV_TEST_MCU
+  WARN("reloc mixed kinds: found " << found << " of " << kHallTrials << ", wrong " << wrong);
+#endif
+  CHECK(wrong == 0U);
+  CHECK(found * 10U >= kHallTrials * 9U);
+}
+
+TEST_CASE("global localizer: symmetric reflector layouts are refused as ambiguous", "[loop][reloc]") {
+  LandmarkMap& map = warehouseMap();
+  GlobalLocalizer& loc = localizer();
+  loc.setParams(params());
+  static PointObservation obs[kMaxLoopPoints];
+  // (1) a 20 x 10 m rectangle of poles every 5 m along its sides: 180 deg symmetric (and mirror).
+  // (2) a 180 deg rotationally symmetric pattern with no mirror symmetry.
+  const double rect[][2] = {{0, 0},  {5, 0},   {10, 0},  {15, 0},  {20, 0}, {0, 10},
+                            {5, 10}, {10, 10}, {15, 10}, {20, 10}, {0, 5},  {20, 5}};
+  const double rot[][2] = {{0, 0}, {3, 1}, {7, -2}, {-4, 5}, {2, 6}, {-3, -1}, {-7, 2}, {4, -5}, {-2, -6}};
+  for (int layout = 0; layout < 2; ++layout) {
+    map.clear();
+    const std::size_t count = layout == 0 ? sizeof(rect) / sizeof(rect[0]) : sizeof(rot) / sizeof(rot[0]);
+    for (std::size_t i = 0; i < count; ++i) {
+      const double* p = layout == 0 ? rect[i] : rot[i];
+      REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p[0], p[1], 0.005, static_cast<std::uint32_t>(i + 1)).ok());
+      g_poles[i] = Eigen::Vector2d(p[0], p[1]);
+      g_kinds[i] = LandmarkKind::Reflector;
+    }
+    for (std::size_t i = count; i < kPoles; ++i) {
+      g_poles[i] = Eigen::Vector2d(1e4, 1e4);  // out of range
+    }
+    LoopRng rng{static_cast<std::uint64_t>(300 + layout)};
+    for (int t = 0; t < 10; ++t) {
+      const Pose2d truth = layout == 0 ? Pose2d{rng.uniform(3.0, 17.0), rng.uniform(2.0, 8.0), rng.uniform(-3.1, 3.1)}
+                                       : Pose2d{rng.uniform(-3.0, 3.0), rng.uniform(-3.0, 3.0), rng.uniform(-3.1, 3.1)};
+      std::size_t n = 0;
+      (void)scan(truth, rng, obs, n, false, 0.0);
+      RelocReport r;
+      const Status st = loc.localize(map, Span<const PointObservation>(obs, n), r);
+      INFO("layout " << layout << " trial " << t << " outcome " << static_cast<int>(r.outcome) << " inliers "
+                     << r.inliers << " second " << r.secondInliers);
+      CHECK(st == Status::Rejected);
+      CHECK(r.outcome == RelocOutcome::Ambiguous);
+      CHECK(r.hasSecond);
+      CHECK(r.secondInliers == r.inliers);
+    }
+  }
+  // Breaking the rectangle's symmetry with three extra poles on one side makes the pose unique.
+  map.clear();
+  const double extra[][2] = {{2.0, 12.5}, {7.5, 13.0}, {13.0, 12.0}};
+  std::size_t count = 0;
+  for (const auto& p : rect) {
+    g_poles[count] = Eigen::Vector2d(p[0], p[1]);
+    ++count;
+  }
+  for (const auto& p : extra) {
+    g_poles[count] = Eigen::Vector2d(p[0], p[1]);
+    ++count;
+  }
+  for (std::size_t i = 0; i < count; ++i) {
+    g_kinds[i] = LandmarkKind::Reflector;
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, g_poles[i].x(), g_poles[i].y(), 0.005,
+                            static_cast<std::uint32_t>(i + 1))
+                .ok());
+  }
+  LoopRng rng{400};
+  const Pose2d truth{9.0, 4.0, 0.7};
+  std::size_t n = 0;
+  (void)scan(truth, rng, obs, n, false, 0.0);
+  RelocReport r;
+  CHECK(loc.localize(map, Span<const PointObservation>(obs, n), r) == Status::Ok);
+  CHECK(posError(r.pose, truth) < 0.05);
+}
+
+TEST_CASE("global localizer: weak, empty, non-finite and over-capacity inputs are refused", "[loop][reloc]") {
+  buildWarehouse(5);
+  GlobalLocalizer& loc = localizer();
+  loc.setParams(params());
+  static PointObservation obs[kMaxLoopPoints + 1];
+  LoopRng rng{11};
+  const Pose2d truth{110.0, 110.0, 0.3};
+  std::size_t n = 0;
+  (void)scan(truth, rng, obs, n, false, 0.0);
+  REQUIRE(n >= 6U);
+  RelocReport r;
+  // Three true detections: a clique of 3 fixes a pose, but 3 < N_min = 4.
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(obs, 3), r) == Status::NotEnoughData);
+  CHECK(r.outcome == RelocOutcome::WeakSupport);
+  // Empty observations, empty map.
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(), r) == Status::EmptyInput);
+  // NaN and infinity.
+  const double saved = obs[2].x;
+  obs[2].x = std::nan("");
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::NonFiniteInput);
+  CHECK(r.outcome == RelocOutcome::NonFiniteInput);
+  obs[2].x = saved;
+  obs[3].y = HUGE_VAL;
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::NonFiniteInput);
+  (void)scan(truth, rng, obs, n, false, 0.0);
+  // Over capacity: 65 observations, counted.
+  for (std::size_t i = n; i < kMaxLoopPoints + 1; ++i) {
+    obs[i] = obs[i % n];
+  }
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(obs, kMaxLoopPoints + 1), r) ==
+        Status::CapacityExceeded);
+  CHECK(r.outcome == RelocOutcome::OverCapacity);
+  CHECK(r.refusedObservations == 1U);
+  // Invalid parameters.
+  GlobalLocalizerParams bad = params();
+  bad.minSupport = 2;
+  loc.setParams(bad);
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::InvalidArgument);
+  // Work bound: one node for the whole call is hit and reported.
+  GlobalLocalizerParams tight = params();
+  tight.maxTotalNodes = 1;
+  loc.setParams(tight);
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::NotConverged);
+  CHECK(r.outcome == RelocOutcome::WorkBoundHit);
+  loc.setParams(params());
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::Ok);
+  CHECK(posError(r.pose, truth) < 0.05);
+  // Steady state: no allocation.
+  AGV_CHECK_NO_ALLOCATIONS((void)loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r));
+  // An empty map.
+  warehouseMap().clear();
+  CHECK(loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::EmptyInput);
+}
+
+TEST_CASE("reloc confirmer: confirms a true candidate over K scans, rejects a wrong one", "[loop][reloc]") {
+  buildWarehouse(23);
+  LoopRng rng{31};
+  static PointObservation obs[kMaxLoopPoints];
+  Pose2d truth{100.0, 90.0, 1.0};
+  const Pose2d step{0.5, 0.0, 0.05};  // odometry between scans (vehicle frame)
+  RelocConfirmer good;
+  RelocConfirmer bad;
+  good.start(Pose2d{truth.x + 0.02, truth.y - 0.01, truth.theta + 0.002});
+  bad.start(Pose2d{truth.x + 1.0, truth.y, truth.theta});
+  CHECK(good.state() == RelocConfirmState::Pending);
+  RelocConfirmState sg = RelocConfirmState::Pending;
+  RelocConfirmState sb = RelocConfirmState::Pending;
+  for (int k = 0; k < 3; ++k) {
+    truth = truth.compose(step).normalized();
+    std::size_t n = 0;
+    (void)scan(truth, rng, obs, n);
+    sg = good.step(step, warehouseMap(), Span<const PointObservation>(obs, n), kMount);
+    sb = bad.step(step, warehouseMap(), Span<const PointObservation>(obs, n), kMount);
+    if (k < 2) {
+      CHECK(sg == RelocConfirmState::Pending);
+    }
+    CHECK(sb == RelocConfirmState::Rejected);
+  }
+  CHECK(sg == RelocConfirmState::Confirmed);
+  CHECK(good.confirmedScans() == 3U);
+  CHECK(posError(good.pose(), truth) < 0.03);
+  // A NaN odometry increment rejects.
+  good.start(truth);
+  CHECK(good.step(Pose2d{std::nan(""), 0.0, 0.0}, warehouseMap(), Span<const PointObservation>(obs, 1), kMount) ==
+        RelocConfirmState::Rejected);
+}
+
+#ifndef AGV_TEST_MCU
+namespace {
+
+/// A regular warehouse: 16 x 16 poles on a `pitch` grid, each moved by up to +-jitter per axis.
+void buildGrid(double pitch, double jitter, std::uint64_t seed) {
+  LoopRng rng{seed};
+  LandmarkMap& map = warehouseMap();
+  map.clear();
+  for (std::size_t i = 0; i < kPoles; ++i) {
+    g_poles[i] = Eigen::Vector2d(static_cast<double>(i % 16) * pitch + rng.uniform(-jitter, jitter),
+                                 static_cast<double>(i / 16) * pitch + rng.uniform(-jitter, jitter));
+    g_kinds[i] = LandmarkKind::Reflector;
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, g_poles[i].x(), g_poles[i].y(), 0.005,
+                            static_cast<std::uint32_t>(i + 1))
+                .ok());
+  }
+}
+
+}  // namespace
+
+TEST_CASE("global localizer: regular pole grids, heavy clutter: refusals, never a wrong pose", "[loop][reloc]") {
+  GlobalLocalizer& loc = localizer();
+  loc.setParams(params());
+  static PointObservation obs[kMaxLoopPoints];
+  struct Case {
+    const char* name;
+    double jitter;  // [m]
+    double miss;
+    bool spurious;
+  };
+  const Case cases[] = {{"perfect 12 m grid", 0.0, kMiss, true},
+                        {"12 m grid, 0.05 m jitter", 0.05, kMiss, true},
+                        {"12 m grid, 0.1 m jitter", 0.1, kMiss, true},
+                        {"12 m grid, 0.3 m jitter", 0.3, kMiss, true},
+                        {"12 m grid, 0.3 m jitter, 30 % missed", 0.3, 0.30, true}};
+  for (const Case& c : cases) {
+    buildGrid(12.0, c.jitter, 77);
+    LoopRng rng{555};
+    std::size_t found = 0;
+    std::size_t refused = 0;
+    std::size_t wrong = 0;
+    for (std::size_t t = 0; t < 200; ++t) {
+      const Pose2d truth{rng.uniform(20.0, 160.0), rng.uniform(20.0, 160.0), rng.uniform(-3.14, 3.14)};
+      std::size_t n = 0;
+      (void)scan(truth, rng, obs, n, c.spurious, c.miss);
+      RelocReport r;
+      if (loc.localize(warehouseMap(), Span<const PointObservation>(obs, n), r) == Status::Ok) {
+        (posError(r.pose, truth) > 0.05 || angError(r.pose, truth) > 0.5 * kDeg ? wrong : found) += 1;
+      } else {
+        ++refused;
+      }
+    }
+    WARN("reloc " << c.name << ": found " << found << " refused " << refused << " wrong " << wrong);
+    CHECK(wrong == 0U);
+    if (c.jitter == 0.0) {
+      CHECK(found == 0U);  // a perfect grid is translation-symmetric: always ambiguous
+    }
+  }
+}
+#endif
