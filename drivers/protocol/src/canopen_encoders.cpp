@@ -233,12 +233,9 @@ void CanopenEncoders::onEmcy(NodeHealth& h, std::uint8_t node, const CanFrame& f
   r.stamp = f.stamp;
   ++h.emcyCount;
   h.emcyActive = r.errorCode != 0U;
-  if (emcyCount_ == kEmcyQueue) {
-    ++emcyDropped_;  // keep the oldest (the first fault explains the rest)
-    return;
+  if (emcy_.tryPush(r) != Status::Ok) {
+    ++emcyDropped_;  // full: keep the oldest (the first fault explains the rest)
   }
-  emcy_[(emcyHead_ + emcyCount_) % kEmcyQueue] = r;
-  ++emcyCount_;
 }
 
 FrameKind CanopenEncoders::onFrame(const CanFrame& f) noexcept {
@@ -366,12 +363,11 @@ bool CanopenEncoders::takeSample(hal::EncoderSample& sample) noexcept {
 }
 
 bool CanopenEncoders::takeEmcy(EmcyRecord& record) noexcept {
-  if (emcyCount_ == 0U) {
+  if (emcy_.empty()) {
     return false;
   }
-  record = emcy_[emcyHead_];
-  emcyHead_ = (emcyHead_ + 1U) % kEmcyQueue;
-  --emcyCount_;
+  record = emcy_.front();
+  emcy_.pop_front();
   return true;
 }
 

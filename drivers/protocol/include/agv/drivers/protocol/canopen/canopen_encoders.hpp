@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "agv/core/fixed_ring.hpp"
 #include "agv/core/span.hpp"
 #include "agv/core/status.hpp"
 #include "agv/core/timestamp.hpp"
@@ -204,10 +205,8 @@ class CanopenEncoders {
   // SYNC.
   bool syncStarted_ = false;
   Timestamp nextSync_{};
-  // EMCY ring.
-  EmcyRecord emcy_[kEmcyQueue];
-  std::size_t emcyHead_ = 0;
-  std::size_t emcyCount_ = 0;
+  // EMCY queue, oldest first.
+  FixedRing<EmcyRecord, kEmcyQueue> emcy_;
   std::uint32_t emcyDropped_ = 0;
   std::uint32_t malformed_ = 0;
 };
