@@ -264,29 +264,26 @@ bool checkReplayLog(const datasets::CarmenLog& log, std::string& error) {
     error = "no ODOM line: not a gmapping-corrected CARMEN log (FLASER + ODOM)";
     return false;
   }
-  const auto implausible = [](const Pose2d& a, const Pose2d& b, double dt) {
-    const double step = std::hypot(b.x - a.x, b.y - a.y);
-    return step > kMaxPlausibleStep && step > kMaxPlausibleSpeed * std::max(0.0, dt);
+  // The first step beyond physics (over 10 m and over 20 m/s) in a sequence of timestamped poses.
+  const auto firstJump = [&error](const auto& records, const auto& poseOf, const char* what) {
+    for (std::size_t i = 1; i < records.size(); ++i) {
+      const Pose2d& a = poseOf(records[i - 1]);
+      const Pose2d& b = poseOf(records[i]);
+      const double step = std::hypot(b.x - a.x, b.y - a.y);
+      const double dt = std::max(0.0, records[i].timestamp - records[i - 1].timestamp);
+      if (step > kMaxPlausibleStep && step > kMaxPlausibleSpeed * dt) {
+        error = "line " + std::to_string(records[i].line) + ": " + what + " jumps " + fmt("%.1f m", step) +
+                " from line " + std::to_string(records[i - 1].line) + " (beyond physics)";
+        return true;
+      }
+    }
+    return false;
   };
-  for (std::size_t i = 1; i < log.scans.size(); ++i) {
-    const datasets::LogScan& a = log.scans[i - 1];
-    const datasets::LogScan& b = log.scans[i];
-    if (implausible(a.robotPose, b.robotPose, b.timestamp - a.timestamp)) {
-      error = "line " + std::to_string(b.line) + ": the corrected pose jumps " +
-              fmt("%.1f m", std::hypot(b.robotPose.x - a.robotPose.x, b.robotPose.y - a.robotPose.y)) + " from line " +
-              std::to_string(a.line) + " (beyond physics)";
-      return false;
-    }
-  }
-  for (std::size_t i = 1; i < log.odometry.size(); ++i) {
-    const datasets::LogOdometry& a = log.odometry[i - 1];
-    const datasets::LogOdometry& b = log.odometry[i];
-    if (implausible(a.pose, b.pose, b.timestamp - a.timestamp)) {
-      error = "line " + std::to_string(b.line) + ": the odometry jumps " +
-              fmt("%.1f m", std::hypot(b.pose.x - a.pose.x, b.pose.y - a.pose.y)) + " from line " +
-              std::to_string(a.line) + " (beyond physics)";
-      return false;
-    }
+  if (firstJump(
+          log.scans, [](const datasets::LogScan& s) -> const Pose2d& { return s.robotPose; }, "the corrected pose") ||
+      firstJump(
+          log.odometry, [](const datasets::LogOdometry& o) -> const Pose2d& { return o.pose; }, "the odometry")) {
+    return false;
   }
   return true;
 }
@@ -367,8 +364,9 @@ class ScanReplay {
         // without a surveyed map there is nothing else to return to.
         (void)localizer_->reset(stamp, localizer_->pose(), localizer_->covariance());
         if (map_->mode() == MapMode::Dynamic) {
-          map_->clear();
-          map_->setMode(MapMode::Dynamic);
+          r_.mapInserted += map_->counters().inserted;  // clear() resets the counters
+          r_.mapDeleted += map_->counters().deleted;
+          map_->clear();  // the mode stays
           ++r_.mapRestarts;
         }
       }
@@ -389,8 +387,8 @@ class ScanReplay {
   void finish() {
     r_.meanTestRatio = ratioCount_ > 0 ? ratioSum_ / static_cast<double>(ratioCount_) : 0.0;
     r_.mapSize = map_->size();
-    r_.mapInserted = map_->counters().inserted;
-    r_.mapDeleted = map_->counters().deleted;
+    r_.mapInserted += map_->counters().inserted;  // plus those of the maps dropped on restarts
+    r_.mapDeleted += map_->counters().deleted;
   }
 
  private:

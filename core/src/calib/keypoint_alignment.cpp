@@ -7,6 +7,7 @@
 #include "agv/calib/rigid_fit.hpp"
 #include "agv/core/angle.hpp"
 #include "agv/core/capacities.hpp"
+#include "agv/core/split_mix64.hpp"
 
 namespace agv {
 namespace {
@@ -63,19 +64,6 @@ void formCandidates(const KeypointScanView& first, const KeypointScanView& secon
     c.total += n;
   }
 }
-
-/// Deterministic generator (splitmix64): reproducible hypotheses on every platform.
-struct SplitMix {
-  std::uint64_t state;
-  std::uint64_t next() noexcept {
-    state += 0x9E3779B97F4A7C15ULL;
-    std::uint64_t z = state;
-    z = (z ^ (z >> 30U)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27U)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31U);
-  }
-  std::size_t below(std::size_t n) noexcept { return static_cast<std::size_t>(next() % n); }
-};
 
 /// For every second keypoint, the candidate whose mapped distance is smallest and within the gate
 /// (each first keypoint used once: the closer claim wins). Returns the pair count and the sum of
@@ -242,14 +230,16 @@ Status alignKeypoints(const KeypointScanView& first, const KeypointScanView& sec
       }
     }
   } else {
-    SplitMix rng{opt.seed};
+    // Reproducible hypotheses on every platform; draws by remainder (as they always were).
+    SplitMix64 rng{opt.seed};
+    const auto below = [&rng](std::size_t n) { return static_cast<std::size_t>(rng.next() % n); };
     for (int d = 0; d < opt.maxDraws && static_cast<std::size_t>(out.hypotheses) < budget; ++d) {
-      const std::size_t ja = rng.below(q.size());
-      const std::size_t jb = rng.below(q.size());
+      const std::size_t ja = below(q.size());
+      const std::size_t jb = below(q.size());
       if (cand.count[ja] == 0 || cand.count[jb] == 0) {
         continue;
       }
-      tryPair(ja, rng.below(cand.count[ja]), jb, rng.below(cand.count[jb]));
+      tryPair(ja, below(cand.count[ja]), jb, below(cand.count[jb]));
     }
   }
   out.motion = best;

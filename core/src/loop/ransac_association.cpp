@@ -41,7 +41,7 @@ Status RansacMatcher::match(Span<const Eigen::Vector2f> first, Span<const Eigen:
 Status RansacMatcher::run(Span<const Eigen::Vector2f> first, Span<const Eigen::Vector2f> second,
                           Span<const PointPair> cand, PointAssociation& out) noexcept {
   const RansacParams& p = params_;
-  detail::SplitMix64 rng{p.seed};
+  SplitMix64 rng{p.seed};
   const auto k = static_cast<std::uint32_t>(cand.size());
   const float gate2 = p.inlierGate * p.inlierGate;
   const float minBase2 = p.minBaseline * p.minBaseline;

@@ -9,21 +9,13 @@
 #include "agv/localization/sweep_motion.hpp"
 
 namespace agv::nav {
-namespace {
-
-bool finite(double v) noexcept {
-  return std::isfinite(v);
-}
-
-}  // namespace
-
 Status PipelineParams::validate() const noexcept {
   for (const Status s : {kinematics.validate(), odometryNoise.validate(), localizer.validate(), agv::validate(falko)}) {
     if (s != Status::Ok) {
       return s;
     }
   }
-  if (!finite(setPosePositionStdDev) || !finite(setPoseHeadingStdDev)) {
+  if (!std::isfinite(setPosePositionStdDev) || !std::isfinite(setPoseHeadingStdDev)) {
     return Status::NonFiniteInput;
   }
   if (setPosePositionStdDev < 0.0 || setPoseHeadingStdDev < 0.0 || publishPeriod.ns < 0 || maxSamplesPerCycle == 0 ||
