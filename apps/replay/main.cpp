@@ -89,6 +89,14 @@ void addLocalizerOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
 void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_flag("--static-map-from-truth", options.staticMapFromTruth,
                "localization case: static corner map built first from the corrected poses (optimistic)");
+  app.add_option("--map-fraction", options.mapFraction,
+                 "localize on the product's own maps: the first fraction of the scans (0..1) is the mapping run "
+                 "(static corners + likelihood field), the rest is localized on them (0: off)");
+  app.add_flag("!--no-scan-matching", options.scanMatching, "with --map-fraction: the corner map alone");
+  app.add_option("--field-resolution", options.field.resolution, "[m] likelihood field cell size");
+  app.add_option("--field-min-scans", options.fieldMinScans, "mapping scans a field surface cell needs");
+  app.add_option("--match-inflation", options.localizer.scanMatch.covarianceInflation,
+                 "scan-match covariance inflation");
   app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");
   app.add_option("--static-min-count", options.staticMinCount, "detections a static corner needs");
   app.add_option("--trace", options.tracePath, "write one CSV line per scan (health, errors)");

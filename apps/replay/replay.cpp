@@ -1,5 +1,6 @@
 #include "replay.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -154,6 +155,120 @@ std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const 
   return id - 1U;
 }
 
+/// Scan points of the mapping run (scans [0, n)) placed with the corrected poses, as the surfaces
+/// of `field`: the area is their bounding box plus the field's saturation distance, a cell is a
+/// surface when points of at least `options.fieldMinScans` scans fall in it. False with `error`
+/// when the area does not fit the field's capacity.
+bool buildField(const datasets::CarmenLog& log, std::size_t n, const ReplayOptions& options,
+                LikelihoodFieldBase& field, std::string& error) {
+  const double rangeMax = options.localizer.laser.rangeMax;
+  std::vector<Eigen::Vector2d> points;
+  std::vector<Eigen::Vector2d> views;  // unit vectors from each point to the laser that saw it
+  std::vector<std::uint32_t> scanOf;
+  auto scan = std::make_unique<LaserScan>();
+  double minX = 1e300;
+  double minY = 1e300;
+  double maxX = -1e300;
+  double maxY = -1e300;
+  for (std::size_t i = 0; i < n; ++i) {
+    (void)log.scans[i].toLaserScan(*scan);
+    const Pose2d laser = log.scans[i].robotPose.compose(options.laserMounting);
+    for (std::size_t b = 0; b < scan->size(); ++b) {
+      if (!scan->isValid(b) || static_cast<double>(scan->ranges[b]) > rangeMax) {
+        continue;
+      }
+      const double a = static_cast<double>(scan->angle(b));
+      const double r = static_cast<double>(scan->ranges[b]);
+      const Eigen::Vector2d w = laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a)));
+      points.push_back(w);
+      views.push_back((laser.translation() - w).normalized());
+      scanOf.push_back(static_cast<std::uint32_t>(i));
+      minX = std::min(minX, w.x());
+      minY = std::min(minY, w.y());
+      maxX = std::max(maxX, w.x());
+      maxY = std::max(maxY, w.y());
+    }
+  }
+  if (points.empty()) {
+    error = "the mapping run has no scan point";
+    return false;
+  }
+  const double res = options.field.resolution;
+  const double margin = options.field.maxDistance + 2.0 * res;
+  const double ox = minX - margin;
+  const double oy = minY - margin;
+  const auto width = static_cast<std::size_t>(std::ceil((maxX - minX + 2.0 * margin) / res));
+  const auto height = static_cast<std::size_t>(std::ceil((maxY - minY + 2.0 * margin) / res));
+  const Status st = field.configure(options.field, ox, oy, width, height);
+  if (st != Status::Ok) {
+    error = "likelihood field of " + std::to_string(width) + " x " + std::to_string(height) + " cells refused (" +
+            toString(st) + "; capacity " + std::to_string(field.capacity()) + " cells)";
+    return false;
+  }
+  // Per cell: how many scans hit it (counted once per scan) and the sum of its points.
+  struct CellSum {
+    double x = 0.0;
+    double y = 0.0;
+    double xx = 0.0;
+    double xy = 0.0;
+    double yy = 0.0;
+    Eigen::Vector2d view = Eigen::Vector2d::Zero();
+    std::uint32_t points = 0;
+    std::uint32_t scans = 0;
+    std::uint32_t lastScan = UINT32_MAX;
+  };
+  std::unordered_map<std::size_t, CellSum> cells;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const auto cx = static_cast<std::size_t>((points[k].x() - ox) / res);
+    const auto cy = static_cast<std::size_t>((points[k].y() - oy) / res);
+    CellSum& c = cells[cx + cy * width];
+    c.x += points[k].x();
+    c.y += points[k].y();
+    c.xx += points[k].x() * points[k].x();
+    c.xy += points[k].x() * points[k].y();
+    c.yy += points[k].y() * points[k].y();
+    c.view += views[k];
+    ++c.points;
+    if (c.lastScan != scanOf[k]) {
+      c.lastScan = scanOf[k];
+      ++c.scans;
+    }
+  }
+  // One surface point per cell seen in enough scans: the mean of its points, facing the side it
+  // was seen from: the normal of the points' line (principal axes) when they form one, else the
+  // mean direction to the laser.
+  for (const auto& kv : cells) {
+    const CellSum& c = kv.second;
+    if (c.scans < options.fieldMinScans) {
+      continue;
+    }
+    const double n = static_cast<double>(c.points);
+    const Eigen::Vector2d mean(c.x / n, c.y / n);
+    Eigen::Matrix2d cov;
+    cov << c.xx / n - mean.x() * mean.x(), c.xy / n - mean.x() * mean.y(), c.xy / n - mean.x() * mean.y(),
+        c.yy / n - mean.y() * mean.y();
+    Eigen::Vector2d normal = c.view;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
+    if (c.points >= 3 && es.eigenvalues()(1) > 4.0 * es.eigenvalues()(0)) {
+      normal = es.eigenvectors().col(0);
+      if (normal.dot(c.view) < 0.0) {
+        normal = -normal;
+      }
+    }
+    if (normal.squaredNorm() > 0.0) {
+      (void)field.addPoint(mean.x(), mean.y(), normal.x(), normal.y());
+    }
+  }
+  if (field.build() != Status::Ok) {
+    error = "the mapping run leaves no surface seen in " + std::to_string(options.fieldMinScans) + " scans";
+    return false;
+  }
+  return true;
+}
+
+/// Cells of the replay's likelihood field: 8 M (8 MB), a 140 m x 140 m area at 5 cm.
+constexpr std::size_t kReplayFieldCells = std::size_t{8} << 20U;
+
 }  // namespace
 
 ReplayOptions fr079Defaults() {
@@ -291,17 +406,18 @@ bool checkReplayLog(const datasets::CarmenLog& log, std::string& error) {
 namespace {
 
 /// The ground truth (corrected poses), the raw odometry chained from `inc` and the path length of
-/// the first `n` scans.
-void recordTracks(const datasets::CarmenLog& log, std::size_t n, const std::vector<Pose2d>& inc, ReplayResult& r) {
+/// scans [start, n).
+void recordTracks(const datasets::CarmenLog& log, std::size_t start, std::size_t n, const std::vector<Pose2d>& inc,
+                  ReplayResult& r) {
   r.truth.clear();
   r.odometry.clear();
   r.localizer.clear();
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = start; i < n; ++i) {
     r.truth.push_back(log.scans[i].robotPose);
-    r.odometry.push_back(i == 0 ? r.truth[0] : r.odometry.back().compose(inc[i]));
+    r.odometry.push_back(i == start ? r.truth[0] : r.odometry.back().compose(inc[i]));
   }
   r.pathLength = 0.0;
-  for (std::size_t i = 1; i < n; ++i) {
+  for (std::size_t i = 1; i < r.truth.size(); ++i) {
     r.pathLength += std::hypot(r.truth[i].x - r.truth[i - 1].x, r.truth[i].y - r.truth[i - 1].y);
   }
 }
@@ -324,13 +440,26 @@ class ScanReplay {
   ScanReplay& operator=(const ScanReplay&) = delete;
   ~ScanReplay() { closeTrace(); }
 
-  /// The static map (when asked), the localizer at the first corrected pose, the trace file.
-  bool begin(std::size_t n, std::string& error) {
-    r_.staticMap = options_.staticMapFromTruth;
+  /// The static map and field (when asked), the localizer at the corrected pose of scan `start`
+  /// (the first after the mapping run), the trace file.
+  bool begin(std::size_t start, std::size_t n, std::string& error) {
+    start_ = start;
+    r_.staticMap = options_.staticMapFromTruth || start > 0;
     if (options_.staticMapFromTruth) {
-      (void)buildStaticMap(log_, n, options_, *map_);
+      r_.staticCorners = buildStaticMap(log_, n, options_, *map_);
+    } else if (start > 0) {
+      r_.staticCorners = buildStaticMap(log_, start, options_, *map_);
+      if (options_.scanMatching) {
+        field_ = std::make_unique<LikelihoodField<kReplayFieldCells>>();
+        if (!buildField(log_, start, options_, *field_, error)) {
+          return false;
+        }
+        r_.fieldSurfaceCells = field_->surfacePoints();
+        r_.fieldWidth = static_cast<double>(field_->width()) * options_.field.resolution;
+        r_.fieldHeight = static_cast<double>(field_->height()) * options_.field.resolution;
+      }
     }
-    last_ = Timestamp::fromSeconds(log_.scans[0].timestamp);
+    last_ = Timestamp::fromSeconds(log_.scans[start].timestamp);
     if (localizer_->reset(last_, r_.truth[0], p0_) != Status::Ok) {
       error = "localizer refused the initial pose";
       return false;
@@ -339,7 +468,7 @@ class ScanReplay {
     if (trace_ != nullptr) {
       std::fputs(
           "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
-          "map\n",
+          "map,match,match_inliers,match_rms,match_d2\n",
           trace_);
     }
     return true;
@@ -348,13 +477,14 @@ class ScanReplay {
   /// Scan `i`: prediction to its stamp (after the first), its corners, the correction, the tally.
   bool replayScan(std::size_t i, std::string& error) {
     Timestamp stamp = Timestamp::fromSeconds(log_.scans[i].timestamp);
-    if (i > 0 && !predictTo(i, stamp, error)) {
+    if (i > start_ && !predictTo(i, stamp, error)) {
       return false;
     }
     (void)log_.scans[i].toLaserScan(*scan_);
     detectCorners(stamp);
     r_.keypoints += obs_->points.size();
-    const LocalizerHealth& h = localizer_->correct(*obs_, *scan_, *map_);
+    const LocalizerHealth& h =
+        field_ ? localizer_->correct(*obs_, *scan_, *map_, *field_) : localizer_->correct(*obs_, *scan_, *map_);
     tally(h);
     if (h.lost) {
       ++r_.lostEvents;
@@ -398,7 +528,8 @@ class ScanReplay {
     if (!(last_ < stamp)) {
       stamp = last_ + Duration::fromNanoseconds(1000);
     }
-    const Pose2d delta = options_.truthOdometry ? between(r_.truth[i - 1], r_.truth[i]) : inc_[i];
+    const Pose2d delta =
+        options_.truthOdometry ? between(log_.scans[i - 1].robotPose, log_.scans[i].robotPose) : inc_[i];
     const Status st = localizer_->predict(unicycleIncrement(stamp, delta, options_.odometryNoise));
     if (st != Status::Ok) {
       error = std::string("prediction refused at scan ") + std::to_string(i) + ": " + toString(st);
@@ -424,7 +555,15 @@ class ScanReplay {
   /// One cycle's health summed into the result.
   void tally(const LocalizerHealth& h) {
     r_.used += h.used;
-    r_.fixCycles += h.used >= lp_.health.minMatchesForFix ? 1U : 0U;
+    r_.fixCycles += hasFlag(h.flags, LocalizerFlag::NoFix) ? 0U : 1U;
+    r_.noFixCycles += hasFlag(h.flags, LocalizerFlag::NoFix) ? 1U : 0U;
+    r_.lostCycles += h.lost ? 1U : 0U;
+    if (h.scanMatch.attempted) {
+      ++r_.matchAttempts;
+      r_.matchFused += h.scanMatch.fused ? 1U : 0U;
+      r_.matchGated += h.scanMatch.status == Status::Rejected ? 1U : 0U;
+      r_.matchRefused += !h.scanMatch.fused && h.scanMatch.status != Status::Rejected ? 1U : 0U;
+    }
     r_.rejectedGate += h.rejectedGate;
     r_.rejectedAmbiguous += h.rejectedAmbiguous;
     r_.rejectedDuplicate += h.rejectedDuplicate;
@@ -444,11 +583,13 @@ class ScanReplay {
       return;
     }
     const Pose2d& e = r_.localizer.back();
-    std::fprintf(trace_, "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu\n", i, obs_->points.size(),
-                 unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched}, unsigned{h.rejectedGate},
-                 unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma, h.headingSigma,
-                 std::hypot(e.x - r_.truth[i].x, e.y - r_.truth[i].y), normalizeAngle(e.theta - r_.truth[i].theta),
-                 map_->size());
+    const Pose2d& t = log_.scans[i].robotPose;
+    std::fprintf(trace_, "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f\n", i,
+                 obs_->points.size(), unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched},
+                 unsigned{h.rejectedGate}, unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma,
+                 h.headingSigma, std::hypot(e.x - t.x, e.y - t.y), normalizeAngle(e.theta - t.theta), map_->size(),
+                 h.scanMatch.attempted ? toString(h.scanMatch.status) : "-", unsigned{h.scanMatch.inliers},
+                 h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2);
   }
 
   const datasets::CarmenLog& log_;
@@ -459,6 +600,8 @@ class ScanReplay {
   std::unique_ptr<Localizer> localizer_;
   std::unique_ptr<LandmarkMap> map_;
   std::unique_ptr<FalkoDetector> detector_;
+  std::unique_ptr<LikelihoodField<kReplayFieldCells>> field_;
+  std::size_t start_ = 0;
   std::unique_ptr<LaserScan> scan_ = std::make_unique<LaserScan>();
   std::unique_ptr<FalkoKeypoints> kps_ = std::make_unique<FalkoKeypoints>();
   std::unique_ptr<ScanObservations> obs_ = std::make_unique<ScanObservations>();
@@ -489,18 +632,31 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
     error = "fewer than 2 scans";
     return false;
   }
-  r.scans = n;
-  r.duration = log.scans[n - 1].timestamp - log.scans[0].timestamp;
+  std::size_t start = 0;
+  if (options.mapFraction != 0.0) {
+    if (!(options.mapFraction > 0.0 && options.mapFraction < 1.0)) {
+      error = "the mapping fraction must lie in (0, 1)";
+      return false;
+    }
+    start = static_cast<std::size_t>(options.mapFraction * static_cast<double>(n));
+    if (start < 1 || n - start < 2) {
+      error = "the mapping run leaves fewer than 2 scans to localize";
+      return false;
+    }
+  }
+  r.mappingScans = start;
+  r.scans = n - start;
+  r.duration = log.scans[n - 1].timestamp - log.scans[start].timestamp;
   std::vector<Pose2d> inc;
   r.zeroIncrements = odometryIncrements(log, n, inc);
-  recordTracks(log, n, inc, r);
+  recordTracks(log, start, n, inc, r);
 
   ScanReplay replay(log, options, inc, r);
-  if (!replay.begin(n, error)) {
+  if (!replay.begin(start, n, error)) {
     return false;
   }
   const auto t0 = std::chrono::steady_clock::now();
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = start; i < n; ++i) {
     if (!replay.replayScan(i, error)) {
       return false;
     }
@@ -546,6 +702,17 @@ std::string resultText(const ReplayResult& r) {
     << r.rejectedDuplicate << ", update " << r.rejectedUpdate << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
   o << "in view: " << r.expected << " landmark-cycles expected, " << r.occluded
     << " inside the view limits but hidden or without a return\n";
+  if (r.mappingScans > 0) {
+    o << "mapping run: the first " << r.mappingScans << " scans -> " << r.staticCorners << " static corners";
+    if (r.fieldSurfaceCells > 0) {
+      o << ", likelihood field " << fmt("%.1f m x %.1f m", r.fieldWidth, r.fieldHeight) << " with "
+        << r.fieldSurfaceCells << " surface cells";
+    }
+    o << "; localized: the " << r.scans << " scans after it\n";
+    o << "scan matching: " << r.matchAttempts << " attempts, " << r.matchFused << " fused, " << r.matchGated
+      << " gated, " << r.matchRefused << " refused by the matcher; " << r.noFixCycles << " cycles without a fix, "
+      << r.lostCycles << " cycles lost\n";
+  }
   o << (r.staticMap ? "static map (built from the corrected poses): " : "dynamic map: ") << r.mapSize
     << " landmarks at the end, " << r.mapInserted << " inserted, " << r.mapDeleted << " deleted; replay "
     << fmt("%.1f s\n", r.seconds);
@@ -567,6 +734,17 @@ report::Json resultJson(const ReplayResult& r) {
               {"odometry_absolute", errors(r.odometryAbsolute.position, r.odometryAbsolute.heading)},
               {"localizer_absolute", errors(r.localizerAbsolute.position, r.localizerAbsolute.heading)},
               {"static_map", r.staticMap},
+              {"mapping_run",
+               {{"scans", r.mappingScans},
+                {"static_corners", r.staticCorners},
+                {"field_surface_cells", r.fieldSurfaceCells},
+                {"field_width_m", r.fieldWidth},
+                {"field_height_m", r.fieldHeight}}},
+              {"scan_matching",
+               {{"attempts", r.matchAttempts},
+                {"fused", r.matchFused},
+                {"gated", r.matchGated},
+                {"refused", r.matchRefused}}},
               {"laser_x_m", r.laserX},
               {"localizer",
                {{"keypoints", r.keypoints},
@@ -574,6 +752,8 @@ report::Json resultJson(const ReplayResult& r) {
                 {"fix_cycles", r.fixCycles},
                 {"bad_cycles", r.badCycles},
                 {"lost_events", r.lostEvents},
+                {"lost_cycles", r.lostCycles},
+                {"no_fix_cycles", r.noFixCycles},
                 {"map_restarts", r.mapRestarts},
                 {"rejected_gate", r.rejectedGate},
                 {"rejected_ambiguous", r.rejectedAmbiguous},

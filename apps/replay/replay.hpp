@@ -11,6 +11,7 @@
 #include "agv/core/pose2.hpp"
 #include "agv/datasets/carmen_log.hpp"
 #include "agv/falko/falko_params.hpp"
+#include "agv/localization/likelihood_field.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/odometry.hpp"
 #include "agv/report/json.hpp"
@@ -49,6 +50,19 @@ struct ReplayOptions {
   double staticClusterRadius = 0.10;  ///< [m]
   std::size_t staticMinCount = 5;
   double staticSigma = 0.02;  ///< [m] declared sigma of the static corners
+  /// Localization on the product's own maps, the honest case: when in (0, 1), the first
+  /// `mapFraction` of the scans is the *mapping run*: its corners (clustered as above) become a
+  /// static corner map and its scan points a likelihood field (`field`), both placed with the
+  /// corrected poses; the localizer then starts at the corrected pose of the first scan after it
+  /// and localizes the rest of the log on those maps, with scan-to-map matching, in Static mode.
+  /// The errors are measured on that rest only, absolute in the map's frame. 0: off.
+  double mapFraction = 0.0;
+  LikelihoodFieldParams field{};
+  /// A field cell becomes a surface only when scan points of at least this many mapping scans fall
+  /// in it (a person walking through the mapping run leaves no wall behind).
+  std::size_t fieldMinScans = 2;
+  /// Scan-to-map matching on the field (with `mapFraction`); off: the corner map alone.
+  bool scanMatching = true;
   /// When not empty, one CSV line per scan (health and errors) is written here.
   std::string tracePath;
 };
@@ -128,6 +142,18 @@ struct ReplayResult {
   std::size_t mapInserted = 0;
   std::size_t mapDeleted = 0;
   bool staticMap = false;
+  // Localization on a map from a mapping run (`mapFraction`).
+  std::size_t mappingScans = 0;     ///< scans of the mapping run (not localized)
+  std::size_t staticCorners = 0;    ///< corners of the static map
+  std::size_t fieldSurfaceCells = 0;
+  double fieldWidth = 0.0;          ///< [m]
+  double fieldHeight = 0.0;         ///< [m]
+  std::size_t matchAttempts = 0;    ///< scans matched against the field
+  std::size_t matchFused = 0;       ///< matches used in the update
+  std::size_t matchGated = 0;       ///< refused by the gate against the prior
+  std::size_t matchRefused = 0;     ///< refused by the matcher (too few inliers, unobservable, ...)
+  std::size_t lostCycles = 0;       ///< cycles whose health said lost
+  std::size_t noFixCycles = 0;      ///< cycles without a fix (no landmark and no match)
   double meanTestRatio = 0.0;  ///< over cycles with used observations
   double seconds = 0.0;        ///< wall time of the replay loop
 };

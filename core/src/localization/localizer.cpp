@@ -37,6 +37,7 @@ Status Localizer::reset(Timestamp stamp, const Pose2d& pose, const Eigen::Matrix
     return s;
   }
   ekf_ = fresh;
+  gatedRun_ = 0;
   HistoryEntry e;
   e.stamp = stamp;
   e.delta = Pose2d{};
@@ -355,16 +356,65 @@ void Localizer::finishHealth() noexcept {
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, LandmarkMap& map) noexcept {
-  return correctWith(scan, nullptr, map);
+  return correctWith(scan, nullptr, map, nullptr);
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams,
                                           LandmarkMap& map) noexcept {
-  return correctWith(scan, &beams, map);
+  return correctWith(scan, &beams, map, nullptr);
+}
+
+const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map,
+                                          const LikelihoodFieldBase& field) noexcept {
+  return correctWith(scan, &beams, map, &field);
+}
+
+void Localizer::matchScan(const LaserScan& beams, const LikelihoodFieldBase& field) noexcept {
+  ScanMatchHealth& h = health_.scanMatch;
+  h.attempted = true;
+  matcher_.setParams(params_.scanMatch);
+  const ScanMatchResult m = matcher_.match(beams, params_.laser.mounting, ekf_.pose(), field);
+  h.status = m.status;
+  h.points = m.points;
+  h.inliers = m.inliers;
+  h.rmsResidual = m.rmsResidual;
+  if (m.status == Status::Ok) {
+    h.mahalanobis2 = ekf_.poseMahalanobis2(m.pose, m.covariance);
+    const Pose2d before = ekf_.pose();
+    const Status u = ekf_.updatePose(m.pose, m.covariance, params_.scanMatchGate);
+    if (u == Status::Ok) {
+      h.fused = true;
+      h.correction = std::hypot(ekf_.pose().x - before.x, ekf_.pose().y - before.y);
+      gatedRun_ = 0;
+      return;
+    }
+    h.status = u;
+    if (u == Status::Rejected && params_.scanMatch.resyncAfter > 0) {
+      const Pose2d offset = between(before, m.pose);
+      const Pose2d change = between(gatedOffset_, offset);
+      const bool agrees = gatedRun_ > 0 && std::hypot(change.x, change.y) <= params_.scanMatch.resyncAgreement &&
+                          std::fabs(change.theta) <= params_.scanMatch.resyncAgreementAngle;
+      gatedRun_ = agrees ? static_cast<std::uint8_t>(gatedRun_ + 1U) : std::uint8_t{1};
+      gatedOffset_ = offset;
+      h.consecutiveGated = gatedRun_;
+      if (gatedRun_ >= params_.scanMatch.resyncAfter && ekf_.reset(m.pose, m.covariance) == Status::Ok) {
+        h.resynced = true;
+        h.fused = true;
+        h.correction = std::hypot(m.pose.x - before.x, m.pose.y - before.y);
+        health_.flags |= bit(LocalizerFlag::ScanMatchResync);
+        gatedRun_ = 0;
+        return;
+      }
+    } else {
+      gatedRun_ = 0;
+    }
+  }
+  // A match the matcher itself refused says nothing about the prior: a run of gated ones goes on.
+  health_.flags |= bit(LocalizerFlag::ScanMatchRejected);
 }
 
 const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, const LaserScan* beams,
-                                              LandmarkMap& map) noexcept {
+                                              LandmarkMap& map, const LikelihoodFieldBase* field) noexcept {
   ++cycle_;
   health_ = LocalizerHealth{};
   health_.cycle = cycle_;
@@ -385,6 +435,10 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   if (!rewindToScan(scan, at)) {
     finishHealth();
     return health_;
+  }
+  // The scan match first: it moves the prior the landmarks are associated against.
+  if (field != nullptr && beams != nullptr) {
+    matchScan(*beams, *field);
   }
   // Association against the prior at the scan time, and what the check expects to see.
   associate(scan, map);
@@ -568,13 +622,13 @@ void Localizer::tallyObservations(const ScanObservations& scan) noexcept {
   flagIf(health_.rejectedDuplicate > 0, LocalizerFlag::DuplicateRejected);
   flagIf(health_.rejectedUpdate > 0, LocalizerFlag::UpdateRejected);
   flagIf(health_.rejectedAmbiguous > 0, LocalizerFlag::AmbiguityRejected);
-  flagIf(health_.used < params_.health.minMatchesForFix, LocalizerFlag::NoFix);
+  flagIf(health_.used < params_.health.minMatchesForFix && !health_.scanMatch.fused, LocalizerFlag::NoFix);
 }
 
 bool Localizer::judgeCycle(MapMode mode) noexcept {
   const LocalizerHealthParams& hp = params_.health;
   bool bad = false;
-  if (health_.expectedDetections >= static_cast<double>(hp.minExpectedForCheck)) {
+  if (!health_.scanMatch.fused && health_.expectedDetections >= static_cast<double>(hp.minExpectedForCheck)) {
     double need = std::ceil(hp.minMatchedFraction * health_.expectedDetections);
     if (need < static_cast<double>(hp.minMatchesForFix)) {
       need = static_cast<double>(hp.minMatchesForFix);

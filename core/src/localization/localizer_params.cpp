@@ -89,10 +89,16 @@ Status LocalizerHealthParams::validate() const noexcept {
 
 Status LocalizerParams::validate() const noexcept {
   for (const Status s : {ekf.validate(), laser.validate(), association.validate(), occlusion.validate(), map.validate(),
-                         health.validate()}) {
+                         health.validate(), scanMatch.validate()}) {
     if (s != Status::Ok) {
       return s;
     }
+  }
+  if (!std::isfinite(scanMatchGate)) {
+    return Status::NonFiniteInput;
+  }
+  if (!(scanMatchGate > 0.0)) {
+    return Status::InvalidArgument;
   }
   return maxScanLead.ns >= 0 ? Status::Ok : Status::InvalidArgument;
 }

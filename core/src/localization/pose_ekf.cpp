@@ -1,6 +1,8 @@
 #include "agv/localization/pose_ekf.hpp"
 
+#include <Eigen/Cholesky>
 #include <cmath>
+#include <limits>
 
 namespace agv {
 
@@ -133,6 +135,43 @@ Status PoseEkf::update(const PointInnovation& in, double gate) noexcept {
   const Eigen::Vector3d dx = K * in.innovation;
   const Eigen::Matrix3d IKH = Eigen::Matrix3d::Identity() - K * in.H;
   Eigen::Matrix3d P = IKH * P_ * IKH.transpose() + K * in.R * K.transpose();
+  P = 0.5 * (P + P.transpose()).eval();
+  condition(P);
+  const Pose2d x{pose_.x + dx(0), pose_.y + dx(1), normalizeAngle(pose_.theta + dx(2))};
+  if (!x.isFinite() || !P.allFinite()) {
+    return Status::NonFiniteInput;
+  }
+  pose_ = x;
+  P_ = P;
+  return Status::Ok;
+}
+
+double PoseEkf::poseMahalanobis2(const Pose2d& z, const Eigen::Matrix3d& R) const noexcept {
+  if (!z.isFinite() || !R.allFinite()) {
+    return std::numeric_limits<double>::infinity();
+  }
+  const Eigen::Vector3d nu(z.x - pose_.x, z.y - pose_.y, normalizeAngle(z.theta - pose_.theta));
+  const Eigen::LDLT<Eigen::Matrix3d> S(P_ + R);
+  if (S.info() != Eigen::Success || !S.isPositive() || !(S.vectorD().minCoeff() > 0.0)) {
+    return std::numeric_limits<double>::infinity();
+  }
+  return nu.dot(S.solve(nu));
+}
+
+Status PoseEkf::updatePose(const Pose2d& z, const Eigen::Matrix3d& R, double gate) noexcept {
+  if (!z.isFinite() || !R.allFinite()) {
+    return Status::NonFiniteInput;
+  }
+  const double d2 = poseMahalanobis2(z, R);
+  if (!(d2 <= gate)) {
+    return Status::Rejected;
+  }
+  const Eigen::Vector3d nu(z.x - pose_.x, z.y - pose_.y, normalizeAngle(z.theta - pose_.theta));
+  const Eigen::LDLT<Eigen::Matrix3d> S(P_ + R);
+  const Eigen::Matrix3d K = S.solve(P_).transpose();  // P S^-1 (P and S symmetric)
+  const Eigen::Vector3d dx = K * nu;
+  const Eigen::Matrix3d IK = Eigen::Matrix3d::Identity() - K;
+  Eigen::Matrix3d P = IK * P_ * IK.transpose() + K * R * K.transpose();
   P = 0.5 * (P + P.transpose()).eval();
   condition(P);
   const Pose2d x{pose_.x + dx(0), pose_.y + dx(1), normalizeAngle(pose_.theta + dx(2))};

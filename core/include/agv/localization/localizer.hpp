@@ -23,6 +23,7 @@
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/odometry.hpp"
 #include "agv/localization/pose_ekf.hpp"
+#include "agv/localization/scan_matcher.hpp"
 #include "agv/scan/laser_scan.hpp"
 
 namespace agv {
@@ -172,12 +173,16 @@ struct LocalizerParams {
   OcclusionParams occlusion{};
   MapLifecycleParams map{};
   LocalizerHealthParams health{};
+  /// Scan-to-map matching (used when `correct` is given a likelihood field and the scan's ranges).
+  ScanMatchParams scanMatch{};
+  /// Squared-Mahalanobis gate (3 dof) of a scan match against the prior; 99 %.
+  double scanMatchGate = kChiSquare3Dof99;
   /// A scan stamped later than the newest odometry by more than this is refused.
   Duration maxScanLead = Duration::fromMilliseconds(100);
 
   /// `Ok`, or the first sub-struct's refusal (`NonFiniteInput`, `InvalidArgument`): laser model
   /// (range and angle limits ordered, sigmas non-negative), association, occlusion, map,
-  /// health, and a non-negative scan lead. The localizer runs with whatever it is given; its
+  /// health, scan match (and a positive gate), and a non-negative scan lead. The localizer runs with whatever it is given; its
   /// owner checks this before (the navigation pipeline's `configure()` does).
   Status validate() const noexcept;
 };
@@ -201,6 +206,8 @@ enum class LocalizerFlag : std::uint32_t {
   Lost = 1U << 14,                 ///< the pose is not trusted (latched until reset): stop the vehicle
   AmbiguityRejected = 1U << 15,    ///< an observation had two landmarks inside the gate, too close to tell
   OcclusionUnchecked = 1U << 16,   ///< ranges were given but unusable (`checkBeamGeometry`): no occlusion test
+  ScanMatchRejected = 1U << 17,    ///< a likelihood field was given and its match not fused (see `ScanMatchHealth`)
+  ScanMatchResync = 1U << 18,      ///< consistent refused matches reset the pose to the map (`resyncAfter`)
 };
 
 /// True when `flag` is set in `flags`.
@@ -219,6 +226,20 @@ struct SourceHealth {
   double innovationRms = 0.0;   ///< [m] RMS of the fused innovations' norms (laser frame, at the prior)
   double maxTestRatio = 0.0;    ///< max d^2/gate over the fused (< 1)
   double meanTestRatio = 0.0;   ///< mean d^2/gate over the fused (~2/gate when consistent)
+};
+
+/// The scan-to-map match of one cycle (only when `correct` was given a likelihood field).
+struct ScanMatchHealth {
+  bool attempted = false;
+  bool fused = false;                  ///< passed the matcher and the gate, used in the update
+  Status status = Status::NotFound;    ///< the matcher's status; `Rejected` when the gate refused it
+  std::uint16_t points = 0;            ///< scan points matched (after thinning)
+  std::uint16_t inliers = 0;           ///< of which on the map
+  double rmsResidual = 0.0;            ///< [m] of the inliers
+  double mahalanobis2 = 0.0;           ///< of the match against the prior (3 dof)
+  double correction = 0.0;             ///< [m] position change of the update (or of the resync)
+  std::uint8_t consecutiveGated = 0;   ///< refused by the gate in a row, agreeing with each other
+  bool resynced = false;               ///< this cycle reset the pose to the match
 };
 
 /// What one correction cycle did and how much it can be trusted.
@@ -254,6 +275,7 @@ struct LocalizerHealth {
   bool lost = false;
   /// Per observation kind, indexed by `LandmarkKind`.
   SourceHealth sources[kLandmarkKindCount] = {};
+  ScanMatchHealth scanMatch{};
 };
 
 class Localizer {
@@ -283,6 +305,14 @@ class Localizer {
   /// by the matched/expected check, and a confirmed one is not weakened by the map lifecycle. An
   /// unusable `beams` (`checkBeamGeometry`) falls back to the limits and sets `OcclusionUnchecked`.
   const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map) noexcept;
+
+  /// The same, first matching `beams` against `field` (a likelihood field of the surfaces of a
+  /// mapping run, `ScanMatcher`) from the prior at the scan's time: a match that passes the
+  /// matcher's checks and `scanMatchGate` corrects the pose (`LocalizerHealth::scanMatch`) before
+  /// the landmarks are associated; otherwise `ScanMatchRejected` is flagged and the cycle goes on
+  /// with the landmarks alone. A fused match is a fix: the cycle is not bad for lack of landmarks.
+  const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map,
+                                 const LikelihoodFieldBase& field) noexcept;
 
   /// Newest pose estimate (at `stamp()`), its covariance and time.
   const Pose2d& pose() const noexcept { return ekf_.pose(); }
@@ -340,7 +370,10 @@ class Localizer {
     double detections = 0.0;
   };
   // Stages of one correction (correctWith), in order.
-  const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map) noexcept;
+  const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map,
+                                     const LikelihoodFieldBase* field) noexcept;
+  /// Scan-to-map match at the rewound prior, fused when it passes (health_.scanMatch).
+  void matchScan(const LaserScan& beams, const LikelihoodFieldBase& field) noexcept;
   /// Latency: moves the filter to the scan's time inside the history. False (health filled) when
   /// the scan is refused.
   bool rewindToScan(const ScanObservations& scan, Rewind& at) noexcept;
@@ -374,6 +407,11 @@ class Localizer {
   FixedRing<HistoryEntry, kMaxOdometryHistory> history_;
   Scratch scratch_[kMaxObservations];
   std::uint16_t order_[kMaxObservations] = {};
+  ScanMatcher matcher_{};
+  /// Offset of the last gate-refused match from the estimate (estimate^-1 ⊕ match) and how many
+  /// agreeing refusals in a row led to it.
+  Pose2d gatedOffset_{};
+  std::uint8_t gatedRun_ = 0;
   LocalizerHealth health_{};
 };
 

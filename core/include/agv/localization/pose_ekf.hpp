@@ -73,6 +73,17 @@ class PoseEkf {
   /// `NonFiniteInput` if the result would not be finite. State unchanged on failure.
   Status update(const PointInnovation& innovation, double gate) noexcept;
 
+  /// Squared Mahalanobis distance of a direct pose measurement `z` with covariance `R` from the
+  /// current state (heading difference wrapped): nu^T (P + R)^-1 nu. Infinity when P + R is not
+  /// positive definite or an input is not finite.
+  double poseMahalanobis2(const Pose2d& z, const Eigen::Matrix3d& R) const noexcept;
+
+  /// Corrects with a direct measurement `z` of the pose (H = I, e.g. a scan-to-map match) whose
+  /// covariance is `R`, Joseph form. `Rejected` when the squared Mahalanobis distance exceeds
+  /// `gate` (3 dof) or P + R is not positive definite; `NonFiniteInput` for non-finite input or
+  /// result. State unchanged on failure.
+  Status updatePose(const Pose2d& z, const Eigen::Matrix3d& R, double gate) noexcept;
+
   const Pose2d& pose() const noexcept { return pose_; }
   const Eigen::Matrix3d& covariance() const noexcept { return P_; }
   const PoseEkfParams& params() const noexcept { return params_; }

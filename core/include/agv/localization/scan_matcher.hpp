@@ -1,0 +1,119 @@
+#pragma once
+/// @file scan_matcher.hpp
+/// Scan-to-map matching against a `LikelihoodFieldBase`: the pose at which the scan's points lie
+/// on the mapped surfaces, found by robust Gauss-Newton from a prior pose, with the covariance
+/// the alignment supports. It is the localizer's second observation next to point landmarks
+/// (docs/localization.md, "Scan matching"): a corridor constrains the pose across it and not
+/// along it, and the covariance says so, so the EKF takes from each scan only what it can tell.
+///
+/// Model: scan point p_i (laser frame) maps to world point q_i(x) = x ⊕ l ⊕ p_i for the vehicle
+/// pose x and the laser mounting l; residual r_i = D(q_i), D the field's signed distance. Points farther
+/// than `inlierDistance` from every surface (or outside the field) are not on the map and weigh 0;
+/// the others weigh by Huber's function with threshold `huber`.
+///
+/// Covariance: sigma^2 (J^T W J)^-1 x `covarianceInflation`, with sigma^2 the weighted residual
+/// variance (floored at `sigmaFloor`^2). Neighbouring points on one wall share the wall's map
+/// error, so they are not independent measurements: the points are thinned to `pointSpacing`
+/// apart (two cells of the default field) and the inflation covers the correlation left.
+///
+/// Heap-free; the matcher holds its point scratch inline (kMaxScanBeams points, 16 KB). Work per
+/// call: at most kMaxScanBeams points x `maxIterations` field samples.
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+
+#include "agv/core/capacities.hpp"
+#include "agv/core/fixed_vector.hpp"
+#include "agv/core/pose2.hpp"
+#include "agv/core/status.hpp"
+#include "agv/localization/likelihood_field.hpp"
+#include "agv/scan/laser_scan.hpp"
+
+namespace agv {
+
+/// Parameters of the scan matcher.
+struct ScanMatchParams {
+  std::uint8_t maxIterations = 20;  ///< Gauss-Newton iterations at most
+  /// [m] scan points closer than this to the previous point kept are skipped (decorrelation and
+  /// bounded work); 0 keeps every valid beam.
+  double pointSpacing = 0.10;
+  /// [m] points farther than this from the nearest surface are outliers (weight 0). Must not
+  /// exceed the field's maxDistance (the field cannot tell farther distances apart).
+  double inlierDistance = 0.30;
+  double huber = 0.05;  ///< [m] Huber threshold of the residual weights
+  /// Fewer inliers than this (absolute, and as a fraction of the points) refuse the match.
+  std::size_t minInliers = 30;
+  double minInlierFraction = 0.40;
+  /// [m] floor of the residual standard deviation used for the covariance (map quantisation at
+  /// 5 cm cells, res / sqrt(12) = 1.4 cm, plus range noise).
+  double sigmaFloor = 0.02;
+  /// Multiplier of the covariance for the correlation of neighbouring points (see the file
+  /// comment); docs/localization.md gives the NEES it yields on real logs.
+  double covarianceInflation = 4.0;
+  /// Convergence: stop when a step is below both [m] and [rad] (a tenth of the 2 cm / 0.1 deg
+  /// requirement), or when no step along the Gauss-Newton direction (halved up to 5 times) lowers
+  /// the robust cost.
+  double stepTranslation = 2e-3;
+  double stepRotation = 1.7e-4;
+  /// [m], [rad]: a match that moved the pose farther than this from the prior is refused (the
+  /// basin of a truncated field is about `inlierDistance`; beyond it a match is a guess).
+  double maxCorrection = 0.5;
+  double maxRotation = 0.2;
+  /// Re-synchronisation (used by the localizer): a match the gate refuses means the prior and the
+  /// map disagree. One such match may be wrong; `resyncAfter` consecutive refused matches that
+  /// agree with each other (each one's offset from the filter's estimate within `resyncAgreement`
+  /// [m] and `resyncAgreementAngle` [rad] of the previous one's: the vehicle has moved by what
+  /// odometry says and the map keeps placing it the same way off the estimate) mean the prior is
+  /// wrong (a slip the odometry model did not cover): the filter is reset to the latest match with
+  /// its covariance. 0 disables it.
+  std::uint8_t resyncAfter = 5;
+  double resyncAgreement = 0.05;
+  double resyncAgreementAngle = 0.02;
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (zero iterations, a negative spacing,
+  /// non-positive distances, sigma, inflation, step bounds or agreement bounds, a fraction outside
+  /// [0, 1]).
+  Status validate() const noexcept;
+};
+
+/// The outcome of one match.
+struct ScanMatchResult {
+  /// Ok; EmptyInput (no valid beam); NotInitialized (field not built); NotEnoughData (too few
+  /// inliers); Unobservable (the inliers do not constrain all three dof); NotConverged;
+  /// OutOfRange (moved beyond maxCorrection / maxRotation); NonFiniteInput (prior or mounting).
+  Status status = Status::EmptyInput;
+  Pose2d pose{};                                               ///< vehicle pose (world frame)
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< of `pose` [m^2, rad^2]
+  std::uint16_t points = 0;                                    ///< scan points used (after thinning)
+  std::uint16_t inliers = 0;                                   ///< within inlierDistance at the end
+  std::uint8_t iterations = 0;
+  double rmsResidual = 0.0;  ///< [m] over the inliers at the end
+};
+
+/// The matcher (scratch only; holds no map).
+class ScanMatcher {
+ public:
+  ScanMatcher() noexcept = default;
+  explicit ScanMatcher(const ScanMatchParams& params) noexcept : params_(params) {}
+  ScanMatcher(const ScanMatcher&) = delete;
+  ScanMatcher& operator=(const ScanMatcher&) = delete;
+
+  /// Aligns `scan` (ranges in the laser frame, taken at vehicle pose ~`prior`) with `field` through
+  /// the laser mounting `laser` (laser pose in the vehicle frame). The scan is treated as taken at
+  /// one instant (de-skew it before if the vehicle moves during the sweep).
+  ScanMatchResult match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
+                        const LikelihoodFieldBase& field) noexcept;
+
+  const ScanMatchParams& params() const noexcept { return params_; }
+  void setParams(const ScanMatchParams& params) noexcept { params_ = params; }
+
+ private:
+  struct Point {
+    float x;
+    float y;
+  };
+  ScanMatchParams params_{};
+  FixedVector<Point, kMaxScanBeams> points_;
+};
+
+}  // namespace agv

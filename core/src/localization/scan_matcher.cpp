@@ -1,0 +1,216 @@
+#include "agv/localization/scan_matcher.hpp"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+
+namespace agv {
+
+Status ScanMatchParams::validate() const noexcept {
+  const double values[] = {pointSpacing,      inlierDistance,  huber,       minInlierFraction, sigmaFloor,
+                           covarianceInflation, stepTranslation, stepRotation, maxCorrection,     maxRotation,
+                           resyncAgreement,   resyncAgreementAngle};
+  for (const double v : values) {
+    if (!std::isfinite(v)) {
+      return Status::NonFiniteInput;
+    }
+  }
+  if (maxIterations == 0 || pointSpacing < 0.0 || !(inlierDistance > 0.0) || !(huber > 0.0) ||
+      !(sigmaFloor > 0.0) || !(covarianceInflation > 0.0) || !(stepTranslation > 0.0) || !(stepRotation > 0.0) ||
+      !(maxCorrection > 0.0) || !(maxRotation > 0.0) || !(resyncAgreement > 0.0) || !(resyncAgreementAngle > 0.0) || minInlierFraction < 0.0 || minInlierFraction > 1.0) {
+    return Status::InvalidArgument;
+  }
+  return Status::Ok;
+}
+
+namespace {
+
+/// Normal equations of one linearisation at pose (x, y, theta).
+struct Normal {
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  double weightSum = 0.0;
+  double weightedSquares = 0.0;
+  double inlierSquares = 0.0;
+  double cost = 0.0;  // sum of the robust costs, outliers at the cost of inlierDistance
+  std::size_t inliers = 0;
+};
+
+/// Huber's cost of residual r with threshold k.
+double huberCost(double r, double k) noexcept { return r <= k ? 0.5 * r * r : k * (r - 0.5 * k); }
+
+}  // namespace
+
+ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
+                                   const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  result.pose = prior;
+  if (!prior.isFinite() || !laser.isFinite()) {
+    result.status = Status::NonFiniteInput;
+    return result;
+  }
+  if (!field.built()) {
+    result.status = Status::NotInitialized;
+    return result;
+  }
+  const double inlierDistance =
+      params_.inlierDistance < field.params().maxDistance ? params_.inlierDistance : field.params().maxDistance;
+
+  // Scan points in the vehicle frame, thinned to pointSpacing along the scan.
+  points_.clear();
+  const double spacing2 = params_.pointSpacing * params_.pointSpacing;
+  double lastX = 0.0;
+  double lastY = 0.0;
+  bool haveLast = false;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (!scan.isValid(i)) {
+      continue;
+    }
+    const double a = static_cast<double>(scan.angle(i));
+    const double r = static_cast<double>(scan.ranges[i]);
+    const Eigen::Vector2d p = laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a)));
+    if (haveLast) {
+      const double dx = p.x() - lastX;
+      const double dy = p.y() - lastY;
+      if (dx * dx + dy * dy < spacing2) {
+        continue;
+      }
+    }
+    lastX = p.x();
+    lastY = p.y();
+    haveLast = true;
+    static_cast<void>(points_.push_back(Point{static_cast<float>(p.x()), static_cast<float>(p.y())}));
+  }
+  result.points = static_cast<std::uint16_t>(points_.size() > 65535U ? 65535U : points_.size());
+  if (points_.empty()) {
+    result.status = Status::EmptyInput;
+    return result;
+  }
+
+  const double outlierCost = huberCost(inlierDistance, params_.huber);
+  const auto linearise = [&](const Pose2d& x) noexcept {
+    Normal n;
+    const double c = std::cos(x.theta);
+    const double s = std::sin(x.theta);
+    for (const Point& pt : points_) {
+      const double px = static_cast<double>(pt.x);
+      const double py = static_cast<double>(pt.y);
+      const double qx = x.x + c * px - s * py;
+      const double qy = x.y + s * px + c * py;
+      const FieldSample f = field.sample(qx, qy);
+      if (!f.inside || !(std::fabs(f.distance) < inlierDistance)) {
+        n.cost += outlierCost;
+        continue;
+      }
+      const double r = f.distance;  // signed: negative behind the surface
+      const double ar = std::fabs(r);
+      n.cost += huberCost(ar, params_.huber);
+      const double w = ar <= params_.huber ? 1.0 : params_.huber / ar;
+      const Eigen::Vector3d J(f.gradient.x(), f.gradient.y(),
+                              f.gradient.x() * (-s * px - c * py) + f.gradient.y() * (c * px - s * py));
+      n.H.noalias() += w * J * J.transpose();
+      n.g.noalias() += w * r * J;
+      n.weightSum += w;
+      n.weightedSquares += w * r * r;
+      n.inlierSquares += r * r;
+      ++n.inliers;
+    }
+    return n;
+  };
+  const std::size_t minInliers = [&]() noexcept {
+    const auto byFraction =
+        static_cast<std::size_t>(std::ceil(params_.minInlierFraction * static_cast<double>(points_.size())));
+    return byFraction > params_.minInliers ? byFraction : params_.minInliers;
+  }();
+  // Rank check: the LDLT pivots relative to the largest, in units made comparable by the scan's
+  // extent (a rotation moves a point by its range).
+  const auto solvable = [](const Eigen::LDLT<Eigen::Matrix3d>& ldlt) noexcept {
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
+      return false;
+    }
+    const Eigen::Vector3d d = ldlt.vectorD();
+    return d.minCoeff() > 1e-9 * d.maxCoeff() && d.minCoeff() > 0.0;
+  };
+
+  // Gauss-Newton with step halving: a step that does not lower the robust cost is halved (at most
+  // kHalvings times); when none lowers it, x is the minimum the field resolves (converged).
+  constexpr int kHalvings = 5;
+  Pose2d x = prior;
+  Normal n = linearise(x);
+  bool converged = false;
+  std::uint8_t it = 0;
+  while (it < params_.maxIterations) {
+    ++it;
+    if (n.inliers < minInliers) {
+      result.status = Status::NotEnoughData;
+      result.inliers = static_cast<std::uint16_t>(n.inliers > 65535U ? 65535U : n.inliers);
+      result.iterations = it;
+      return result;
+    }
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(n.H);
+    if (!solvable(ldlt)) {
+      result.status = Status::Unobservable;
+      result.iterations = it;
+      return result;
+    }
+    Eigen::Vector3d step = -ldlt.solve(n.g);
+    if (!step.allFinite()) {
+      result.status = Status::NonFiniteInput;
+      result.iterations = it;
+      return result;
+    }
+    bool lowered = false;
+    for (int h = 0; h <= kHalvings && !lowered; ++h) {
+      const Pose2d candidate = Pose2d(x.x + step.x(), x.y + step.y(), x.theta + step.z()).normalized();
+      const Normal m = linearise(candidate);
+      if (m.cost < n.cost) {
+        x = candidate;
+        n = m;
+        lowered = true;
+      } else {
+        step *= 0.5;
+      }
+    }
+    if (!lowered ||
+        (std::hypot(step.x(), step.y()) < params_.stepTranslation && std::fabs(step.z()) < params_.stepRotation)) {
+      converged = true;
+      break;
+    }
+  }
+  result.iterations = it;
+  result.pose = x;
+  result.inliers = static_cast<std::uint16_t>(n.inliers > 65535U ? 65535U : n.inliers);
+  result.rmsResidual = n.inliers > 0 ? std::sqrt(n.inlierSquares / static_cast<double>(n.inliers)) : 0.0;
+  if (!converged) {
+    result.status = Status::NotConverged;
+    return result;
+  }
+  if (n.inliers < minInliers) {
+    result.status = Status::NotEnoughData;
+    return result;
+  }
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(n.H);
+  if (!solvable(ldlt)) {
+    result.status = Status::Unobservable;
+    return result;
+  }
+  if (std::hypot(x.x - prior.x, x.y - prior.y) > params_.maxCorrection ||
+      std::fabs(normalizeAngle(x.theta - prior.theta)) > params_.maxRotation) {
+    result.status = Status::OutOfRange;
+    return result;
+  }
+  const double dof = n.weightSum > 4.0 ? n.weightSum - 3.0 : 1.0;
+  double sigma2 = n.weightedSquares / dof;
+  if (sigma2 < params_.sigmaFloor * params_.sigmaFloor) {
+    sigma2 = params_.sigmaFloor * params_.sigmaFloor;
+  }
+  const Eigen::Matrix3d cov = sigma2 * params_.covarianceInflation * ldlt.solve(Eigen::Matrix3d::Identity());
+  if (!cov.allFinite()) {
+    result.status = Status::NonFiniteInput;
+    return result;
+  }
+  result.covariance = 0.5 * (cov + cov.transpose());
+  result.status = Status::Ok;
+  return result;
+}
+
+}  // namespace agv

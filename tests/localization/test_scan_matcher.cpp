@@ -1,0 +1,473 @@
+// Likelihood field and scan-to-map matching: distances against the geometry they were built from,
+// recovery of a known pose from a ray-cast scan with injected range noise, the corridor's
+// unobservable direction in the covariance, refusals, the localizer fusing matches (and
+// re-synchronising after a slip its odometry model did not cover), zero allocations.
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <limits>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "agv/localization/likelihood_field.hpp"
+#include "agv/localization/localizer.hpp"
+#include "agv/localization/scan_matcher.hpp"
+#include "agv_test.hpp"
+
+using namespace agv;
+
+namespace {
+constexpr double kPiD = 3.14159265358979323846;
+}  // namespace
+
+namespace {
+
+
+/// A wall segment of the simulated hall.
+struct Segment {
+  Eigen::Vector2d a;
+  Eigen::Vector2d b;
+};
+
+/// An axis-aligned box [x0, x1] x [y0, y1] of the hall.
+struct Box {
+  double x0, y0, x1, y1;
+  bool contains(const Eigen::Vector2d& p) const { return p.x() > x0 && p.x() < x1 && p.y() > y0 && p.y() < y1; }
+};
+
+/// A 12 m x 8 m hall with a 1 m x 1 m column and a rack end (an L of two boxes): enough
+/// structure in every direction to fix x, y and theta. Free space lies to the left of every
+/// segment (walls counter-clockwise, obstacles clockwise).
+const Box kColumn{5.0, 3.0, 6.0, 4.0};
+const Box kRack{8.5, 6.0, 10.5, 6.3};
+const Box kRackEnd{10.2, 6.3, 10.5, 7.2};
+
+std::vector<Segment> hall() {
+  std::vector<Segment> segs;
+  const auto seg = [&segs](double ax, double ay, double bx, double by) {
+    segs.push_back(Segment{Eigen::Vector2d(ax, ay), Eigen::Vector2d(bx, by)});
+  };
+  seg(0, 0, 12, 0);
+  seg(12, 0, 12, 8);
+  seg(12, 8, 0, 8);
+  seg(0, 8, 0, 0);
+  for (const Box& b : {kColumn, kRack}) {  // clockwise
+    seg(b.x0, b.y0, b.x0, b.y1);
+    seg(b.x0, b.y1, b.x1, b.y1);
+    seg(b.x1, b.y1, b.x1, b.y0);
+    seg(b.x1, b.y0, b.x0, b.y0);
+  }
+  seg(kRackEnd.x0, kRackEnd.y0, kRackEnd.x0, kRackEnd.y1);
+  seg(kRackEnd.x0, kRackEnd.y1, kRackEnd.x1, kRackEnd.y1);
+  seg(kRackEnd.x1, kRackEnd.y1, kRackEnd.x1, kRackEnd.y0);
+  return segs;
+}
+
+/// True for a point of the hall's free space.
+bool inFreeSpace(const Eigen::Vector2d& p) {
+  return p.x() > 0.0 && p.x() < 12.0 && p.y() > 0.0 && p.y() < 8.0 && !kColumn.contains(p) && !kRack.contains(p) &&
+         !kRackEnd.contains(p);
+}
+
+/// A corridor 2 m wide and 60 m long: walls along x only, nothing across within range.
+std::vector<Segment> corridor() {
+  return {Segment{Eigen::Vector2d(-30, -1), Eigen::Vector2d(30, -1)},
+          Segment{Eigen::Vector2d(30, 1), Eigen::Vector2d(-30, 1)}};
+}
+
+/// A surface point with the normal of its segment (to the left of a -> b: the segments run
+/// counter-clockwise around the free space).
+struct SurfacePoint {
+  Eigen::Vector2d p;
+  Eigen::Vector2d n;
+};
+
+/// Surface points every `step` metres along the segments.
+std::vector<SurfacePoint> sampleSegments(const std::vector<Segment>& segs, double step) {
+  std::vector<SurfacePoint> pts;
+  for (const Segment& s : segs) {
+    const Eigen::Vector2d e = s.b - s.a;
+    const int n = static_cast<int>(std::ceil(e.norm() / step));
+    for (int i = 0; i <= n; ++i) {
+      pts.push_back(SurfacePoint{s.a + e * (static_cast<double>(i) / n), Eigen::Vector2d(-e.y(), e.x()).normalized()});
+    }
+  }
+  return pts;
+}
+
+/// Ray-casts a 270 deg, 0.5 deg scan from laser pose `laser` (world) with Gaussian range noise.
+void castScan(const std::vector<Segment>& segs, const Pose2d& laser, double sigma, std::mt19937_64& rng,
+              LaserScan& scan, double rangeMax = 30.0) {
+  std::normal_distribution<double> noise(0.0, sigma);
+  scan.angleMin = static_cast<float>(-0.75 * kPiD);
+  scan.angleIncrement = static_cast<float>(0.5 * kPiD / 180.0);
+  scan.rangeMin = 0.1F;
+  scan.rangeMax = static_cast<float>(rangeMax);
+  scan.ranges.clear();
+  for (int i = 0; i < 541; ++i) {
+    const double a = laser.theta + static_cast<double>(scan.angleMin) + i * static_cast<double>(scan.angleIncrement);
+    const Eigen::Vector2d d(std::cos(a), std::sin(a));
+    double best = 1e9;
+    for (const Segment& s : segs) {
+      // laser + t d = s.a + u (s.b - s.a)
+      const Eigen::Vector2d e = s.b - s.a;
+      const double den = d.x() * (-e.y()) - d.y() * (-e.x());
+      if (std::fabs(den) < 1e-12) {
+        continue;
+      }
+      const Eigen::Vector2d w = s.a - laser.translation();
+      const double t = (w.x() * (-e.y()) - w.y() * (-e.x())) / den;
+      const double u = (d.x() * w.y() - d.y() * w.x()) / den;
+      if (t > 0.0 && u >= 0.0 && u <= 1.0 && t < best) {
+        best = t;
+      }
+    }
+    const double r = best < rangeMax ? best + noise(rng) : std::numeric_limits<double>::infinity();
+    REQUIRE(scan.ranges.push_back(static_cast<float>(r)) == Status::Ok);
+  }
+}
+
+/// Field of the segments at the default geometry, area with a 1 m margin.
+template <std::size_t N>
+void buildField(LikelihoodField<N>& field, const std::vector<Segment>& segs, double minX, double minY, double maxX,
+                double maxY, const LikelihoodFieldParams& params = LikelihoodFieldParams{}) {
+  const auto w = static_cast<std::size_t>(std::ceil((maxX - minX + 2.0) / params.resolution));
+  const auto h = static_cast<std::size_t>(std::ceil((maxY - minY + 2.0) / params.resolution));
+  REQUIRE(field.configure(params, minX - 1.0, minY - 1.0, w, h) == Status::Ok);
+  for (const SurfacePoint& s : sampleSegments(segs, 0.02)) {
+    REQUIRE(field.addPoint(s.p.x(), s.p.y(), s.n.x(), s.n.y()) == Status::Ok);
+  }
+  REQUIRE(field.build() == Status::Ok);
+}
+
+using HallField = LikelihoodField<300 * 220>;
+
+}  // namespace
+
+TEST_CASE("likelihood field: signed distances to the surfaces it was given, saturated, with outward gradients",
+          "[localization][field]") {
+  auto field = std::make_unique<HallField>();
+  const std::vector<Segment> segs = hall();
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  // Signed distance to the nearest segment, computed directly: positive in free space.
+  const auto truth = [&](const Eigen::Vector2d& p) {
+    double best = 1e9;
+    for (const Segment& s : segs) {
+      const Eigen::Vector2d e = s.b - s.a;
+      const double u = std::clamp((p - s.a).dot(e) / e.squaredNorm(), 0.0, 1.0);
+      best = std::min(best, (s.a + u * e - p).norm());
+    }
+    return inFreeSpace(p) ? best : -best;
+  };
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> ux(-0.5, 12.5);
+  std::uniform_real_distribution<double> uy(-0.5, 8.5);
+  const double maxD = field->params().maxDistance;
+  int near = 0;
+  for (int k = 0; k < 4000; ++k) {
+    const Eigen::Vector2d p(ux(rng), uy(rng));
+    const FieldSample s = field->sample(p.x(), p.y());
+    const double d = truth(p);
+    const double tol = 0.5 * field->params().resolution + maxD / 127.0;
+    if (!s.inside) {
+      // Unknown only where a cell within one diagonal is out of every surface's reach.
+      CHECK(std::fabs(d) > maxD - 1.5 * field->params().resolution - tol);
+      CHECK(s.distance == Approx(maxD));
+      continue;
+    }
+    CHECK(std::fabs(s.distance) <= maxD + 1e-9);
+    if (d <= 0.0) {
+      // Behind a surface: negative where straight behind a long face (below the hall's first wall,
+      // away from its ends). Elsewhere behind (past a box's corner) the sign is not defined.
+      if (p.y() < 0.0 && p.x() > 0.5 && p.x() < 11.5) {
+        CHECK(s.distance < tol);
+      }
+      continue;
+    }
+    // In free space the bilinear interpolation of a signed distance between cell centres 5 cm apart
+    // is linear across a wall, so the error is the curvature of the distance near corners and
+    // between surfaces (within res / 2) plus the 4 mm quantum.
+    ++near;
+    INFO("point " << p.x() << ", " << p.y() << ": truth " << d << ", field " << s.distance);
+    CHECK(std::fabs(s.distance - d) <= tol);
+    // The gradient points away from the surfaces and is no longer than a distance's.
+    if (d > 0.1 && d < maxD - 0.15) {
+      const Eigen::Vector2d step = p + 0.01 * s.gradient.normalized();
+      INFO("gradient at " << p.x() << ", " << p.y() << ": " << s.gradient.transpose());
+      CHECK(truth(step) > d);
+      CHECK(s.gradient.norm() < 1.2);
+    }
+  }
+  CHECK(near > 500);
+  // Outside the area, non-finite: not inside, saturated.
+  CHECK_FALSE(field->sample(-5.0, 0.0).inside);
+  CHECK_FALSE(field->sample(std::nan(""), 1.0).inside);
+  CHECK(field->sample(100.0, 100.0).distance == Approx(maxD));
+}
+
+TEST_CASE("likelihood field: bad parameters, capacity, points outside and an empty field are refused",
+          "[localization][field]") {
+  LikelihoodField<100> small;
+  LikelihoodFieldParams p;
+  CHECK(small.configure(p, 0.0, 0.0, 20, 20) == Status::CapacityExceeded);
+  CHECK(small.width() == 0U);
+  CHECK(small.addPoint(0.1, 0.1, 1.0, 0.0) == Status::NotInitialized);
+  CHECK(small.build() == Status::NotInitialized);
+  CHECK(small.configure(p, std::nan(""), 0.0, 10, 10) == Status::NonFiniteInput);
+  CHECK(small.configure(p, 0.0, 0.0, 1, 10) == Status::InvalidArgument);
+  LikelihoodFieldParams bad = p;
+  bad.resolution = 0.0;
+  CHECK(small.configure(bad, 0.0, 0.0, 10, 10) == Status::InvalidArgument);
+  bad = p;
+  bad.maxDistance = 0.05;  // not above two cells
+  CHECK(bad.validate() == Status::InvalidArgument);
+  bad.maxDistance = 300.0 * p.resolution;  // beyond 255 quanta of a cell
+  CHECK(bad.validate() == Status::InvalidArgument);
+  bad.maxDistance = std::numeric_limits<double>::infinity();
+  CHECK(bad.validate() == Status::NonFiniteInput);
+  REQUIRE(small.configure(p, 0.0, 0.0, 10, 10) == Status::Ok);
+  CHECK(small.build() == Status::EmptyInput);
+  CHECK_FALSE(small.sample(0.2, 0.2).inside);  // not built
+  CHECK(small.addPoint(0.6, 0.2, 1.0, 0.0) == Status::OutOfRange);
+  CHECK(small.addPoint(-0.01, 0.2, 1.0, 0.0) == Status::OutOfRange);
+  CHECK(small.addPoint(std::numeric_limits<double>::infinity(), 0.2, 1.0, 0.0) == Status::NonFiniteInput);
+  CHECK(small.addPoint(0.2, 0.2, 0.0, std::nan("")) == Status::NonFiniteInput);
+  CHECK(small.addPoint(0.2, 0.2, 0.0, 0.0) == Status::InvalidArgument);
+  CHECK(small.pointsOutside() == 2U);
+  // A wall of points facing +x at x = 0.26: cells in front are positive, behind negative.
+  for (int i = 0; i < 50; ++i) {
+    CHECK(small.addPoint(0.26, 0.01 * i, 1.0, 0.0) == Status::Ok);
+  }
+  REQUIRE(small.build() == Status::Ok);
+  CHECK(small.sample(0.36, 0.25).distance == Approx(0.1).margin(0.005));
+  CHECK(small.sample(0.16, 0.25).distance == Approx(-0.1).margin(0.005));
+  CHECK(small.sample(0.26, 0.25).distance == Approx(0.0).margin(0.005));
+  CHECK(small.sample(0.26, 0.25).gradient.x() == Approx(1.0).margin(0.1));
+}
+
+TEST_CASE("scan matcher: a ray-cast scan is aligned to the pose it was taken from", "[localization][scanmatch]") {
+  auto field = std::make_unique<HallField>();
+  const std::vector<Segment> segs = hall();
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  auto scan = std::make_unique<LaserScan>();
+  auto matcher = std::make_unique<ScanMatcher>();
+  const Pose2d laser{0.6, 0.0, 0.0};
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> px(2.0, 9.5);
+  std::uniform_real_distribution<double> py(1.2, 6.8);
+  std::uniform_real_distribution<double> pt(-kPiD, kPiD);
+  std::uniform_real_distribution<double> off(-1.0, 1.0);
+  const double sigma = 0.01;  // range noise [m]
+  int tried = 0;
+  for (int k = 0; k < 40; ++k) {
+    const Pose2d truth{px(rng), py(rng), pt(rng)};
+    // Only poses whose vehicle and laser are in free space, 0.3 m clear of every surface.
+    const Eigen::Vector2d lw = truth.compose(laser).translation();
+    bool clear = true;
+    for (const double dx : {-0.3, 0.0, 0.3}) {
+      for (const double dy : {-0.3, 0.0, 0.3}) {
+        clear = clear && inFreeSpace(lw + Eigen::Vector2d(dx, dy)) &&
+                inFreeSpace(truth.translation() + Eigen::Vector2d(dx, dy));
+      }
+    }
+    if (!clear) {
+      continue;
+    }
+    ++tried;
+    castScan(segs, truth.compose(laser), sigma, rng, *scan);
+    // Prior off by up to 15 cm and 3 deg: within the truncated field's basin.
+    const Pose2d prior{truth.x + 0.15 * off(rng), truth.y + 0.15 * off(rng), truth.theta + 0.05 * off(rng)};
+    const ScanMatchResult m = matcher->match(*scan, laser, prior, *field);
+    REQUIRE(m.status == Status::Ok);
+    // ~150 points at 1 cm noise fix the pose to ~1 mm; the surfaces are exact (dense points, exact
+    // distances), the bilinear interpolation of the field leaves a few millimetres.
+    CHECK(std::hypot(m.pose.x - truth.x, m.pose.y - truth.y) < 0.01);
+    CHECK(std::fabs(normalizeAngle(m.pose.theta - truth.theta)) < 0.1 * kPiD / 180.0);
+    CHECK(m.inliers > 100U);
+    CHECK(m.rmsResidual < 3.0 * sigma);
+    // The covariance is a covariance and no tighter than the noise allows.
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(m.covariance);
+    CHECK(es.eigenvalues().minCoeff() > 0.0);
+    CHECK(std::sqrt(m.covariance(0, 0)) < 0.02);
+    CHECK(std::sqrt(m.covariance(2, 2)) < 0.005);
+  }
+  CHECK(tried >= 30);
+}
+
+TEST_CASE("scan matcher: in a featureless corridor the covariance says the along-track position is unknown",
+          "[localization][scanmatch]") {
+  auto field = std::make_unique<LikelihoodField<1300 * 100>>();
+  const std::vector<Segment> segs = corridor();
+  buildField(*field, segs, -30.0, -1.0, 30.0, 1.0);
+  auto scan = std::make_unique<LaserScan>();
+  ScanMatcher matcher;
+  std::mt19937_64 rng(5);
+  const Pose2d truth{0.3, 0.2, 0.1};
+  const Pose2d laser{};
+  castScan(segs, truth, 0.01, rng, *scan, 20.0);
+  const ScanMatchResult m = matcher.match(*scan, laser, Pose2d{0.3, 0.25, 0.12}, *field);
+  if (m.status == Status::Ok) {
+    // Across the corridor and in heading it is fixed; along it the walls say nothing.
+    CHECK(std::fabs(m.pose.y - truth.y) < 0.01);
+    CHECK(std::fabs(m.pose.theta - truth.theta) < 0.002);
+    CHECK(m.covariance(0, 0) > 100.0 * m.covariance(1, 1));
+  } else {
+    CHECK(m.status == Status::Unobservable);
+  }
+}
+
+TEST_CASE("scan matcher: refusals (no map, no beams, off the map, non-finite input)", "[localization][scanmatch]") {
+  auto field = std::make_unique<HallField>();
+  auto scan = std::make_unique<LaserScan>();
+  ScanMatcher matcher;
+  std::mt19937_64 rng(3);
+  const std::vector<Segment> segs = hall();
+  const Pose2d truth{3.0, 2.0, 0.4};
+  castScan(segs, truth, 0.01, rng, *scan);
+  CHECK(matcher.match(*scan, Pose2d{}, truth, *field).status == Status::NotInitialized);
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  CHECK(matcher.match(*scan, Pose2d{}, truth, *field).status == Status::Ok);
+  CHECK(matcher.match(*scan, Pose2d{}, Pose2d{std::nan(""), 0.0, 0.0}, *field).status == Status::NonFiniteInput);
+  // A prior 3 m away: the points fall far from every surface.
+  const ScanMatchResult far = matcher.match(*scan, Pose2d{}, Pose2d{6.0, 5.0, 2.0}, *field);
+  CHECK(far.status != Status::Ok);
+  // A scan of another building (every beam at 1.5 m: a round room): too few inliers.
+  for (float& r : scan->ranges) {
+    r = 1.5F;
+  }
+  CHECK(matcher.match(*scan, Pose2d{}, Pose2d{3.0, 4.0, 0.0}, *field).status == Status::NotEnoughData);
+  // No valid beam.
+  for (float& r : scan->ranges) {
+    r = std::numeric_limits<float>::quiet_NaN();
+  }
+  CHECK(matcher.match(*scan, Pose2d{}, truth, *field).status == Status::EmptyInput);
+  ScanMatchParams p;
+  p.maxIterations = 0;
+  CHECK(p.validate() == Status::InvalidArgument);
+  p = ScanMatchParams{};
+  p.huber = std::nan("");
+  CHECK(p.validate() == Status::NonFiniteInput);
+  p = ScanMatchParams{};
+  p.minInlierFraction = 1.5;
+  CHECK(p.validate() == Status::InvalidArgument);
+  LocalizerParams lp;
+  lp.scanMatchGate = -1.0;
+  CHECK(lp.validate() == Status::InvalidArgument);
+}
+
+namespace {
+
+/// A vehicle driving through the hall on the localizer with a likelihood field and no landmarks.
+struct FieldRun {
+  std::unique_ptr<HallField> field = std::make_unique<HallField>();
+  std::vector<Segment> segs = hall();
+  LocalizerParams params;
+  std::unique_ptr<Localizer> loc;
+  std::unique_ptr<LandmarkMap> map;
+  std::unique_ptr<ScanObservations> obs = std::make_unique<ScanObservations>();
+  std::unique_ptr<LaserScan> scan = std::make_unique<LaserScan>();
+  Pose2d truth{2.0, 2.0, 0.0};
+  Timestamp t = Timestamp::fromSeconds(1.0);
+  std::mt19937_64 rng{21};
+
+  FieldRun() {
+    buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+    params.laser.mounting = Pose2d{0.6, 0.0, 0.0};
+    loc = std::make_unique<Localizer>(params);
+    LandmarkMapParams mp;
+    mp.mode = MapMode::Static;
+    map = std::make_unique<LandmarkMap>(mp);
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0.diagonal() << 0.01 * 0.01, 0.01 * 0.01, 0.005 * 0.005;
+    REQUIRE(loc->reset(t, truth, P0) == Status::Ok);
+  }
+
+  /// Drives `delta` (vehicle frame) in 10 steps reporting `reported` to the filter, then one scan.
+  const LocalizerHealth& step(const Pose2d& delta, const Pose2d& reported) {
+    for (int k = 0; k < 10; ++k) {
+      t = t + Duration::fromMilliseconds(10);
+      OdometryIncrement inc;
+      inc.stamp = t;
+      inc.delta = Pose2d{reported.x / 10.0, reported.y / 10.0, reported.theta / 10.0};
+      inc.covariance = Eigen::Matrix3d::Identity() * 1e-6;
+      inc.covariance(2, 2) = 1e-7;
+      REQUIRE(loc->predict(inc) == Status::Ok);
+      truth = truth.compose(Pose2d{delta.x / 10.0, delta.y / 10.0, delta.theta / 10.0});
+    }
+    castScan(segs, truth.compose(params.laser.mounting), 0.01, rng, *scan);
+    scan->stamp = t;
+    obs->stamp = t;
+    obs->points.clear();
+    return loc->correct(*obs, *scan, *map, *field);
+  }
+};
+
+}  // namespace
+
+TEST_CASE("localizer with a likelihood field: holds 2 cm / 0.1 deg on biased odometry without landmarks",
+          "[localization][scanmatch][localizer]") {
+  FieldRun run;
+  double worst = 0.0;
+  double worstHeading = 0.0;
+  for (int c = 0; c < 60; ++c) {
+    // 10 cm per cycle along a gentle arc; the odometry reports 3 % less distance and 2 % less turn.
+    const Pose2d d{0.1, 0.0, 0.01};
+    const LocalizerHealth& h = run.step(d, Pose2d{0.097, 0.0, 0.0098});
+    REQUIRE(h.scanMatch.attempted);
+    CHECK(h.scanMatch.fused);
+    CHECK_FALSE(hasFlag(h.flags, LocalizerFlag::NoFix));
+    CHECK_FALSE(h.lost);
+    worst = std::max(worst, std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y));
+    worstHeading = std::max(worstHeading, std::fabs(normalizeAngle(run.loc->pose().theta - run.truth.theta)));
+  }
+  CHECK(worst < 0.02);
+  CHECK(worstHeading < 0.1 * kPiD / 180.0);
+  // The same drive on dead reckoning would be 18 cm short: the matches did the work.
+}
+
+TEST_CASE("localizer with a likelihood field: a slip beyond the odometry model is gated, then re-synchronised",
+          "[localization][scanmatch][localizer]") {
+  FieldRun run;
+  for (int c = 0; c < 5; ++c) {
+    REQUIRE(run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0}).scanMatch.fused);
+  }
+  // The wheels slip: the vehicle moves 25 cm sideways that the odometry never reports. The
+  // filter's covariance (mm) makes a match that far off a 25-sigma outlier: one such match is
+  // refused.
+  const LocalizerHealth& first = run.step(Pose2d{0.0, 0.25, 0.0}, Pose2d{0.0, 0.0, 0.0});
+  CHECK(first.scanMatch.status == Status::Rejected);
+  CHECK(hasFlag(first.flags, LocalizerFlag::ScanMatchRejected));
+  int resyncAt = -1;
+  for (int c = 0; c < 10 && resyncAt < 0; ++c) {
+    const LocalizerHealth& h = run.step(Pose2d{0.05, 0.0, 0.0}, Pose2d{0.05, 0.0, 0.0});
+    if (h.scanMatch.resynced) {
+      CHECK(hasFlag(h.flags, LocalizerFlag::ScanMatchResync));
+      resyncAt = c;
+    }
+  }
+  // Five agreeing refusals in a row (the slip cycle and four after it) reset the pose to the map.
+  CHECK(resyncAt == run.params.scanMatch.resyncAfter - 2);
+  CHECK(std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y) < 0.02);
+  const LocalizerHealth& after = run.step(Pose2d{0.05, 0.0, 0.0}, Pose2d{0.05, 0.0, 0.0});
+  CHECK(after.scanMatch.fused);
+  CHECK_FALSE(after.scanMatch.resynced);
+}
+
+TEST_CASE("localizer with a likelihood field: the steady-state cycle allocates nothing",
+          "[localization][scanmatch][alloc]") {
+  FieldRun run;
+  (void)run.step(Pose2d{0.05, 0.0, 0.0}, Pose2d{0.05, 0.0, 0.0});
+  for (int c = 0; c < 3; ++c) {
+    run.truth = run.truth.compose(Pose2d{0.05, 0.0, 0.0});
+    castScan(run.segs, run.truth.compose(run.params.laser.mounting), 0.01, run.rng, *run.scan);
+    OdometryIncrement inc;
+    inc.delta = Pose2d{0.05, 0.0, 0.0};
+    inc.covariance = Eigen::Matrix3d::Identity() * 1e-6;
+    AGV_CHECK_NO_ALLOCATIONS(run.t = run.t + Duration::fromMilliseconds(100); inc.stamp = run.t;
+                             (void)run.loc->predict(inc); run.scan->stamp = run.t; run.obs->stamp = run.t;
+                             (void)run.loc->correct(*run.obs, *run.scan, *run.map, *run.field));
+    CHECK(run.loc->health().scanMatch.fused);
+  }
+}
