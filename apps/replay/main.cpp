@@ -95,6 +95,11 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_flag("!--no-scan-matching", options.scanMatching, "with --map-fraction: the corner map alone");
   app.add_option("--field-resolution", options.field.resolution, "[m] likelihood field cell size");
   app.add_option("--field-min-scans", options.fieldMinScans, "mapping scans a field surface cell needs");
+  app.add_option("--match-inlier", options.localizer.scanMatch.inlierDistance, "[m] scan-match inlier distance");
+  app.add_option("--match-max-rms", options.localizer.scanMatch.maxRmsResidual, "[m] scan-match RMS limit");
+  app.add_option("--resync-after", options.localizer.scanMatch.resyncAfter,
+                 "agreeing gated matches that resync (0: off)");
+  app.add_option("--resync-agreement", options.localizer.scanMatch.resyncAgreement, "[m] resync agreement");
   app.add_option("--match-inflation", options.localizer.scanMatch.covarianceInflation,
                  "scan-match covariance inflation");
   app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");

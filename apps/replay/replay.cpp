@@ -159,8 +159,8 @@ std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const 
 /// of `field`: the area is their bounding box plus the field's saturation distance, a cell is a
 /// surface when points of at least `options.fieldMinScans` scans fall in it. False with `error`
 /// when the area does not fit the field's capacity.
-bool buildField(const datasets::CarmenLog& log, std::size_t n, const ReplayOptions& options,
-                LikelihoodFieldBase& field, std::string& error) {
+bool buildField(const datasets::CarmenLog& log, std::size_t n, const ReplayOptions& options, LikelihoodFieldBase& field,
+                std::string& error) {
   const double rangeMax = options.localizer.laser.rangeMax;
   std::vector<Eigen::Vector2d> points;
   std::vector<Eigen::Vector2d> views;  // unit vectors from each point to the laser that saw it
@@ -242,11 +242,11 @@ bool buildField(const datasets::CarmenLog& log, std::size_t n, const ReplayOptio
     if (c.scans < options.fieldMinScans) {
       continue;
     }
-    const double n = static_cast<double>(c.points);
-    const Eigen::Vector2d mean(c.x / n, c.y / n);
+    const double k = static_cast<double>(c.points);
+    const Eigen::Vector2d mean(c.x / k, c.y / k);
     Eigen::Matrix2d cov;
-    cov << c.xx / n - mean.x() * mean.x(), c.xy / n - mean.x() * mean.y(), c.xy / n - mean.x() * mean.y(),
-        c.yy / n - mean.y() * mean.y();
+    cov << c.xx / k - mean.x() * mean.x(), c.xy / k - mean.x() * mean.y(), c.xy / k - mean.x() * mean.y(),
+        c.yy / k - mean.y() * mean.y();
     Eigen::Vector2d normal = c.view;
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
     if (c.points >= 3 && es.eigenvalues()(1) > 4.0 * es.eigenvalues()(0)) {
@@ -339,6 +339,20 @@ AbsoluteError absoluteError(const std::vector<Pose2d>& truth, const std::vector<
     const Pose2d e = align.compose(estimate[i]);
     pos.push_back(std::hypot(e.x - truth[i].x, e.y - truth[i].y));
     head.push_back(std::fabs(normalizeAngle(e.theta - truth[i].theta)));
+  }
+  return AbsoluteError{stats(pos), stats(head)};
+}
+
+AbsoluteError absoluteErrorOf(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate,
+                              const std::vector<bool>& select) {
+  std::vector<double> pos;
+  std::vector<double> head;
+  const std::size_t n = std::min({truth.size(), estimate.size(), select.size()});
+  for (std::size_t i = 0; i < n; ++i) {
+    if (select[i]) {
+      pos.push_back(std::hypot(estimate[i].x - truth[i].x, estimate[i].y - truth[i].y));
+      head.push_back(std::fabs(normalizeAngle(estimate[i].theta - truth[i].theta)));
+    }
   }
   return AbsoluteError{stats(pos), stats(head)};
 }
@@ -502,6 +516,11 @@ class ScanReplay {
       }
     }
     r_.localizer.push_back(localizer_->pose());
+    if (field_) {
+      const bool on = onMap(log_.scans[i].robotPose);
+      r_.onMap.push_back(on);
+      r_.onMapScans += on ? 1U : 0U;
+    }
     writeTrace(i, h);
     return true;
   }
@@ -537,6 +556,31 @@ class ScanReplay {
     }
     last_ = stamp;
     return true;
+  }
+
+  /// Whether the current scan is on the map at the vehicle pose `truth` (`ReplayResult::onMap`).
+  bool onMap(const Pose2d& truth) const {
+    const ScanMatchParams& mp = lp_.scanMatch;
+    const Pose2d laser = truth.compose(lp_.laser.mounting);
+    std::size_t points = 0;
+    std::size_t inliers = 0;
+    Eigen::Vector2d last(1e300, 1e300);
+    for (std::size_t b = 0; b < scan_->size(); ++b) {
+      if (!scan_->isValid(b)) {
+        continue;
+      }
+      const double a = static_cast<double>(scan_->angle(b));
+      const double r = static_cast<double>(scan_->ranges[b]);
+      const Eigen::Vector2d w = laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a)));
+      if ((w - last).norm() < mp.pointSpacing) {
+        continue;
+      }
+      last = w;
+      ++points;
+      const FieldSample f = field_->sample(w.x(), w.y());
+      inliers += f.inside && std::fabs(f.distance) < mp.inlierDistance ? 1U : 0U;
+    }
+    return points > 0 && static_cast<double>(inliers) >= options_.onMapFraction * static_cast<double>(points);
   }
 
   /// The FALKO corners of the current scan as the observations at `stamp`.
@@ -668,6 +712,10 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
   r.localizerRelative = relativeError(r.truth, r.localizer, options.segmentLength);
   r.odometryAbsolute = absoluteError(r.truth, r.odometry);
   r.localizerAbsolute = absoluteError(r.truth, r.localizer);
+  if (!r.onMap.empty()) {
+    r.localizerOnMap = absoluteErrorOf(r.truth, r.localizer, r.onMap);
+    r.odometryOnMap = absoluteErrorOf(r.truth, r.odometry, r.onMap);
+  }
   return true;
 }
 
@@ -709,6 +757,14 @@ std::string resultText(const ReplayResult& r) {
         << r.fieldSurfaceCells << " surface cells";
     }
     o << "; localized: the " << r.scans << " scans after it\n";
+    if (!r.onMap.empty()) {
+      o << "on the map (" << r.onMapScans << " of " << r.scans << " scans): localizer "
+        << fmt("%.3f / %.3f / %.3f m rms / median / max, ", r.localizerOnMap.position.rms,
+               r.localizerOnMap.position.median, r.localizerOnMap.position.max)
+        << fmt("%.2f / %.2f deg rms / max", r.localizerOnMap.heading.rms * kDeg, r.localizerOnMap.heading.max * kDeg)
+        << fmt("; odometry %.3f m rms, %.2f deg rms\n", r.odometryOnMap.position.rms,
+               r.odometryOnMap.heading.rms * kDeg);
+    }
     o << "scan matching: " << r.matchAttempts << " attempts, " << r.matchFused << " fused, " << r.matchGated
       << " gated, " << r.matchRefused << " refused by the matcher; " << r.noFixCycles << " cycles without a fix, "
       << r.lostCycles << " cycles lost\n";
@@ -724,48 +780,50 @@ report::Json resultJson(const ReplayResult& r) {
   const auto errors = [](const ErrorStats& position, const ErrorStats& heading) {
     return Json{{"position_m", statsJson(position, 1.0)}, {"heading_deg", statsJson(heading, kDeg)}};
   };
-  return Json{{"log", r.log},
-              {"scans", r.scans},
-              {"path_length_m", r.pathLength},
-              {"duration_s", r.duration},
-              {"zero_increments", r.zeroIncrements},
-              {"odometry_per_metre", errors(r.odometryRelative.position, r.odometryRelative.heading)},
-              {"localizer_per_metre", errors(r.localizerRelative.position, r.localizerRelative.heading)},
-              {"odometry_absolute", errors(r.odometryAbsolute.position, r.odometryAbsolute.heading)},
-              {"localizer_absolute", errors(r.localizerAbsolute.position, r.localizerAbsolute.heading)},
-              {"static_map", r.staticMap},
-              {"mapping_run",
-               {{"scans", r.mappingScans},
-                {"static_corners", r.staticCorners},
-                {"field_surface_cells", r.fieldSurfaceCells},
-                {"field_width_m", r.fieldWidth},
-                {"field_height_m", r.fieldHeight}}},
-              {"scan_matching",
-               {{"attempts", r.matchAttempts},
-                {"fused", r.matchFused},
-                {"gated", r.matchGated},
-                {"refused", r.matchRefused}}},
-              {"laser_x_m", r.laserX},
-              {"localizer",
-               {{"keypoints", r.keypoints},
-                {"used", r.used},
-                {"fix_cycles", r.fixCycles},
-                {"bad_cycles", r.badCycles},
-                {"lost_events", r.lostEvents},
-                {"lost_cycles", r.lostCycles},
-                {"no_fix_cycles", r.noFixCycles},
-                {"map_restarts", r.mapRestarts},
-                {"rejected_gate", r.rejectedGate},
-                {"rejected_ambiguous", r.rejectedAmbiguous},
-                {"rejected_duplicate", r.rejectedDuplicate},
-                {"rejected_update", r.rejectedUpdate},
-                {"mean_test_ratio", r.meanTestRatio},
-                {"map_size", r.mapSize},
-                {"map_inserted", r.mapInserted},
-                {"map_deleted", r.mapDeleted},
-                {"expected_in_view", r.expected},
-                {"occluded_or_no_return", r.occluded}}},
-              {"replay_seconds", r.seconds}};
+  return Json{
+      {"log", r.log},
+      {"scans", r.scans},
+      {"path_length_m", r.pathLength},
+      {"duration_s", r.duration},
+      {"zero_increments", r.zeroIncrements},
+      {"odometry_per_metre", errors(r.odometryRelative.position, r.odometryRelative.heading)},
+      {"localizer_per_metre", errors(r.localizerRelative.position, r.localizerRelative.heading)},
+      {"odometry_absolute", errors(r.odometryAbsolute.position, r.odometryAbsolute.heading)},
+      {"localizer_absolute", errors(r.localizerAbsolute.position, r.localizerAbsolute.heading)},
+      {"static_map", r.staticMap},
+      {"mapping_run",
+       {{"scans", r.mappingScans},
+        {"static_corners", r.staticCorners},
+        {"field_surface_cells", r.fieldSurfaceCells},
+        {"field_width_m", r.fieldWidth},
+        {"field_height_m", r.fieldHeight}}},
+      {"on_map",
+       {{"scans", r.onMapScans},
+        {"localizer", errors(r.localizerOnMap.position, r.localizerOnMap.heading)},
+        {"odometry", errors(r.odometryOnMap.position, r.odometryOnMap.heading)}}},
+      {"scan_matching",
+       {{"attempts", r.matchAttempts}, {"fused", r.matchFused}, {"gated", r.matchGated}, {"refused", r.matchRefused}}},
+      {"laser_x_m", r.laserX},
+      {"localizer",
+       {{"keypoints", r.keypoints},
+        {"used", r.used},
+        {"fix_cycles", r.fixCycles},
+        {"bad_cycles", r.badCycles},
+        {"lost_events", r.lostEvents},
+        {"lost_cycles", r.lostCycles},
+        {"no_fix_cycles", r.noFixCycles},
+        {"map_restarts", r.mapRestarts},
+        {"rejected_gate", r.rejectedGate},
+        {"rejected_ambiguous", r.rejectedAmbiguous},
+        {"rejected_duplicate", r.rejectedDuplicate},
+        {"rejected_update", r.rejectedUpdate},
+        {"mean_test_ratio", r.meanTestRatio},
+        {"map_size", r.mapSize},
+        {"map_inserted", r.mapInserted},
+        {"map_deleted", r.mapDeleted},
+        {"expected_in_view", r.expected},
+        {"occluded_or_no_return", r.occluded}}},
+      {"replay_seconds", r.seconds}};
 }
 
 std::string trajectorySvg(const ReplayResult& r) {

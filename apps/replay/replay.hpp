@@ -63,6 +63,7 @@ struct ReplayOptions {
   std::size_t fieldMinScans = 2;
   /// Scan-to-map matching on the field (with `mapFraction`); off: the corner map alone.
   bool scanMatching = true;
+  double onMapFraction = 0.5;  ///< see `ReplayResult::onMap`
   /// When not empty, one CSV line per scan (health and errors) is written here.
   std::string tracePath;
 };
@@ -104,6 +105,10 @@ struct AbsoluteError {
   ErrorStats heading;   ///< [rad]
 };
 
+/// Absolute error of the scans flagged in `select` (no alignment: both in the map's frame).
+AbsoluteError absoluteErrorOf(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate,
+                              const std::vector<bool>& select);
+
 /// Relative error per segment of ground-truth path length `length`.
 RelativeError relativeError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate, double length);
 /// Absolute error after aligning the first poses (estimate moved rigidly onto truth[0]).
@@ -143,19 +148,26 @@ struct ReplayResult {
   std::size_t mapDeleted = 0;
   bool staticMap = false;
   // Localization on a map from a mapping run (`mapFraction`).
-  std::size_t mappingScans = 0;     ///< scans of the mapping run (not localized)
-  std::size_t staticCorners = 0;    ///< corners of the static map
+  std::size_t mappingScans = 0;   ///< scans of the mapping run (not localized)
+  std::size_t staticCorners = 0;  ///< corners of the static map
   std::size_t fieldSurfaceCells = 0;
-  double fieldWidth = 0.0;          ///< [m]
-  double fieldHeight = 0.0;         ///< [m]
-  std::size_t matchAttempts = 0;    ///< scans matched against the field
-  std::size_t matchFused = 0;       ///< matches used in the update
-  std::size_t matchGated = 0;       ///< refused by the gate against the prior
-  std::size_t matchRefused = 0;     ///< refused by the matcher (too few inliers, unobservable, ...)
-  std::size_t lostCycles = 0;       ///< cycles whose health said lost
-  std::size_t noFixCycles = 0;      ///< cycles without a fix (no landmark and no match)
-  double meanTestRatio = 0.0;  ///< over cycles with used observations
-  double seconds = 0.0;        ///< wall time of the replay loop
+  double fieldWidth = 0.0;        ///< [m]
+  double fieldHeight = 0.0;       ///< [m]
+  std::size_t matchAttempts = 0;  ///< scans matched against the field
+  std::size_t matchFused = 0;     ///< matches used in the update
+  std::size_t matchGated = 0;     ///< refused by the gate against the prior
+  std::size_t matchRefused = 0;   ///< refused by the matcher (too few inliers, unobservable, ...)
+  std::size_t lostCycles = 0;     ///< cycles whose health said lost
+  /// Per localized scan: on the map, i.e. at least `onMapFraction` of its points (thinned as the
+  /// matcher thins them) lie within the matcher's inlier distance of the field's surfaces at the
+  /// *true* pose. What a map-based localizer can be asked to hold; off the map it dead-reckons.
+  std::vector<bool> onMap;
+  std::size_t onMapScans = 0;
+  AbsoluteError localizerOnMap;  ///< absolute error over the on-map scans
+  AbsoluteError odometryOnMap;
+  std::size_t noFixCycles = 0;  ///< cycles without a fix (no landmark and no match)
+  double meanTestRatio = 0.0;   ///< over cycles with used observations
+  double seconds = 0.0;         ///< wall time of the replay loop
 };
 
 /// Rebuilds the raw odometry increments of a corrected log: for scan i, inverse(corrected_{i-1})

@@ -5,8 +5,8 @@
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <limits>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 #include <vector>
@@ -23,7 +23,6 @@ constexpr double kPiD = 3.14159265358979323846;
 }  // namespace
 
 namespace {
-
 
 /// A wall segment of the simulated hall.
 struct Segment {
@@ -296,6 +295,41 @@ TEST_CASE("scan matcher: a ray-cast scan is aligned to the pose it was taken fro
   CHECK(tried >= 30);
 }
 
+TEST_CASE("scan matcher: with the prior's covariance, a coarse search finds poses beyond the refinement's basin",
+          "[localization][scanmatch]") {
+  auto field = std::make_unique<HallField>();
+  const std::vector<Segment> segs = hall();
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  auto scan = std::make_unique<LaserScan>();
+  auto matcher = std::make_unique<ScanMatcher>();
+  std::mt19937_64 rng(17);
+  const Pose2d laser{0.6, 0.0, 0.0};
+  const Pose2d truth{3.0, 5.5, 0.7};
+  castScan(segs, truth.compose(laser), 0.01, rng, *scan);
+  // 0.4 m and 12 deg off: the truncated field's basin is ~0.3 m and a few degrees.
+  const Pose2d prior{truth.x + 0.3, truth.y - 0.25, truth.theta + 0.21};
+  Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+  P.diagonal() << 0.15 * 0.15, 0.15 * 0.15, 0.1 * 0.1;  // 3 sigma covers the offset
+  const ScanMatchResult local = matcher->match(*scan, laser, prior, *field);
+  const bool localFound =
+      local.status == Status::Ok && std::hypot(local.pose.x - truth.x, local.pose.y - truth.y) < 0.01;
+  CHECK_FALSE(localFound);  // the refinement alone does not get there (else the test shows nothing)
+  const ScanMatchResult searched = matcher->match(*scan, laser, prior, P, *field);
+  REQUIRE(searched.status == Status::Ok);
+  CHECK(searched.searched > 1000U);
+  CHECK(searched.searched <= matcher->params().maxSearchPoses + 1U);
+  CHECK(std::hypot(searched.pose.x - truth.x, searched.pose.y - truth.y) < 0.01);
+  CHECK(std::fabs(normalizeAngle(searched.pose.theta - truth.theta)) < 0.1 * kPiD / 180.0);
+  // A tight covariance: no search (the refinement alone), as without one.
+  const ScanMatchResult tight = matcher->match(*scan, laser, truth, Eigen::Matrix3d::Identity() * 1e-6, *field);
+  CHECK(tight.status == Status::Ok);
+  CHECK(tight.searched == 0U);
+  // A non-finite covariance is refused.
+  Eigen::Matrix3d bad = P;
+  bad(0, 0) = std::nan("");
+  CHECK(matcher->match(*scan, laser, prior, bad, *field).status == Status::NonFiniteInput);
+}
+
 TEST_CASE("scan matcher: in a featureless corridor the covariance says the along-track position is unknown",
           "[localization][scanmatch]") {
   auto field = std::make_unique<LikelihoodField<1300 * 100>>();
@@ -447,7 +481,8 @@ TEST_CASE("localizer with a likelihood field: a slip beyond the odometry model i
       resyncAt = c;
     }
   }
-  // Five agreeing refusals in a row (the slip cycle and four after it) reset the pose to the map.
+  // `resyncAfter` agreeing refusals in a row (the slip cycle and those after it) reset the pose to
+  // the map.
   CHECK(resyncAt == run.params.scanMatch.resyncAfter - 2);
   CHECK(std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y) < 0.02);
   const LocalizerHealth& after = run.step(Pose2d{0.05, 0.0, 0.0}, Pose2d{0.05, 0.0, 0.0});

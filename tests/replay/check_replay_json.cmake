@@ -1,7 +1,7 @@
 # Checks of agvnav-replay --json (included by tests/support/run_json_program.cmake with the
 # document in `j`): the documented keys in order, the error statistics, the localizer counters;
 # the raw odometry's per-metre position error is the data README's 0.125 m within 10 %.
-expect_keys("${j}" "log;scans;path_length_m;duration_s;zero_increments;odometry_per_metre;localizer_per_metre;odometry_absolute;localizer_absolute;static_map;laser_x_m;localizer;replay_seconds")
+expect_keys("${j}" "log;scans;path_length_m;duration_s;zero_increments;odometry_per_metre;localizer_per_metre;odometry_absolute;localizer_absolute;static_map;mapping_run;on_map;scan_matching;laser_x_m;localizer;replay_seconds")
 # fr079's log says PARAM robot_frontlaser_offset -0.04: the replay must have used it.
 expect_number_in("${j}" -0.0401 -0.0399 laser_x_m)
 string(JSON log GET "${j}" log)
@@ -29,7 +29,7 @@ if(NOT loc LESS odo)
   message(FATAL_ERROR "JSON: localizer per metre ${loc} m not below raw odometry ${odo} m")
 endif()
 expect_type("${j}" BOOLEAN static_map)
-expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;lost_events;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
+expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;lost_events;lost_cycles;no_fix_cycles;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
 expect_number_in("${j}" 1 1000000000 localizer keypoints)
 expect_number_in("${j}" 1 1000000000 localizer used)
 expect_number_in("${j}" 0 1000000 replay_seconds)

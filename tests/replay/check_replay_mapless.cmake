@@ -3,7 +3,7 @@
 # - the localizer never declared itself lost: a map-less localizer has nothing to reset to, and the
 #   covariance growth of dead reckoning must not latch it (aces went lost 135 times in a loop);
 # - its mean heading error per metre is below the raw odometry's.
-expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;lost_events;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
+expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;lost_events;lost_cycles;no_fix_cycles;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
 string(JSON lost GET "${j}" localizer lost_events)
 if(NOT lost EQUAL 0)
   message(FATAL_ERROR "JSON: ${LOG_NAME}: the localizer went lost ${lost} times")

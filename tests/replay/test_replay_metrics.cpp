@@ -129,8 +129,8 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   }
   CHECK(keys == std::vector<std::string>{"log", "scans", "path_length_m", "duration_s", "zero_increments",
                                          "odometry_per_metre", "localizer_per_metre", "odometry_absolute",
-                                         "localizer_absolute", "static_map", "laser_x_m", "localizer",
-                                         "replay_seconds"});
+                                         "localizer_absolute", "static_map", "mapping_run", "on_map", "scan_matching",
+                                         "laser_x_m", "localizer", "replay_seconds"});
   CHECK(j.at("log") == res.log);
   CHECK(j.at("scans") == 3);
   CHECK(j.at("path_length_m") == 2.5);
@@ -147,7 +147,7 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   CHECK(j.at("odometry_per_metre").at("position_m").at("count").get<std::size_t>() ==
         res.odometryRelative.position.count);
   const Json& loc = j.at("localizer");
-  CHECK(loc.size() == 16U);
+  CHECK(loc.size() == 18U);
   CHECK(loc.at("map_restarts") == 0);
   CHECK(loc.at("keypoints") == 7);
   CHECK(loc.at("map_deleted") == 2);

@@ -373,7 +373,7 @@ void Localizer::matchScan(const LaserScan& beams, const LikelihoodFieldBase& fie
   ScanMatchHealth& h = health_.scanMatch;
   h.attempted = true;
   matcher_.setParams(params_.scanMatch);
-  const ScanMatchResult m = matcher_.match(beams, params_.laser.mounting, ekf_.pose(), field);
+  const ScanMatchResult m = matcher_.match(beams, params_.laser.mounting, ekf_.pose(), ekf_.covariance(), field);
   h.status = m.status;
   h.points = m.points;
   h.inliers = m.inliers;
@@ -413,8 +413,8 @@ void Localizer::matchScan(const LaserScan& beams, const LikelihoodFieldBase& fie
   health_.flags |= bit(LocalizerFlag::ScanMatchRejected);
 }
 
-const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, const LaserScan* beams,
-                                              LandmarkMap& map, const LikelihoodFieldBase* field) noexcept {
+const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map,
+                                              const LikelihoodFieldBase* field) noexcept {
   ++cycle_;
   health_ = LocalizerHealth{};
   health_.cycle = cycle_;

@@ -6,17 +6,22 @@
 namespace agv {
 
 Status ScanMatchParams::validate() const noexcept {
-  const double values[] = {pointSpacing,      inlierDistance,  huber,       minInlierFraction, sigmaFloor,
-                           covarianceInflation, stepTranslation, stepRotation, maxCorrection,     maxRotation,
-                           resyncAgreement,   resyncAgreementAngle};
+  const double values[] = {
+      pointSpacing,          inlierDistance,       huber,         minInlierFraction,    sigmaFloor,
+      covarianceInflation,   stepTranslation,      stepRotation,  maxCorrection,        maxRotation,
+      resyncAgreement,       resyncAgreementAngle, searchSigmas,  maxSearchTranslation, maxSearchRotation,
+      searchStepTranslation, searchStepRotation,   maxRmsResidual};
   for (const double v : values) {
     if (!std::isfinite(v)) {
       return Status::NonFiniteInput;
     }
   }
-  if (maxIterations == 0 || pointSpacing < 0.0 || !(inlierDistance > 0.0) || !(huber > 0.0) ||
-      !(sigmaFloor > 0.0) || !(covarianceInflation > 0.0) || !(stepTranslation > 0.0) || !(stepRotation > 0.0) ||
-      !(maxCorrection > 0.0) || !(maxRotation > 0.0) || !(resyncAgreement > 0.0) || !(resyncAgreementAngle > 0.0) || minInlierFraction < 0.0 || minInlierFraction > 1.0) {
+  if (maxIterations == 0 || pointSpacing < 0.0 || !(inlierDistance > 0.0) || !(huber > 0.0) || !(sigmaFloor > 0.0) ||
+      !(covarianceInflation > 0.0) || !(stepTranslation > 0.0) || !(stepRotation > 0.0) || !(maxCorrection > 0.0) ||
+      !(maxRotation > 0.0) || !(resyncAgreement > 0.0) || !(resyncAgreementAngle > 0.0) || searchSigmas < 0.0 ||
+      !(maxRmsResidual > 0.0) || maxSearchTranslation < 0.0 || maxSearchRotation < 0.0 ||
+      !(searchStepTranslation > 0.0) || !(searchStepRotation > 0.0) || maxSearchPoses == 0 || minInlierFraction < 0.0 ||
+      minInlierFraction > 1.0) {
     return Status::InvalidArgument;
   }
   return Status::Ok;
@@ -36,26 +41,13 @@ struct Normal {
 };
 
 /// Huber's cost of residual r with threshold k.
-double huberCost(double r, double k) noexcept { return r <= k ? 0.5 * r * r : k * (r - 0.5 * k); }
+double huberCost(double r, double k) noexcept {
+  return r <= k ? 0.5 * r * r : k * (r - 0.5 * k);
+}
 
 }  // namespace
 
-ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
-                                   const LikelihoodFieldBase& field) noexcept {
-  ScanMatchResult result;
-  result.pose = prior;
-  if (!prior.isFinite() || !laser.isFinite()) {
-    result.status = Status::NonFiniteInput;
-    return result;
-  }
-  if (!field.built()) {
-    result.status = Status::NotInitialized;
-    return result;
-  }
-  const double inlierDistance =
-      params_.inlierDistance < field.params().maxDistance ? params_.inlierDistance : field.params().maxDistance;
-
-  // Scan points in the vehicle frame, thinned to pointSpacing along the scan.
+bool ScanMatcher::collectPoints(const LaserScan& scan, const Pose2d& laser, ScanMatchResult& result) noexcept {
   points_.clear();
   const double spacing2 = params_.pointSpacing * params_.pointSpacing;
   double lastX = 0.0;
@@ -68,6 +60,9 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
     const double a = static_cast<double>(scan.angle(i));
     const double r = static_cast<double>(scan.ranges[i]);
     const Eigen::Vector2d p = laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a)));
+    if (!p.allFinite()) {
+      continue;
+    }
     if (haveLast) {
       const double dx = p.x() - lastX;
       const double dy = p.y() - lastY;
@@ -83,9 +78,135 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
   result.points = static_cast<std::uint16_t>(points_.size() > 65535U ? 65535U : points_.size());
   if (points_.empty()) {
     result.status = Status::EmptyInput;
+    return false;
+  }
+  return true;
+}
+
+double ScanMatcher::cost(const Pose2d& x, const LikelihoodFieldBase& field) const noexcept {
+  const double inlierDistance =
+      params_.inlierDistance < field.params().maxDistance ? params_.inlierDistance : field.params().maxDistance;
+  const double outlierCost = huberCost(inlierDistance, params_.huber);
+  const double c = std::cos(x.theta);
+  const double s = std::sin(x.theta);
+  double total = 0.0;
+  for (const Point& pt : points_) {
+    const double px = static_cast<double>(pt.x);
+    const double py = static_cast<double>(pt.y);
+    const FieldSample f = field.sample(x.x + c * px - s * py, x.y + s * px + c * py);
+    const double ar = std::fabs(f.distance);
+    total += f.inside && ar < inlierDistance ? huberCost(ar, params_.huber) : outlierCost;
+  }
+  return total;
+}
+
+Pose2d ScanMatcher::search(const Pose2d& prior, double wx, double wy, double wt, const LikelihoodFieldBase& field,
+                           std::uint32_t& scored) const noexcept {
+  // Steps per axis each way, grown together until the grid fits maxSearchPoses.
+  double stepT = params_.searchStepTranslation;
+  double stepR = params_.searchStepRotation;
+  long nx = 0;
+  long ny = 0;
+  long nt = 0;
+  for (int grow = 0; grow < 32; ++grow) {
+    nx = static_cast<long>(std::floor(wx / stepT));
+    ny = static_cast<long>(std::floor(wy / stepT));
+    nt = static_cast<long>(std::floor(wt / stepR));
+    const double poses =
+        static_cast<double>(2 * nx + 1) * static_cast<double>(2 * ny + 1) * static_cast<double>(2 * nt + 1);
+    if (poses <= static_cast<double>(params_.maxSearchPoses)) {
+      break;
+    }
+    stepT *= 1.25;
+    stepR *= 1.25;
+  }
+  Pose2d best = prior;
+  double bestCost = cost(prior, field);
+  scored = 1;
+  for (long it = -nt; it <= nt; ++it) {
+    for (long ix = -nx; ix <= nx; ++ix) {
+      for (long iy = -ny; iy <= ny; ++iy) {
+        if (it == 0 && ix == 0 && iy == 0) {
+          continue;
+        }
+        const Pose2d x = Pose2d(prior.x + static_cast<double>(ix) * stepT, prior.y + static_cast<double>(iy) * stepT,
+                                prior.theta + static_cast<double>(it) * stepR)
+                             .normalized();
+        const double c = cost(x, field);
+        ++scored;
+        if (c < bestCost) {
+          bestCost = c;
+          best = x;
+        }
+      }
+    }
+  }
+  return best;
+}
+
+ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
+                                   const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  result.pose = prior;
+  if (!prior.isFinite() || !laser.isFinite()) {
+    result.status = Status::NonFiniteInput;
     return result;
   }
+  if (!field.built()) {
+    result.status = Status::NotInitialized;
+    return result;
+  }
+  if (!collectPoints(scan, laser, result)) {
+    return result;
+  }
+  const std::uint16_t points = result.points;
+  result = refine(prior, prior, params_.maxCorrection, params_.maxRotation, field);
+  result.points = points;
+  return result;
+}
 
+ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
+                                   const Eigen::Matrix3d& priorCovariance, const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  result.pose = prior;
+  if (!prior.isFinite() || !laser.isFinite() || !priorCovariance.allFinite()) {
+    result.status = Status::NonFiniteInput;
+    return result;
+  }
+  if (!field.built()) {
+    result.status = Status::NotInitialized;
+    return result;
+  }
+  if (!collectPoints(scan, laser, result)) {
+    return result;
+  }
+  const auto window = [&](double variance, double cap) noexcept {
+    const double w = params_.searchSigmas * std::sqrt(variance > 0.0 ? variance : 0.0);
+    return w < cap ? w : cap;
+  };
+  const double wx = window(priorCovariance(0, 0), params_.maxSearchTranslation);
+  const double wy = window(priorCovariance(1, 1), params_.maxSearchTranslation);
+  const double wt = window(priorCovariance(2, 2), params_.maxSearchRotation);
+  Pose2d start = prior;
+  std::uint32_t scored = 0;
+  if (wx >= params_.searchStepTranslation || wy >= params_.searchStepTranslation || wt >= params_.searchStepRotation) {
+    start = search(prior, wx, wy, wt, field, scored);
+  }
+  const double allowedT = std::hypot(wx, wy) > params_.maxCorrection ? std::hypot(wx, wy) : params_.maxCorrection;
+  const double allowedR = wt > params_.maxRotation ? wt : params_.maxRotation;
+  const std::uint16_t points = result.points;
+  result = refine(prior, start, allowedT, allowedR, field);
+  result.points = points;
+  result.searched = scored;
+  return result;
+}
+
+ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, double allowedTranslation,
+                                    double allowedRotation, const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  result.pose = prior;
+  const double inlierDistance =
+      params_.inlierDistance < field.params().maxDistance ? params_.inlierDistance : field.params().maxDistance;
   const double outlierCost = huberCost(inlierDistance, params_.huber);
   const auto linearise = [&](const Pose2d& x) noexcept {
     Normal n;
@@ -134,7 +255,7 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
   // Gauss-Newton with step halving: a step that does not lower the robust cost is halved (at most
   // kHalvings times); when none lowers it, x is the minimum the field resolves (converged).
   constexpr int kHalvings = 5;
-  Pose2d x = prior;
+  Pose2d x = start;
   Normal n = linearise(x);
   bool converged = false;
   std::uint8_t it = 0;
@@ -188,13 +309,17 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
     result.status = Status::NotEnoughData;
     return result;
   }
+  if (result.rmsResidual > params_.maxRmsResidual) {
+    result.status = Status::IllConditioned;
+    return result;
+  }
   const Eigen::LDLT<Eigen::Matrix3d> ldlt(n.H);
   if (!solvable(ldlt)) {
     result.status = Status::Unobservable;
     return result;
   }
-  if (std::hypot(x.x - prior.x, x.y - prior.y) > params_.maxCorrection ||
-      std::fabs(normalizeAngle(x.theta - prior.theta)) > params_.maxRotation) {
+  if (std::hypot(x.x - prior.x, x.y - prior.y) > allowedTranslation ||
+      std::fabs(normalizeAngle(x.theta - prior.theta)) > allowedRotation) {
     result.status = Status::OutOfRange;
     return result;
   }

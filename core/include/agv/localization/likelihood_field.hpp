@@ -5,9 +5,9 @@
 /// the side the surface was seen from (free space) and negative behind it, and its gradient.
 /// Signed, because the scan matcher interpolates it: an unsigned distance has a V at the surface
 /// that bilinear interpolation between cell centres fills up to half a cell with a zero gradient
-/// at the bottom, exactly where a matched point sits; a signed distance crosses zero linearly. The scan matcher (`scan_matcher.hpp`) aligns a scan's points with it: the "natural
-/// navigation" observation that needs no reflectors and no corners, only the walls, racks and
-/// columns the laser sees anyway.
+/// at the bottom, exactly where a matched point sits; a signed distance crosses zero linearly. The scan matcher
+/// (`scan_matcher.hpp`) aligns a scan's points with it: the "natural navigation" observation that needs no reflectors
+/// and no corners, only the walls, racks and columns the laser sees anyway.
 ///
 /// Storage: one byte per cell, the signed distance quantised to `maxDistance / 127` (4 mm at the
 /// 0.5 m default), so a 50 m x 50 m hall at 5 cm is 1 MB. `LikelihoodFieldBase` holds the logic over
@@ -68,8 +68,8 @@ class LikelihoodFieldBase {
   /// seen from; any length but zero): every cell centre within maxDistance keeps, of its value and
   /// its Euclidean distance to this point, the one nearer to zero, signed negative when the cell
   /// lies behind the point (within 45 deg of straight behind along the normal: past the end of a
-  /// face, at a box's corner, the point's normal cannot say which side a cell is on). `NonFiniteInput`, `InvalidArgument` (zero normal),
-  /// `OutOfRange` (outside the area; counted in `pointsOutside()`), `NotInitialized`.
+  /// face, at a box's corner, the point's normal cannot say which side a cell is on). `NonFiniteInput`,
+  /// `InvalidArgument` (zero normal), `OutOfRange` (outside the area; counted in `pointsOutside()`), `NotInitialized`.
   Status addPoint(double x, double y, double normalX, double normalY) noexcept;
 
   /// Makes the field ready for `sample`. `NotInitialized` (not configured), `EmptyInput` (no

@@ -182,8 +182,8 @@ struct LocalizerParams {
 
   /// `Ok`, or the first sub-struct's refusal (`NonFiniteInput`, `InvalidArgument`): laser model
   /// (range and angle limits ordered, sigmas non-negative), association, occlusion, map,
-  /// health, scan match (and a positive gate), and a non-negative scan lead. The localizer runs with whatever it is given; its
-  /// owner checks this before (the navigation pipeline's `configure()` does).
+  /// health, scan match (and a positive gate), and a non-negative scan lead. The localizer runs with whatever it is
+  /// given; its owner checks this before (the navigation pipeline's `configure()` does).
   Status validate() const noexcept;
 };
 
@@ -231,15 +231,15 @@ struct SourceHealth {
 /// The scan-to-map match of one cycle (only when `correct` was given a likelihood field).
 struct ScanMatchHealth {
   bool attempted = false;
-  bool fused = false;                  ///< passed the matcher and the gate, used in the update
-  Status status = Status::NotFound;    ///< the matcher's status; `Rejected` when the gate refused it
-  std::uint16_t points = 0;            ///< scan points matched (after thinning)
-  std::uint16_t inliers = 0;           ///< of which on the map
-  double rmsResidual = 0.0;            ///< [m] of the inliers
-  double mahalanobis2 = 0.0;           ///< of the match against the prior (3 dof)
-  double correction = 0.0;             ///< [m] position change of the update (or of the resync)
-  std::uint8_t consecutiveGated = 0;   ///< refused by the gate in a row, agreeing with each other
-  bool resynced = false;               ///< this cycle reset the pose to the match
+  bool fused = false;                 ///< passed the matcher and the gate, used in the update
+  Status status = Status::NotFound;   ///< the matcher's status; `Rejected` when the gate refused it
+  std::uint16_t points = 0;           ///< scan points matched (after thinning)
+  std::uint16_t inliers = 0;          ///< of which on the map
+  double rmsResidual = 0.0;           ///< [m] of the inliers
+  double mahalanobis2 = 0.0;          ///< of the match against the prior (3 dof)
+  double correction = 0.0;            ///< [m] position change of the update (or of the resync)
+  std::uint8_t consecutiveGated = 0;  ///< refused by the gate in a row, agreeing with each other
+  bool resynced = false;              ///< this cycle reset the pose to the match
 };
 
 /// What one correction cycle did and how much it can be trusted.
@@ -399,6 +399,7 @@ class Localizer {
   bool initialized_ = false;
   bool lost_ = false;
   std::uint8_t badCycles_ = 0;
+  std::uint8_t gatedRun_ = 0;
   std::uint32_t cycle_ = 0;
   std::uint32_t pendingFlags_ = 0;
   Timestamp lastScanStamp_{};
@@ -408,10 +409,9 @@ class Localizer {
   Scratch scratch_[kMaxObservations];
   std::uint16_t order_[kMaxObservations] = {};
   ScanMatcher matcher_{};
-  /// Offset of the last gate-refused match from the estimate (estimate^-1 ⊕ match) and how many
-  /// agreeing refusals in a row led to it.
+  /// Offset of the last gate-refused match from the estimate (estimate^-1 ⊕ match); `gatedRun_`
+  /// counts the agreeing refusals in a row that led to it.
   Pose2d gatedOffset_{};
-  std::uint8_t gatedRun_ = 0;
   LocalizerHealth health_{};
 };
 

@@ -45,6 +45,11 @@ struct ScanMatchParams {
   /// Fewer inliers than this (absolute, and as a fraction of the points) refuse the match.
   std::size_t minInliers = 30;
   double minInlierFraction = 0.40;
+  /// [m] a converged match whose inliers fit worse than this (RMS) is refused (`IllConditioned`):
+  /// a scan that overlaps the map only in part finds accidental inliers inside the band, spread
+  /// uniformly (RMS inlierDistance / sqrt(3) = 17 cm at 0.3 m), where a true alignment leaves
+  /// the range noise and the map's own error (2..6 cm on the real logs, docs/localization.md).
+  double maxRmsResidual = 0.08;
   /// [m] floor of the residual standard deviation used for the covariance (map quantisation at
   /// 5 cm cells, res / sqrt(12) = 1.4 cm, plus range noise).
   double sigmaFloor = 0.02;
@@ -56,19 +61,36 @@ struct ScanMatchParams {
   /// the robust cost.
   double stepTranslation = 2e-3;
   double stepRotation = 1.7e-4;
-  /// [m], [rad]: a match that moved the pose farther than this from the prior is refused (the
-  /// basin of a truncated field is about `inlierDistance`; beyond it a match is a guess).
+  /// [m], [rad]: a match that moved the pose farther than this (or than the search window, when
+  /// larger) from the prior is refused (the basin of a truncated field is about `inlierDistance`;
+  /// beyond it a match is a guess).
   double maxCorrection = 0.5;
   double maxRotation = 0.2;
+  /// Coarse search before the refinement, when the prior is uncertain (the basin of the truncated
+  /// field is about `inlierDistance` in position and a few degrees in heading): with the prior's
+  /// covariance, every pose on a grid over +-`searchSigmas` standard deviations (capped at
+  /// `maxSearchTranslation` and `maxSearchRotation`) in steps of `searchStepTranslation` and
+  /// `searchStepRotation` is scored with the robust cost, and the refinement starts from the best.
+  /// Skipped when the window is within one step each way. Work: at most `maxSearchPoses` poses x
+  /// the points (the steps grow to keep to it).
+  double searchSigmas = 3.0;
+  double maxSearchTranslation = 0.6;   ///< [m]
+  double maxSearchRotation = 0.35;     ///< [rad] (20 deg)
+  double searchStepTranslation = 0.1;  ///< [m]
+  double searchStepRotation = 0.01;    ///< [rad] (a point at 10 m moves 10 cm)
+  std::size_t maxSearchPoses = 20000;
   /// Re-synchronisation (used by the localizer): a match the gate refuses means the prior and the
   /// map disagree. One such match may be wrong; `resyncAfter` consecutive refused matches that
   /// agree with each other (each one's offset from the filter's estimate within `resyncAgreement`
   /// [m] and `resyncAgreementAngle` [rad] of the previous one's: the vehicle has moved by what
   /// odometry says and the map keeps placing it the same way off the estimate) mean the prior is
   /// wrong (a slip the odometry model did not cover): the filter is reset to the latest match with
-  /// its covariance. 0 disables it.
-  std::uint8_t resyncAfter = 5;
-  double resyncAgreement = 0.05;
+  /// its covariance. 0 disables it. Three cycles, because a wrong match that repeats three times at
+  /// the same offset while the vehicle moves is a map that is locally ambiguous, which the gate
+  /// cannot tell either; 10 cm, because consecutive matches of real scans against a real map
+  /// scatter by a few centimetres (docs/localization.md, "Scan matching on real logs").
+  std::uint8_t resyncAfter = 3;
+  double resyncAgreement = 0.10;
   double resyncAgreementAngle = 0.02;
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (zero iterations, a negative spacing,
   /// non-positive distances, sigma, inflation, step bounds or agreement bounds, a fraction outside
@@ -80,14 +102,16 @@ struct ScanMatchParams {
 struct ScanMatchResult {
   /// Ok; EmptyInput (no valid beam); NotInitialized (field not built); NotEnoughData (too few
   /// inliers); Unobservable (the inliers do not constrain all three dof); NotConverged;
+  /// IllConditioned (the inliers fit worse than maxRmsResidual);
   /// OutOfRange (moved beyond maxCorrection / maxRotation); NonFiniteInput (prior or mounting).
   Status status = Status::EmptyInput;
-  Pose2d pose{};                                               ///< vehicle pose (world frame)
+  Pose2d pose{};                                             ///< vehicle pose (world frame)
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< of `pose` [m^2, rad^2]
-  std::uint16_t points = 0;                                    ///< scan points used (after thinning)
-  std::uint16_t inliers = 0;                                   ///< within inlierDistance at the end
+  std::uint16_t points = 0;                                  ///< scan points used (after thinning)
+  std::uint16_t inliers = 0;                                 ///< within inlierDistance at the end
   std::uint8_t iterations = 0;
-  double rmsResidual = 0.0;  ///< [m] over the inliers at the end
+  std::uint32_t searched = 0;  ///< poses scored by the coarse search (0: none)
+  double rmsResidual = 0.0;    ///< [m] over the inliers at the end
 };
 
 /// The matcher (scratch only; holds no map).
@@ -104,6 +128,12 @@ class ScanMatcher {
   ScanMatchResult match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
                         const LikelihoodFieldBase& field) noexcept;
 
+  /// The same with the prior's covariance: first the coarse search over the window it spans (see
+  /// `searchSigmas`), then the refinement from the best pose found. `NonFiniteInput` for a
+  /// non-finite covariance.
+  ScanMatchResult match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
+                        const Eigen::Matrix3d& priorCovariance, const LikelihoodFieldBase& field) noexcept;
+
   const ScanMatchParams& params() const noexcept { return params_; }
   void setParams(const ScanMatchParams& params) noexcept { params_ = params; }
 
@@ -112,6 +142,17 @@ class ScanMatcher {
     float x;
     float y;
   };
+  /// The scan's points in the vehicle frame, thinned; false (status set) when there are none.
+  bool collectPoints(const LaserScan& scan, const Pose2d& laser, ScanMatchResult& result) noexcept;
+  /// Robust cost of the points at pose `x` (the refinement's objective, without derivatives).
+  double cost(const Pose2d& x, const LikelihoodFieldBase& field) const noexcept;
+  /// The coarse search around `prior` over +-(wx, wy, wt); the best pose (prior when no better).
+  Pose2d search(const Pose2d& prior, double wx, double wy, double wt, const LikelihoodFieldBase& field,
+                std::uint32_t& scored) const noexcept;
+  /// Gauss-Newton from `start`; `prior` and `allowed` for the maxCorrection check.
+  ScanMatchResult refine(const Pose2d& prior, const Pose2d& start, double allowedTranslation, double allowedRotation,
+                         const LikelihoodFieldBase& field) noexcept;
+
   ScanMatchParams params_{};
   FixedVector<Point, kMaxScanBeams> points_;
 };
