@@ -69,6 +69,7 @@ Json localizerRunJson(const RunResult& r) {
               {"distance_m", r.distance},
               {"finished", r.finished},
               {"lost", r.localizerLost},
+              {"required", requiredMode(r.mode)},
               {"landmarks_used_per_scan", r.meanUsedPerScan},
               {"scans_without_fix", r.scansWithoutFix},
               {"keypoints_per_scan", r.meanKeypointsPerScan}};
@@ -95,6 +96,10 @@ void appendDeadReckoning(const RunResult& r, Json& runs) {
 bool meetsRequirement(const Pose2d& estimate, const Pose2d& truth) {
   return positionError(estimate, truth) <= kPositionRequirement &&
          rad2deg(headingError(estimate, truth)) <= kHeadingRequirementDeg;
+}
+
+bool requiredMode(LocalizationMode mode) noexcept {
+  return mode == LocalizationMode::Reflectors || mode == LocalizationMode::Natural;
 }
 
 bool runMeetsRequirement(const RunResult& r) {
@@ -135,7 +140,10 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
               {"can_encoders", canJson(cfg, canTotals(s))},
               {"stages", std::move(stageStates)},
               {"runs", std::move(runs)},
-              {"static_falko_mapping", {{"frozen_corners", s.mapCorners}, {"runs", std::move(mappingRuns)}}},
+              {"static_falko_mapping",
+               {{"frozen_corners", s.mapCorners},
+                {"field_surface_cells", s.fieldSurfacePoints},
+                {"runs", std::move(mappingRuns)}}},
               {"requirement_met", requirementMet}};
 }
 

@@ -37,8 +37,18 @@ const char* modeName(LocalizationMode mode) noexcept {
       return "static_falko";
     case LocalizationMode::Dynamic:
       return "dynamic";
+    case LocalizationMode::Natural:
+      return "natural";
   }
   return "?";
+}
+
+sim::SimVehicleParams floorVehicle() {
+  sim::SimVehicleParams v;
+  v.accelSlip = 0.01;
+  v.turnSlip = 0.01;
+  v.steerBacklash = deg2rad(0.3);
+  return v;
 }
 
 Status buildSurveyedReflectorMap(const sim::World& world, double sigma, std::uint64_t seed, LandmarkMap& map) {
@@ -141,6 +151,15 @@ nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode m
   p.kinematics = cfg.estimate.kinematics;
   // Encoder samples per laser correction (100 Hz encoders, 12.5 Hz sweeps by default).
   p.odometryNoise.samplesPerCorrection = std::max(1.0, cfg.laser.scanRate > 0.0 ? 100.0 / cfg.laser.scanRate : 1.0);
+  // The systematic errors the floor and drive train add after calibration (what an integrator
+  // sets from the vehicle's data sheet): the steering bias of half the backlash and the encoder
+  // drift, the distance bias of the radius change and the traction slip at the drive's ramp.
+  const double halfBacklash = 0.5 * cfg.vehicle.steerBacklash;
+  p.odometryNoise.steeringBiasSigma =
+      std::sqrt(halfBacklash * halfBacklash + cfg.floor.steerDriftStdDev * cfg.floor.steerDriftStdDev);
+  const double rampSlip = cfg.vehicle.accelSlip * cfg.vehicle.acceleration;
+  p.odometryNoise.scaleBiasSigma =
+      std::sqrt(cfg.floor.radiusChangeStdDev * cfg.floor.radiusChangeStdDev + rampSlip * rampSlip);
   LocalizerParams& l = p.localizer;
   l.laser.mounting = cfg.estimate.laserMount;  // calibrated, never the true mount
   l.laser.rangeMin = std::max(0.3, cfg.laser.rangeMin);
@@ -163,6 +182,7 @@ nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode m
   p.observations.reflectors = reflectors;
   p.observations.corners = !reflectors;
   p.observations.detectCorners = mode == LocalizationMode::Mapping;  // collected, not corrected with
+  p.observations.collectScanPoints = mode == LocalizationMode::Mapping;
   // The vehicle is placed at the path start to within a few millimetres (startPositionStdDev).
   p.setPosePositionStdDev = 0.005;
   p.setPoseHeadingStdDev = deg2rad(0.05);
@@ -189,11 +209,30 @@ void collectCorners(const nav::Pipeline& pipeline, CornerMapper& cornerMap) {
   }
 }
 
+/// Mapping runs: the points of the sweep just corrected with, in the world frame at the corrected
+/// pose, into `surfaces` (the same conditions as the corners).
+void collectSurfaces(const nav::Pipeline& pipeline, mapping::SurfaceMapper& surfaces) {
+  const Localizer& loc = pipeline.localizer();
+  if (!pipeline.lastCycle().corrected || loc.lost() || hasFlag(loc.health().flags, LocalizerFlag::NoFix)) {
+    return;
+  }
+  const Result<Pose2d> pose = pipeline.poseAt(pipeline.lastCycle().sweepReference);
+  if (!pose.ok()) {
+    return;
+  }
+  const Pose2d laserWorld = pose.value() * loc.params().laser.mounting;
+  surfaces.beginScan();
+  for (const MatchPoint& p : pipeline.sweepPoints()) {
+    surfaces.add(laserWorld.transformPoint(Pose2d::Vector2(static_cast<double>(p.x), static_cast<double>(p.y))),
+                 laserWorld.translation());
+  }
+}
+
 /// One run of `path`: place the vehicle near the start, steer at rest, set the pose through the
 /// PLC, follow the path to its end and stop. The navigation is the vehicle's pipeline on the
 /// simulated devices (encoders through CAN frames, laser, PLC peer, clock).
 RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, const ScenarioConfig& cfg,
-                 LocalizationMode mode, LandmarkMap& map, CornerMapper* cornerMap, std::uint64_t seed) {
+                 LocalizationMode mode, LandmarkMap& map, const RunMaps& maps, std::uint64_t seed) {
   RunResult r;
   r.path = path.name;
   r.run = run;
@@ -205,7 +244,11 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> normal(0.0, 1.0);
 
-  sim::SimVehicle vehicle(cfg.vehicle, seed ^ 0x9E3779B97F4A7C15ULL);
+  // Since calibration the wheel has a load or wear, the steering encoder has drifted.
+  sim::SimVehicleParams truth = cfg.vehicle;
+  truth.radiusChange += cfg.floor.radiusChangeStdDev * normal(rng);
+  truth.steerEncoderDrift += cfg.floor.steerDriftStdDev * normal(rng);
+  sim::SimVehicle vehicle(truth, seed ^ 0x9E3779B97F4A7C15ULL);
   sim::SimLaser laser(caster, cfg.laser, seed ^ 0xC2B2AE3D27D4EB4FULL);
   sim::SimPlcPeer plc;
   sim::SimClock clock;
@@ -213,6 +256,9 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   EncoderTap encoders(canEncoders);
   hal::DriveControl& drive = vehicle;
   nav::Pipeline pipeline(pipelineParams(cfg, mode), map, nav::PipelineDevices{encoders, laser, plc, clock});
+  if (mode == LocalizationMode::Natural) {
+    pipeline.setLikelihoodField(maps.field);
+  }
   if (pipeline.configure() != Status::Ok || pipeline.activate() != Status::Ok) {
     return r;
   }
@@ -307,8 +353,11 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
       usedSum += static_cast<double>(h.used);
       keypointSum += static_cast<double>(c.corners);
       r.scansWithoutFix += hasFlag(h.flags, LocalizerFlag::NoFix) ? 1U : 0U;
-      if (mode == LocalizationMode::Mapping && cornerMap != nullptr) {
-        collectCorners(pipeline, *cornerMap);
+      if (mode == LocalizationMode::Mapping && maps.corners != nullptr) {
+        collectCorners(pipeline, *maps.corners);
+      }
+      if (mode == LocalizationMode::Mapping && maps.surfaces != nullptr) {
+        collectSurfaces(pipeline, *maps.surfaces);
       }
     }
     r.history.push_back(TrajectorySample{r.distance, vehicle.truePose(), withTruth.pose(), withNominal.pose(),
@@ -341,7 +390,7 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
 }  // namespace
 
 bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
-                 CornerMapper* cornerMap, const std::vector<std::size_t>& pathIndices, int runsPerPath,
+                 const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,
                  std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
                  std::vector<RunResult>* results, std::string* error) {
   if (world.paths.empty()) {
@@ -361,6 +410,10 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
     *error = "runs per path must be >= 1";
     return false;
   }
+  if (mode == LocalizationMode::Natural && (maps.field == nullptr || !maps.field->built())) {
+    *error = "natural navigation needs the likelihood field of a mapping run";
+    return false;
+  }
   const sim::RayCaster caster(world, 1.0);
   std::vector<std::size_t> paths = pathIndices;
   if (paths.empty()) {
@@ -378,7 +431,7 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
     for (int run = 1; run <= runsPerPath; ++run) {
       const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
       const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + p * 1000U + runIndex;
-      results->push_back(runOne(caster, world.paths[p], run, config, mode, map, cornerMap, seed));
+      results->push_back(runOne(caster, world.paths[p], run, config, mode, map, maps, seed));
       ++index;
       if (progress) {
         progress(results->back(), index, total);

@@ -12,6 +12,8 @@
 #include "agv/core/pose2.hpp"
 #include "agv/kinematics/tricycle.hpp"
 #include "agv/localization/landmark_map.hpp"
+#include "agv/localization/likelihood_field.hpp"
+#include "agv/mapping/surface_mapper.hpp"
 #include "agv/sim/can_encoder_source.hpp"
 #include "agv/sim/sim_laser.hpp"
 #include "agv/sim/sim_vehicle.hpp"
@@ -31,6 +33,9 @@ enum class LocalizationMode {
   Mapping,      ///< reflectors (surveyed) for the pose; FALKO corners accumulated into a corner map
   StaticFalko,  ///< FALKO corners only, against the frozen map of the mapping runs
   Dynamic,      ///< FALKO corners only, dynamic map starting empty
+  /// Natural navigation: the frozen FALKO corners of the mapping runs and scan matching against
+  /// the likelihood field of their scans (no reflector)
+  Natural,
 };
 /// JSON / printout name of a mode.
 const char* modeName(LocalizationMode mode) noexcept;
@@ -56,13 +61,38 @@ class CornerMapper {
   std::vector<Cluster> clusters_;
 };
 
+/// What a run reads or fills besides the landmark map.
+struct RunMaps {
+  CornerMapper* corners = nullptr;             ///< Mapping: the FALKO corners are accumulated here
+  mapping::SurfaceMapper* surfaces = nullptr;  ///< Mapping: every sweep's points, at the localizer's pose
+  const LikelihoodFieldBase* field = nullptr;  ///< Natural: the scans are matched against it
+};
+
+/// How far a real floor and drive train take odometry from the calibrated model, per run of a
+/// session (docs/hil.md, "Odometry error sources"). The vehicle-constant effects (traction and
+/// lateral slip, steering backlash) are in `sim::SimVehicleParams` (see `floorVehicle`); these
+/// change between calibration and operation and are drawn per run.
+struct FloorEffects {
+  /// Relative change of the drive wheel's effective radius since calibration: a loaded pallet
+  /// compressing the polyurethane tread, and wear (std per run).
+  double radiusChangeStdDev = 0.002;
+  /// [rad] steering encoder offset drift since calibration (std per run).
+  double steerDriftStdDev = deg2rad(0.05);
+};
+
+/// The simulated vehicle with the odometry error sources of a real floor and drive train on top of
+/// `SimVehicleParams`' defaults: traction slip 1 % per m/s^2, lateral slip 0.01 rad per m/s^2,
+/// steering backlash 0.3 deg (values in docs/hil.md, "Odometry error sources").
+sim::SimVehicleParams floorVehicle();
+
 /// Settings of one HIL session.
 struct ScenarioConfig {
   int runsPerPath = 6;
   std::uint64_t seed = 1;
-  sim::SimVehicleParams vehicle;  ///< the truth
-  NominalVehicle nominal;         ///< what the estimators start from (drawing values)
-  NominalVehicle estimate;        ///< what the navigation uses: the calibration result, else nominal
+  sim::SimVehicleParams vehicle = floorVehicle();  ///< the truth (at calibration)
+  FloorEffects floor;                              ///< what changes between calibration and each run
+  NominalVehicle nominal;                          ///< what the estimators start from (drawing values)
+  NominalVehicle estimate;                         ///< what the navigation uses: the calibration result, else nominal
   sim::SimLaserParams laser;
   /// The encoders' CAN bus (nodes, mapping, counter start): every encoder sample the navigation
   /// and the calibration routine get is decoded from its frames. 14-bit steering encoder, as
@@ -114,11 +144,12 @@ struct RunResult {
 
 /// Runs `runsPerPath` runs of `mode` on each path of `world` listed in `pathIndices` (all when
 /// empty), the localizer using `map` (Dynamic mode clears it before each run and runs the
-/// lifecycle on it); in Mapping mode the FALKO corners are accumulated into `cornerMap`; `seedSalt` separates the
+/// lifecycle on it); in Mapping mode the FALKO corners and the scans are accumulated into `maps`;
+/// in Natural mode the scans are matched against `maps.field`; `seedSalt` separates the
 /// random streams of sessions that must not repeat each other (mapping runs). `progress` is called after each run.
-/// Returns false (with `error`) on a setup problem (no path, invalid laser parameters).
+/// Returns false (with `error`) on a setup problem (no path, invalid laser parameters, Natural without a field).
 bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
-                 CornerMapper* cornerMap, const std::vector<std::size_t>& pathIndices, int runsPerPath,
+                 const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,
                  std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
                  std::vector<RunResult>* results, std::string* error);
 

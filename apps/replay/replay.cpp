@@ -1,6 +1,5 @@
 #include "replay.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,6 +10,7 @@
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "agv/mapping/surface_mapper.hpp"
 #include "agv/report/svg.hpp"
 #include "agv/scan/laser_scan.hpp"
 
@@ -156,114 +156,27 @@ std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const 
 }
 
 /// Scan points of the mapping run (scans [0, n)) placed with the corrected poses, as the surfaces
-/// of `field`: the area is their bounding box plus the field's saturation distance, a cell is a
-/// surface when points of at least `options.fieldMinScans` scans fall in it. False with `error`
-/// when the area does not fit the field's capacity.
+/// of `field` (`mapping::SurfaceMapper`). False with `error` when there are none or the area does
+/// not fit the field's capacity.
 bool buildField(const datasets::CarmenLog& log, std::size_t n, const ReplayOptions& options, LikelihoodFieldBase& field,
                 std::string& error) {
   const double rangeMax = options.localizer.laser.rangeMax;
-  std::vector<Eigen::Vector2d> points;
-  std::vector<Eigen::Vector2d> views;  // unit vectors from each point to the laser that saw it
-  std::vector<std::uint32_t> scanOf;
+  mapping::SurfaceMapper mapper(options.field.resolution);
   auto scan = std::make_unique<LaserScan>();
-  double minX = 1e300;
-  double minY = 1e300;
-  double maxX = -1e300;
-  double maxY = -1e300;
   for (std::size_t i = 0; i < n; ++i) {
     (void)log.scans[i].toLaserScan(*scan);
     const Pose2d laser = log.scans[i].robotPose.compose(options.laserMounting);
+    mapper.beginScan();
     for (std::size_t b = 0; b < scan->size(); ++b) {
       if (!scan->isValid(b) || static_cast<double>(scan->ranges[b]) > rangeMax) {
         continue;
       }
       const double a = static_cast<double>(scan->angle(b));
       const double r = static_cast<double>(scan->ranges[b]);
-      const Eigen::Vector2d w = laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a)));
-      points.push_back(w);
-      views.push_back((laser.translation() - w).normalized());
-      scanOf.push_back(static_cast<std::uint32_t>(i));
-      minX = std::min(minX, w.x());
-      minY = std::min(minY, w.y());
-      maxX = std::max(maxX, w.x());
-      maxY = std::max(maxY, w.y());
+      mapper.add(laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a))), laser.translation());
     }
   }
-  if (points.empty()) {
-    error = "the mapping run has no scan point";
-    return false;
-  }
-  const double res = options.field.resolution;
-  const double margin = options.field.maxDistance + 2.0 * res;
-  const double ox = minX - margin;
-  const double oy = minY - margin;
-  const auto width = static_cast<std::size_t>(std::ceil((maxX - minX + 2.0 * margin) / res));
-  const auto height = static_cast<std::size_t>(std::ceil((maxY - minY + 2.0 * margin) / res));
-  const Status st = field.configure(options.field, ox, oy, width, height);
-  if (st != Status::Ok) {
-    error = "likelihood field of " + std::to_string(width) + " x " + std::to_string(height) + " cells refused (" +
-            toString(st) + "; capacity " + std::to_string(field.capacity()) + " cells)";
-    return false;
-  }
-  // Per cell: how many scans hit it (counted once per scan) and the sum of its points.
-  struct CellSum {
-    double x = 0.0;
-    double y = 0.0;
-    double xx = 0.0;
-    double xy = 0.0;
-    double yy = 0.0;
-    Eigen::Vector2d view = Eigen::Vector2d::Zero();
-    std::uint32_t points = 0;
-    std::uint32_t scans = 0;
-    std::uint32_t lastScan = UINT32_MAX;
-  };
-  std::unordered_map<std::size_t, CellSum> cells;
-  for (std::size_t k = 0; k < points.size(); ++k) {
-    const auto cx = static_cast<std::size_t>((points[k].x() - ox) / res);
-    const auto cy = static_cast<std::size_t>((points[k].y() - oy) / res);
-    CellSum& c = cells[cx + cy * width];
-    c.x += points[k].x();
-    c.y += points[k].y();
-    c.xx += points[k].x() * points[k].x();
-    c.xy += points[k].x() * points[k].y();
-    c.yy += points[k].y() * points[k].y();
-    c.view += views[k];
-    ++c.points;
-    if (c.lastScan != scanOf[k]) {
-      c.lastScan = scanOf[k];
-      ++c.scans;
-    }
-  }
-  // One surface point per cell seen in enough scans: the mean of its points, facing the side it
-  // was seen from: the normal of the points' line (principal axes) when they form one, else the
-  // mean direction to the laser.
-  for (const auto& kv : cells) {
-    const CellSum& c = kv.second;
-    if (c.scans < options.fieldMinScans) {
-      continue;
-    }
-    const double k = static_cast<double>(c.points);
-    const Eigen::Vector2d mean(c.x / k, c.y / k);
-    Eigen::Matrix2d cov;
-    cov << c.xx / k - mean.x() * mean.x(), c.xy / k - mean.x() * mean.y(), c.xy / k - mean.x() * mean.y(),
-        c.yy / k - mean.y() * mean.y();
-    Eigen::Vector2d normal = c.view;
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
-    if (c.points >= 3 && es.eigenvalues()(1) > 4.0 * es.eigenvalues()(0)) {
-      normal = es.eigenvectors().col(0);
-      if (normal.dot(c.view) < 0.0) {
-        normal = -normal;
-      }
-    }
-    if (normal.squaredNorm() > 0.0) {
-      (void)field.addPoint(mean.x(), mean.y(), normal.x(), normal.y());
-    }
-  }
-  if (field.build() != Status::Ok) {
-    error = "the mapping run leaves no surface seen in " + std::to_string(options.fieldMinScans) + " scans";
-    return false;
-  }
-  return true;
+  return mapper.build(options.field, options.fieldMinScans, field, error) == Status::Ok;
 }
 
 /// Cells of the replay's likelihood field: 8 M (8 MB), a 140 m x 140 m area at 5 cm.

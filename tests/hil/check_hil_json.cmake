@@ -1,10 +1,11 @@
 # Runs agvnav-hil --short --json and checks the summary (parsed with string(JSON), every field typed):
 #   {"calibration": {"truth": {...}, "estimate": {...}}, "runs": [{"mode", "path", "run",
 #    "final_position_error_m", "final_heading_error_deg"}], "requirement_met": bool}
-# plus: every localizer mode ran (reflectors and static_falko on every path of the built-in world,
-# dynamic on at least one); requirement_met agrees with the localizer runs (the pose sent to the
-# PLC; dead-reckoning entries do not count) and is true, every localizer run being within
-# 2 cm / 0.1 deg, finished and not lost; dead reckoning with the true parameters beats the
+# plus: every localizer mode ran (reflectors, static_falko and natural on every path of the built-in
+# world, dynamic on at least one); requirement_met agrees with the required localizer runs
+# (reflectors and natural; the pose sent to the PLC; dead-reckoning entries and the FALKO-only
+# modes do not count) and is true, every required run being within 2 cm / 0.1 deg, finished and
+# not lost; dead reckoning with the true parameters beats the
 # nominal parameters; the calibration (when it ran) is closer to the truth than the nominal
 # values in every parameter; the encoder samples came through the CAN path (can_encoders: every
 # measurement decoded from its TPDOs, none differing from what the simulated nodes sent, the drive's
@@ -56,6 +57,7 @@ set(paths "")
 set(reflectors_paths "")
 set(static_falko_paths "")
 set(dynamic_paths "")
+set(natural_paths "")
 set(all_localizer_meet TRUE)
 set(localizer_runs 0)
 math(EXPR last "${n} - 1")
@@ -74,13 +76,26 @@ foreach(i RANGE ${last})
     message(FATAL_ERROR "JSON: run ${i}: negative error")
   endif()
   list(APPEND paths "${path}")
-  if(mode STREQUAL "reflectors" OR mode STREQUAL "static_falko" OR mode STREQUAL "dynamic")
-    # A localizer run: the pose sent to the PLC.
+  if(mode STREQUAL "reflectors" OR mode STREQUAL "static_falko" OR mode STREQUAL "dynamic" OR mode STREQUAL "natural")
+    # A localizer run: the pose sent to the PLC. The requirement covers the reflector and natural
+    # modes ("required"); the FALKO-corner-only modes are measured and reported.
     expect_type("${j}" BOOLEAN runs ${i} finished)
     expect_type("${j}" BOOLEAN runs ${i} lost)
+    expect_type("${j}" BOOLEAN runs ${i} required)
     string(JSON finished GET "${j}" runs ${i} finished)
     string(JSON lost GET "${j}" runs ${i} lost)
+    string(JSON required GET "${j}" runs ${i} required)
+    set(expect_required OFF)
+    if(mode STREQUAL "reflectors" OR mode STREQUAL "natural")
+      set(expect_required ON)
+    endif()
+    if((required AND NOT expect_required) OR (NOT required AND expect_required))
+      message(FATAL_ERROR "JSON: run ${i}: mode ${mode} has required=${required}")
+    endif()
     list(APPEND ${mode}_paths "${path}")
+    if(NOT required)
+      continue()
+    endif()
     math(EXPR localizer_runs "${localizer_runs} + 1")
     if(pos GREATER req_pos OR head GREATER req_head OR NOT finished OR lost)
       message("JSON: ${mode} ${path} run ${run}: ${pos} m, ${head} deg, finished=${finished}, lost=${lost}: "
@@ -109,7 +124,7 @@ if(NOT paths STREQUAL "P1;P2;P3;P4")
   message(FATAL_ERROR "JSON: runs cover paths '${paths}', expected P1;P2;P3;P4")
 endif()
 
-foreach(mode reflectors static_falko)
+foreach(mode reflectors static_falko natural)
   list(REMOVE_DUPLICATES ${mode}_paths)
   list(SORT ${mode}_paths)
   if(NOT ${mode}_paths STREQUAL "P1;P2;P3;P4")
@@ -200,10 +215,10 @@ if(NOT req_pos EQUAL 0.02 OR NOT req_head EQUAL 0.1)
 endif()
 expect_type("${j}" OBJECT stages)
 string(JSON n_stages LENGTH "${j}" stages)
-if(NOT n_stages EQUAL 5)
-  message(FATAL_ERROR "JSON: ${n_stages} stages, expected 5")
+if(NOT n_stages EQUAL 6)
+  message(FATAL_ERROR "JSON: ${n_stages} stages, expected 6")
 endif()
-foreach(stage calibration dead_reckoning reflector_ekf static_falko_map dynamic_map)
+foreach(stage calibration dead_reckoning reflector_ekf static_falko_map natural dynamic_map)
   string(JSON state GET "${j}" stages ${stage})
   if(NOT state STREQUAL "run")
     message(FATAL_ERROR "JSON: stage ${stage} is '${state}', expected 'run'")

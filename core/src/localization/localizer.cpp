@@ -356,24 +356,33 @@ void Localizer::finishHealth() noexcept {
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, LandmarkMap& map) noexcept {
-  return correctWith(scan, nullptr, map, nullptr);
+  return correctWith(scan, nullptr, map, nullptr, nullptr);
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams,
                                           LandmarkMap& map) noexcept {
-  return correctWith(scan, &beams, map, nullptr);
+  return correctWith(scan, &beams, map, nullptr, nullptr);
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map,
                                           const LikelihoodFieldBase& field) noexcept {
-  return correctWith(scan, &beams, map, &field);
+  return correctWith(scan, &beams, map, &field, nullptr);
 }
 
-void Localizer::matchScan(const LaserScan& beams, const LikelihoodFieldBase& field) noexcept {
+const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams,
+                                          const MatchPoints& points, LandmarkMap& map,
+                                          const LikelihoodFieldBase& field) noexcept {
+  return correctWith(scan, &beams, map, &field, &points);
+}
+
+void Localizer::matchScan(const LaserScan& beams, const MatchPoints* points,
+                          const LikelihoodFieldBase& field) noexcept {
   ScanMatchHealth& h = health_.scanMatch;
   h.attempted = true;
   matcher_.setParams(params_.scanMatch);
-  const ScanMatchResult m = matcher_.match(beams, params_.laser.mounting, ekf_.pose(), ekf_.covariance(), field);
+  const ScanMatchResult m = points != nullptr
+                                ? matcher_.match(*points, params_.laser.mounting, ekf_.pose(), ekf_.covariance(), field)
+                                : matcher_.match(beams, params_.laser.mounting, ekf_.pose(), ekf_.covariance(), field);
   h.status = m.status;
   h.points = m.points;
   h.inliers = m.inliers;
@@ -414,7 +423,7 @@ void Localizer::matchScan(const LaserScan& beams, const LikelihoodFieldBase& fie
 }
 
 const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map,
-                                              const LikelihoodFieldBase* field) noexcept {
+                                              const LikelihoodFieldBase* field, const MatchPoints* points) noexcept {
   ++cycle_;
   health_ = LocalizerHealth{};
   health_.cycle = cycle_;
@@ -438,7 +447,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   }
   // The scan match first: it moves the prior the landmarks are associated against.
   if (field != nullptr && beams != nullptr) {
-    matchScan(*beams, *field);
+    matchScan(*beams, points, *field);
   }
   // Association against the prior at the scan time, and what the check expects to see.
   associate(scan, map);

@@ -59,8 +59,13 @@ OdometryIncrement TricycleOdometry::increment(Timestamp stamp, double ds, double
   // variance per step is the full reading variance.
   const double sw = vehicle_.driveScale;
   const double m = noise_.samplesPerCorrection >= 1.0 ? noise_.samplesPerCorrection : 1.0;
-  const double varDs = noise_.slipVariancePerMetre * std::fabs(ds) + (tickChanged ? sw * sw / (6.0 * m) : 0.0);
-  const double varA = noise_.steeringSigma * noise_.steeringSigma;
+  // A bias is the same for the m samples of a correction interval: m increments each with m times
+  // its variance add up to the variance of the summed, fully correlated error.
+  const double scaleBias = noise_.scaleBiasSigma * ds;
+  const double varDs = noise_.slipVariancePerMetre * std::fabs(ds) + (tickChanged ? sw * sw / (6.0 * m) : 0.0) +
+                       m * scaleBias * scaleBias;
+  const double varA =
+      noise_.steeringSigma * noise_.steeringSigma + m * noise_.steeringBiasSigma * noise_.steeringBiasSigma;
   Eigen::Matrix2d U = Eigen::Matrix2d::Zero();
   U(0, 0) = varDs;
   U(1, 1) = varA;
@@ -122,10 +127,12 @@ Pose2d partialIncrement(const Pose2d& delta, double f) noexcept {
 }
 
 Status TricycleNoiseParams::validate() const noexcept {
-  if (!std::isfinite(slipVariancePerMetre) || !std::isfinite(steeringSigma) || !std::isfinite(samplesPerCorrection)) {
+  if (!std::isfinite(slipVariancePerMetre) || !std::isfinite(steeringSigma) || !std::isfinite(samplesPerCorrection) ||
+      !std::isfinite(steeringBiasSigma) || !std::isfinite(scaleBiasSigma)) {
     return Status::NonFiniteInput;
   }
-  return slipVariancePerMetre >= 0.0 && steeringSigma >= 0.0 && samplesPerCorrection >= 1.0 && maxTicksPerSample > 0
+  return slipVariancePerMetre >= 0.0 && steeringSigma >= 0.0 && steeringBiasSigma >= 0.0 && scaleBiasSigma >= 0.0 &&
+                 samplesPerCorrection >= 1.0 && maxTicksPerSample > 0
              ? Status::Ok
              : Status::InvalidArgument;
 }

@@ -47,33 +47,41 @@ double huberCost(double r, double k) noexcept {
 
 }  // namespace
 
+void ScanMatcher::keepPoint(const Eigen::Vector2d& p) noexcept {
+  if (!p.allFinite()) {
+    return;
+  }
+  if (!points_.empty()) {
+    const double dx = p.x() - static_cast<double>(points_.back().x);
+    const double dy = p.y() - static_cast<double>(points_.back().y);
+    if (dx * dx + dy * dy < params_.pointSpacing * params_.pointSpacing) {
+      return;
+    }
+  }
+  static_cast<void>(points_.push_back(MatchPoint{static_cast<float>(p.x()), static_cast<float>(p.y())}));
+}
+
 bool ScanMatcher::collectPoints(const LaserScan& scan, const Pose2d& laser, ScanMatchResult& result) noexcept {
   points_.clear();
-  const double spacing2 = params_.pointSpacing * params_.pointSpacing;
-  double lastX = 0.0;
-  double lastY = 0.0;
-  bool haveLast = false;
   for (std::size_t i = 0; i < scan.size(); ++i) {
-    if (!scan.isValid(i)) {
-      continue;
+    if (scan.isValid(i)) {
+      const double a = static_cast<double>(scan.angle(i));
+      const double r = static_cast<double>(scan.ranges[i]);
+      keepPoint(laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a))));
     }
-    const double a = static_cast<double>(scan.angle(i));
-    const double r = static_cast<double>(scan.ranges[i]);
-    const Eigen::Vector2d p = laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a)));
-    if (!p.allFinite()) {
-      continue;
-    }
-    if (haveLast) {
-      const double dx = p.x() - lastX;
-      const double dy = p.y() - lastY;
-      if (dx * dx + dy * dy < spacing2) {
-        continue;
-      }
-    }
-    lastX = p.x();
-    lastY = p.y();
-    haveLast = true;
-    static_cast<void>(points_.push_back(Point{static_cast<float>(p.x()), static_cast<float>(p.y())}));
+  }
+  result.points = static_cast<std::uint16_t>(points_.size() > 65535U ? 65535U : points_.size());
+  if (points_.empty()) {
+    result.status = Status::EmptyInput;
+    return false;
+  }
+  return true;
+}
+
+bool ScanMatcher::collectPoints(const MatchPoints& points, const Pose2d& laser, ScanMatchResult& result) noexcept {
+  points_.clear();
+  for (const MatchPoint& p : points) {
+    keepPoint(laser.transformPoint(Eigen::Vector2d(static_cast<double>(p.x), static_cast<double>(p.y))));
   }
   result.points = static_cast<std::uint16_t>(points_.size() > 65535U ? 65535U : points_.size());
   if (points_.empty()) {
@@ -90,7 +98,7 @@ double ScanMatcher::cost(const Pose2d& x, const LikelihoodFieldBase& field) cons
   const double c = std::cos(x.theta);
   const double s = std::sin(x.theta);
   double total = 0.0;
-  for (const Point& pt : points_) {
+  for (const MatchPoint& pt : points_) {
     const double px = static_cast<double>(pt.x);
     const double py = static_cast<double>(pt.y);
     const FieldSample f = field.sample(x.x + c * px - s * py, x.y + s * px + c * py);
@@ -180,6 +188,29 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
   if (!collectPoints(scan, laser, result)) {
     return result;
   }
+  return searchAndRefine(prior, priorCovariance, field, result);
+}
+
+ScanMatchResult ScanMatcher::match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior,
+                                   const Eigen::Matrix3d& priorCovariance, const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  result.pose = prior;
+  if (!prior.isFinite() || !laser.isFinite() || !priorCovariance.allFinite()) {
+    result.status = Status::NonFiniteInput;
+    return result;
+  }
+  if (!field.built()) {
+    result.status = Status::NotInitialized;
+    return result;
+  }
+  if (!collectPoints(points, laser, result)) {
+    return result;
+  }
+  return searchAndRefine(prior, priorCovariance, field, result);
+}
+
+ScanMatchResult ScanMatcher::searchAndRefine(const Pose2d& prior, const Eigen::Matrix3d& priorCovariance,
+                                             const LikelihoodFieldBase& field, ScanMatchResult result) noexcept {
   const auto window = [&](double variance, double cap) noexcept {
     const double w = params_.searchSigmas * std::sqrt(variance > 0.0 ? variance : 0.0);
     return w < cap ? w : cap;
@@ -212,7 +243,7 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
     Normal n;
     const double c = std::cos(x.theta);
     const double s = std::sin(x.theta);
-    for (const Point& pt : points_) {
+    for (const MatchPoint& pt : points_) {
       const double px = static_cast<double>(pt.x);
       const double py = static_cast<double>(pt.y);
       const double qx = x.x + c * px - s * py;

@@ -74,10 +74,19 @@ void SimVehicle::substep(double dt) noexcept {
     return;
   }
   wheelTravel_ += dsWheel;
+  if (da != 0.0) {
+    backlashSide_ = da > 0.0 ? 1.0 : -1.0;
+  }
   const double offset = dsWheel > 0.0 ? params_.truth.steerOffsetForward : params_.truth.steerOffsetBackward;
-  const double alpha = 0.5 * (a0 + servo_) + offset;
-  const double dsGround =
-      dsWheel * (1.0 + params_.slipBias) + params_.slipNoise * std::sqrt(std::fabs(dsWheel)) * normal_(rng_);
+  double alpha = 0.5 * (a0 + servo_) + offset - 0.5 * params_.steerBacklash * backlashSide_;
+  // Lateral slip: the wheel's travel lags its angle towards straight ahead.
+  const double v = 0.5 * (v0 + speed_);
+  const double lateral = v * v * std::sin(alpha) / params_.truth.wheelbase;
+  alpha -= params_.turnSlip * lateral;
+  // Traction slip against the acceleration along the travel.
+  const double along = (dsWheel > 0.0 ? 1.0 : -1.0) * dv / dt;
+  const double dsGround = dsWheel * (1.0 + params_.slipBias + params_.radiusChange - params_.accelSlip * along) +
+                          params_.slipNoise * std::sqrt(std::fabs(dsWheel)) * normal_(rng_);
   odometer_ += std::fabs(dsGround);
   pose_ = pose_.compose(tricycleArc(dsGround, alpha, params_.truth.wheelbase));
 }
@@ -87,7 +96,7 @@ void SimVehicle::emitSample() noexcept {
   s.stamp = now_;
   s.driveTicks = static_cast<std::int64_t>(std::floor(wheelTravel_ / params_.truth.driveScale));
   const double quantum = kTwoPi<double> / std::exp2(params_.steerEncoderBits);
-  const double measured = servo_ + params_.steerNoiseStdDev * normal_(rng_);
+  const double measured = servo_ + params_.steerEncoderDrift + params_.steerNoiseStdDev * normal_(rng_);
   s.steeringAngle = std::round(measured / quantum) * quantum;
   if (queue_.size() >= params_.encoderQueue) {
     queue_.pop_front();

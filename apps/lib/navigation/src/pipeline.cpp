@@ -101,6 +101,8 @@ struct Pipeline::Impl {
   std::unique_ptr<ScanObservations> observations;
   std::unique_ptr<hal::LaserMeasurement> measurement;
   std::unique_ptr<FixedVector<Pose2d::Vector2, kMaxCorners>> corners;
+  const LikelihoodFieldBase* field = nullptr;
+  std::unique_ptr<MatchPoints> matchPoints = std::make_unique<MatchPoints>();
 
   PipelineState state = PipelineState::Unconfigured;
   Status faultReason = Status::Ok;
@@ -214,9 +216,25 @@ void Pipeline::Impl::readSweep() noexcept {
   const SweepCompensation sweep(*motion, meas.scan, params.localizer.laser.mounting);
   report.sweepReference = sweep.referenceStamp();
   observe(sweep);
+  MatchPoints& points = *matchPoints;
+  points.clear();
+  if (field != nullptr || params.observations.collectScanPoints) {
+    for (std::size_t i = 0; i < meas.scan.size(); ++i) {
+      if (meas.scan.isValid(i)) {
+        const double a = static_cast<double>(meas.scan.angle(i));
+        const double r = static_cast<double>(meas.scan.ranges[i]);
+        const Pose2d::Vector2 p = sweep.atBeam(i, r * std::cos(a), r * std::sin(a));
+        (void)points.push_back(MatchPoint{static_cast<float>(p.x()), static_cast<float>(p.y())});
+      }
+    }
+  }
   if (localizing) {
     // The sweep's ranges let the localizer tell hidden landmarks from missed ones.
-    (void)localizer->correct(*observations, meas.scan, map);
+    if (field != nullptr) {
+      (void)localizer->correct(*observations, meas.scan, *matchPoints, map, *field);
+    } else {
+      (void)localizer->correct(*observations, meas.scan, map);
+    }
     ++counters.corrections;
     report.corrected = true;
   }
@@ -374,6 +392,7 @@ void Pipeline::Impl::resetTracking() noexcept {
   motion->clear();
   deadReckoning = Pose2d{};
   corners->clear();
+  matchPoints->clear();
   visibleReflectors = 0;
   havePublished = false;
   counters = PipelineCounters{};
@@ -520,6 +539,14 @@ Result<Pose2d> Pipeline::poseAt(Timestamp t) const noexcept {
     return Status::NotEnoughData;
   }
   return m.localizer->pose() * between(from.value(), to.value());
+}
+
+Span<const MatchPoint> Pipeline::sweepPoints() const noexcept {
+  return Span<const MatchPoint>(impl_->matchPoints->data(), impl_->matchPoints->size());
+}
+
+void Pipeline::setLikelihoodField(const LikelihoodFieldBase* field) noexcept {
+  impl_->field = field;
 }
 
 void Pipeline::setLogSink(PipelineLogSink sink, void* context) noexcept {

@@ -314,6 +314,11 @@ class Localizer {
   const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map,
                                  const LikelihoodFieldBase& field) noexcept;
 
+  /// The same with the scan's points for the match given de-skewed (`points`, laser frame at
+  /// `scan.stamp`; `beams` still serve the occlusion test): for a scan taken while moving.
+  const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, const MatchPoints& points,
+                                 LandmarkMap& map, const LikelihoodFieldBase& field) noexcept;
+
   /// Newest pose estimate (at `stamp()`), its covariance and time.
   const Pose2d& pose() const noexcept { return ekf_.pose(); }
   const Eigen::Matrix3d& covariance() const noexcept { return ekf_.covariance(); }
@@ -371,9 +376,10 @@ class Localizer {
   };
   // Stages of one correction (correctWith), in order.
   const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map,
-                                     const LikelihoodFieldBase* field) noexcept;
-  /// Scan-to-map match at the rewound prior, fused when it passes (health_.scanMatch).
-  void matchScan(const LaserScan& beams, const LikelihoodFieldBase& field) noexcept;
+                                     const LikelihoodFieldBase* field, const MatchPoints* points) noexcept;
+  /// Scan-to-map match at the rewound prior (of `points` when given, else of `beams`), fused when
+  /// it passes (health_.scanMatch).
+  void matchScan(const LaserScan& beams, const MatchPoints* points, const LikelihoodFieldBase& field) noexcept;
   /// Latency: moves the filter to the scan's time inside the history. False (health filled) when
   /// the scan is refused.
   bool rewindToScan(const ScanObservations& scan, Rewind& at) noexcept;

@@ -48,6 +48,14 @@ struct TricycleNoiseParams {
   /// Standard deviation of one steering-angle reading [rad] (white, independent per sample).
   /// Default 0.1 deg: a 14-bit absolute encoder plus backlash.
   double steeringSigma = 0.1 * 3.14159265358979323846 / 180.0;
+  /// Systematic errors the calibration cannot remove because they change after it: a steering
+  /// angle bias [rad] (gear backlash, encoder offset drift) and a relative distance bias (tyre
+  /// wear and load changing the effective radius, traction slip while accelerating), each unknown
+  /// within +-sigma. Unlike white noise they do not average out over the samples of one correction
+  /// interval: they are carried fully correlated over it (variance x samplesPerCorrection per
+  /// sample). 0 (the default): the calibrated model is exact between corrections.
+  double steeringBiasSigma = 0.0;
+  double scaleBiasSigma = 0.0;
   /// Encoder samples between two laser corrections (encoder rate / laser rate). The tick count
   /// quantisation error does not accumulate (it telescopes), so its variance s_w^2/6 over any
   /// window is spread over this many samples; the variance predicted at the next correction is
@@ -56,8 +64,8 @@ struct TricycleNoiseParams {
   /// Largest plausible |tick change| between two samples; a larger jump is refused as a fault.
   std::int64_t maxTicksPerSample = 100000;
 
-  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (a negative variance or sigma,
-  /// samplesPerCorrection below 1, maxTicksPerSample not positive).
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (a negative variance or sigma (bias sigmas
+  /// included), samplesPerCorrection below 1, maxTicksPerSample not positive).
   Status validate() const noexcept;
 };
 

@@ -32,6 +32,15 @@
 
 namespace agv {
 
+/// One scan point in the laser frame [m] (float: a laser's noise is far above float resolution).
+struct MatchPoint {
+  float x = 0.0F;
+  float y = 0.0F;
+};
+/// The points of one scan, for scans that must be de-skewed first (each beam moved to the sensor
+/// frame at one instant with the motion during the sweep, `SweepCompensation::atBeam`).
+using MatchPoints = FixedVector<MatchPoint, kMaxScanBeams>;
+
 /// Parameters of the scan matcher.
 struct ScanMatchParams {
   std::uint8_t maxIterations = 20;  ///< Gauss-Newton iterations at most
@@ -134,16 +143,23 @@ class ScanMatcher {
   ScanMatchResult match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
                         const Eigen::Matrix3d& priorCovariance, const LikelihoodFieldBase& field) noexcept;
 
+  /// The same with the scan given as points in the laser frame (already de-skewed, in scan order
+  /// for the thinning; non-finite points are skipped).
+  ScanMatchResult match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior,
+                        const Eigen::Matrix3d& priorCovariance, const LikelihoodFieldBase& field) noexcept;
+
   const ScanMatchParams& params() const noexcept { return params_; }
   void setParams(const ScanMatchParams& params) noexcept { params_ = params; }
 
  private:
-  struct Point {
-    float x;
-    float y;
-  };
   /// The scan's points in the vehicle frame, thinned; false (status set) when there are none.
   bool collectPoints(const LaserScan& scan, const Pose2d& laser, ScanMatchResult& result) noexcept;
+  bool collectPoints(const MatchPoints& points, const Pose2d& laser, ScanMatchResult& result) noexcept;
+  /// Appends a vehicle-frame point unless within pointSpacing of the last one kept.
+  void keepPoint(const Eigen::Vector2d& p) noexcept;
+  /// Search and refinement once the points are collected.
+  ScanMatchResult searchAndRefine(const Pose2d& prior, const Eigen::Matrix3d& priorCovariance,
+                                  const LikelihoodFieldBase& field, ScanMatchResult result) noexcept;
   /// Robust cost of the points at pose `x` (the refinement's objective, without derivatives).
   double cost(const Pose2d& x, const LikelihoodFieldBase& field) const noexcept;
   /// The coarse search around `prior` over +-(wx, wy, wt); the best pose (prior when no better).
@@ -154,7 +170,7 @@ class ScanMatcher {
                          const LikelihoodFieldBase& field) noexcept;
 
   ScanMatchParams params_{};
-  FixedVector<Point, kMaxScanBeams> points_;
+  MatchPoints points_;  // vehicle frame, thinned
 };
 
 }  // namespace agv

@@ -24,7 +24,23 @@ struct SimVehicleParams {
   Pose2d laserMount{1.62, 0.025, deg2rad(0.7)};  ///< true laser pose in the logical-point frame
   double slipBias = 0.0;                         ///< relative ground-vs-wheel travel bias (0.01 = ground 1 % farther)
   double slipNoise = 0.002;                      ///< [m/sqrt(m)] random-walk std of ground travel vs wheel travel
-  double steerEncoderBits = 14.0;                ///< steering encoder resolution: 2^bits counts per revolution
+  /// Longitudinal traction slip per m/s^2 of acceleration along the travel: the ground travel is
+  /// the wheel's times (1 - accelSlip * a) (the wheel spins ahead when accelerating, skids behind
+  /// when braking). 0: none.
+  double accelSlip = 0.0;
+  /// Lateral slip of the steered drive wheel per m/s^2 of lateral acceleration [rad]: the wheel's
+  /// travel direction lags its angle by turnSlip * v^2 sin(alpha) / L, towards straight. 0: none.
+  double turnSlip = 0.0;
+  /// Relative change of the drive wheel's effective radius since calibration (tyre wear, load
+  /// compressing the tread): the ground travel is the wheel's times (1 + radiusChange).
+  double radiusChange = 0.0;
+  /// [rad] steering gear backlash: the wheel lags the (motor-side) measured angle by half of it
+  /// against the direction of the last steering motion. 0: none.
+  double steerBacklash = 0.0;
+  /// [rad] steering encoder offset error since calibration (drift): the measured angle is the
+  /// servo's plus this.
+  double steerEncoderDrift = 0.0;
+  double steerEncoderBits = 14.0;       ///< steering encoder resolution: 2^bits counts per revolution
   double steerNoiseStdDev = 2e-4;       ///< [rad] Gaussian noise of the measured steering angle (before quantisation)
   double maxSpeed = 2.0;                ///< [m/s] |speed set-point| limit
   double acceleration = 0.5;            ///< [m/s^2] drive ramp
@@ -92,7 +108,8 @@ class SimVehicle final : public hal::DriveControl, public hal::EncoderSource {
   double speedSet_ = 0.0;
   double servo_ = 0.0;
   double servoSet_ = 0.0;
-  double wheelTravel_ = 0.0;  // [m] signed drive-wheel surface travel since construction
+  double backlashSide_ = 0.0;  // sign of the last steering motion (0: none yet)
+  double wheelTravel_ = 0.0;   // [m] signed drive-wheel surface travel since construction
   double odometer_ = 0.0;
   std::deque<hal::EncoderSample> queue_;
   std::uint64_t dropped_ = 0;

@@ -60,6 +60,9 @@ struct ObservationParams {
   /// Detect FALKO corners even when they do not correct the pose (a mapping run collects them
   /// from `Pipeline::sweepCorners()`). Implied by `corners`.
   bool detectCorners = false;
+  /// Keep each sweep's valid beams as points de-skewed to the sweep's reference instant
+  /// (`Pipeline::sweepPoints()`, for a mapping run). Implied by a likelihood field being set.
+  bool collectScanPoints = false;
 };
 
 /// Everything the pipeline needs besides the devices and the map. Defaults are those of a vehicle.
@@ -182,10 +185,18 @@ class Pipeline {
   /// Refined FALKO corners of the last sweep, in the sensor frame at `lastCycle().sweepReference`
   /// (empty unless corners are detected, see `ObservationParams`).
   Span<const Pose2d::Vector2> sweepCorners() const noexcept;
+  /// The valid beams of the last sweep as points in the sensor frame at
+  /// `lastCycle().sweepReference` (empty unless `collectScanPoints` or a likelihood field is set).
+  Span<const MatchPoint> sweepPoints() const noexcept;
   /// The localizer's pose carried to `t` with the odometry's motion between its stamp and `t`
   /// (within the motion history's reach, 0.5 s). `NotEnoughData` without a history, `Lost` when not
   /// localizing.
   Result<Pose2d> poseAt(Timestamp t) const noexcept;
+
+  /// The surfaces of a mapping run for scan-to-map matching (`Localizer::correct` with a
+  /// likelihood field; each sweep's valid beams de-skewed to its reference instant). Null: none
+  /// (the default). The owner keeps the field alive and unchanged while it is set.
+  void setLikelihoodField(const LikelihoodFieldBase* field) noexcept;
 
   /// Where the log lines go (none by default).
   void setLogSink(PipelineLogSink sink, void* context) noexcept;
