@@ -1,8 +1,9 @@
 #include "agv/localization/pose_ekf.hpp"
 
-#include <Eigen/Cholesky>
 #include <cmath>
 #include <limits>
+
+#include "spd3.hpp"
 
 namespace agv {
 
@@ -151,11 +152,11 @@ double PoseEkf::poseMahalanobis2(const Pose2d& z, const Eigen::Matrix3d& R) cons
     return std::numeric_limits<double>::infinity();
   }
   const Eigen::Vector3d nu(z.x - pose_.x, z.y - pose_.y, normalizeAngle(z.theta - pose_.theta));
-  const Eigen::LDLT<Eigen::Matrix3d> S(P_ + R);
-  if (S.info() != Eigen::Success || !S.isPositive() || !(S.vectorD().minCoeff() > 0.0)) {
+  Eigen::Matrix3d Sinv;
+  if (!detail::invertSpd3(P_ + R, 1e-15, Sinv)) {
     return std::numeric_limits<double>::infinity();
   }
-  return nu.dot(S.solve(nu));
+  return nu.dot(Sinv * nu);
 }
 
 Status PoseEkf::updatePose(const Pose2d& z, const Eigen::Matrix3d& R, double gate) noexcept {
@@ -167,8 +168,11 @@ Status PoseEkf::updatePose(const Pose2d& z, const Eigen::Matrix3d& R, double gat
     return Status::Rejected;
   }
   const Eigen::Vector3d nu(z.x - pose_.x, z.y - pose_.y, normalizeAngle(z.theta - pose_.theta));
-  const Eigen::LDLT<Eigen::Matrix3d> S(P_ + R);
-  const Eigen::Matrix3d K = S.solve(P_).transpose();  // P S^-1 (P and S symmetric)
+  Eigen::Matrix3d Sinv;
+  if (!detail::invertSpd3(P_ + R, 1e-15, Sinv)) {
+    return Status::Rejected;
+  }
+  const Eigen::Matrix3d K = P_ * Sinv;
   const Eigen::Vector3d dx = K * nu;
   const Eigen::Matrix3d IK = Eigen::Matrix3d::Identity() - K;
   Eigen::Matrix3d P = IK * P_ * IK.transpose() + K * R * K.transpose();

@@ -1,7 +1,8 @@
 #include "agv/localization/scan_matcher.hpp"
 
-#include <Eigen/Cholesky>
 #include <cmath>
+
+#include "spd3.hpp"
 
 namespace agv {
 
@@ -273,16 +274,8 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
         static_cast<std::size_t>(std::ceil(params_.minInlierFraction * static_cast<double>(points_.size())));
     return byFraction > params_.minInliers ? byFraction : params_.minInliers;
   }();
-  // Rank check: the LDLT pivots relative to the largest, in units made comparable by the scan's
-  // extent (a rotation moves a point by its range).
-  const auto solvable = [](const Eigen::LDLT<Eigen::Matrix3d>& ldlt) noexcept {
-    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
-      return false;
-    }
-    const Eigen::Vector3d d = ldlt.vectorD();
-    return d.minCoeff() > 1e-9 * d.maxCoeff() && d.minCoeff() > 0.0;
-  };
-
+  // Rank check: det(H) against the product of its diagonal (scale-free per axis, spd3.hpp).
+  constexpr double kRankTolerance = 1e-9;
   // Gauss-Newton with step halving: a step that does not lower the robust cost is halved (at most
   // kHalvings times); when none lowers it, x is the minimum the field resolves (converged).
   constexpr int kHalvings = 5;
@@ -298,13 +291,13 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
       result.iterations = it;
       return result;
     }
-    const Eigen::LDLT<Eigen::Matrix3d> ldlt(n.H);
-    if (!solvable(ldlt)) {
+    Eigen::Matrix3d Hinv;
+    if (!detail::invertSpd3(n.H, kRankTolerance, Hinv)) {
       result.status = Status::Unobservable;
       result.iterations = it;
       return result;
     }
-    Eigen::Vector3d step = -ldlt.solve(n.g);
+    Eigen::Vector3d step = -(Hinv * n.g);
     if (!step.allFinite()) {
       result.status = Status::NonFiniteInput;
       result.iterations = it;
@@ -344,8 +337,8 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
     result.status = Status::IllConditioned;
     return result;
   }
-  const Eigen::LDLT<Eigen::Matrix3d> ldlt(n.H);
-  if (!solvable(ldlt)) {
+  Eigen::Matrix3d Hinv;
+  if (!detail::invertSpd3(n.H, kRankTolerance, Hinv)) {
     result.status = Status::Unobservable;
     return result;
   }
@@ -359,7 +352,7 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
   if (sigma2 < params_.sigmaFloor * params_.sigmaFloor) {
     sigma2 = params_.sigmaFloor * params_.sigmaFloor;
   }
-  const Eigen::Matrix3d cov = sigma2 * params_.covarianceInflation * ldlt.solve(Eigen::Matrix3d::Identity());
+  const Eigen::Matrix3d cov = sigma2 * params_.covarianceInflation * Hinv;
   if (!cov.allFinite()) {
     result.status = Status::NonFiniteInput;
     return result;
