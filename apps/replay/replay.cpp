@@ -518,7 +518,7 @@ class ScanReplay {
     if (h.scanMatch.attempted) {
       ++r_.matchAttempts;
       r_.matchFused += h.scanMatch.fused ? 1U : 0U;
-      r_.matchGated += h.scanMatch.status == Status::Rejected ? 1U : 0U;
+      r_.matchGated += !h.scanMatch.fused && h.scanMatch.status == Status::Rejected ? 1U : 0U;
       r_.matchRefused += !h.scanMatch.fused && h.scanMatch.status != Status::Rejected ? 1U : 0U;
     }
     r_.rejectedGate += h.rejectedGate;
