@@ -1,5 +1,6 @@
 #include "agv/lidar3d/orientation_signature.hpp"
 
+#include <Eigen/Core>
 #include <cmath>
 
 #include "agv/core/angle.hpp"
@@ -108,25 +109,30 @@ Result<YawEstimate> relativeYaw(const OrientationSignature& a, const Orientation
     return Status::NotEnoughData;
   }
   constexpr std::size_t kN = kOrientationBins;
-  // a twice in a row, so that a[k + s] needs no modulo (the inner loop vectorises).
+  // a twice in a row, so that a[k + s] needs no modulo; validity as 0/1 weights: the inner loop is
+  // branch-free arithmetic over a fixed count and vectorises.
   std::array<float, 2 * kN> a2{};
+  std::array<float, 2 * kN> am2{};
+  std::array<float, kN> bm{};
   for (std::size_t k = 0; k < kN; ++k) {
     a2[k] = a.meanRange[k];
     a2[k + kN] = a.meanRange[k];
+    am2[k] = a.meanRange[k] > 0.0F ? 1.0F : 0.0F;
+    am2[k + kN] = am2[k];
+    bm[k] = b.meanRange[k] > 0.0F ? 1.0F : 0.0F;
   }
   std::array<float, kN> cost{};
   std::array<std::uint16_t, kN> overlap{};
+  using Bins = Eigen::Array<float, static_cast<int>(kN), 1>;
+  const Eigen::Map<const Bins> bv(b.meanRange.data());
+  const Eigen::Map<const Bins> bw(bm.data());
   for (std::size_t s = 0; s < kN; ++s) {
-    const float* as = a2.data() + s;
-    float sad = 0.0F;
-    float n = 0.0F;
-    for (std::size_t k = 0; k < kN; ++k) {
-      const float x = as[k];
-      const float y = b.meanRange[k];
-      const float w = (x > 0.0F && y > 0.0F) ? 1.0F : 0.0F;
-      sad += w * std::fabs(x - y);
-      n += w;
-    }
+    // Eigen's packet reductions vectorise the sums (a plain loop does not: float addition is not
+    // associative, so the compiler keeps the order).
+    const Eigen::Map<const Bins> as(a2.data() + s);
+    const Eigen::Map<const Bins> ams(am2.data() + s);
+    const float n = (ams * bw).sum();
+    const float sad = (ams * bw * (as - bv).abs()).sum();
     overlap[s] = static_cast<std::uint16_t>(n);
     cost[s] = n > 0.0F ? sad / n : 0.0F;
   }
