@@ -9,9 +9,9 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "../loop/loop_test_util.hpp"
 #include "agv/core/angle.hpp"
 #include "agv/lidar3d/range_image.hpp"
-#include "loop_test_util.hpp"
 
 namespace agv::test {
 

@@ -20,8 +20,7 @@ constexpr std::size_t kLasers = 16;
 constexpr std::size_t kFirings = 900;  // 0.4 deg: half the VLP-16's 10 Hz resolution (MCU RAM)
 using TestImage = agv::RangeImage<kLasers, kFirings>;
 
-TestImage g_image;
-TestImage g_image2;
+TestImage g_image;  // one image (230 KiB): the MCU image has ~650 KiB of RAM left
 std::int8_t g_plane[kLasers * kFirings];
 
 /// VLP-16 normals: lasers one step (2 deg) above and below. Two steps (4 deg, the thesis' choice for
@@ -235,21 +234,21 @@ TEST_CASE(
   for (const double yawDeg : yaws) {
     static agv::NormalSignature turned;
     static agv::OrientationSignature turnedOrientation;
-    REQUIRE(agv::test::castScene(room, vlp16(sigma), Eigen::Vector3d::Zero(), deg2rad(yawDeg), 0.37, rng, g_image2) >
+    REQUIRE(agv::test::castScene(room, vlp16(sigma), Eigen::Vector3d::Zero(), deg2rad(yawDeg), 0.37, rng, g_image) >
             0U);
-    REQUIRE(agv::computeNormalSignature(g_image2, vlpSignature(), turned) == agv::Status::Ok);
+    REQUIRE(agv::computeNormalSignature(g_image, vlpSignature(), turned) == agv::Status::Ok);
     INFO("yaw " << yawDeg << " chi2 " << agv::chiSquareDistance(ref, turned) << " bound " << bound);
     CHECK(agv::chiSquareDistance(ref, turned) <= bound);
-    REQUIRE(agv::computeOrientationSignature(g_image2, agv::OrientationParams{}, turnedOrientation) == agv::Status::Ok);
+    REQUIRE(agv::computeOrientationSignature(g_image, agv::OrientationParams{}, turnedOrientation) == agv::Status::Ok);
     const agv::Result<agv::YawEstimate> yaw = agv::relativeYaw(refOrientation, turnedOrientation);
     REQUIRE(yaw.ok());
     INFO("estimated " << rad2deg(yaw.value().yaw));
     AGV_CHECK_NEAR(rad2deg(agv::angleDiff(static_cast<double>(yaw.value().yaw), deg2rad(yawDeg))), 0.0, 0.5);
   }
   // The bound tells places apart: a room with a ramp is farther.
-  REQUIRE(agv::test::castScene(rampRoom(), vlp16(sigma), Eigen::Vector3d::Zero(), 0.0, 0.0, rng, g_image2) > 0U);
+  REQUIRE(agv::test::castScene(rampRoom(), vlp16(sigma), Eigen::Vector3d::Zero(), 0.0, 0.0, rng, g_image) > 0U);
   static agv::NormalSignature elsewhere;
-  REQUIRE(agv::computeNormalSignature(g_image2, vlpSignature(), elsewhere) == agv::Status::Ok);
+  REQUIRE(agv::computeNormalSignature(g_image, vlpSignature(), elsewhere) == agv::Status::Ok);
   CHECK(agv::chiSquareDistance(ref, elsewhere) > 3.0 * bound);
 }
 
@@ -390,7 +389,7 @@ agv::NormalSignature bump(double centre, double floorShare) {
 }  // namespace
 
 TEST_CASE("lidar3d: key-signatures, loops beyond the last 15 keys, capacity refused and counted", "[lidar3d]") {
-  static agv::PlaceDatabase<64> db;
+  static agv::PlaceDatabase<40> db;
   agv::PlaceParams params;
   params.keyThreshold = 0.005F;
   params.chiSquareThreshold = 0.002F;
@@ -459,6 +458,5 @@ TEST_CASE("lidar3d: steady-state calls allocate nothing", "[lidar3d][alloc]") {
   ori2 = ori;
   AGV_CHECK_NO_ALLOCATIONS(CHECK(agv::relativeYaw(ori, ori2).ok()));
   AGV_CHECK_NO_ALLOCATIONS((void)agv::chiSquareDistance(sig, sig); (void)agv::sorensenDistance(sig, sig));
-  AGV_CHECK_NO_ALLOCATIONS(
-      CHECK(g_image2.buildFromRings(agv::Span<const agv::RingPoint>(pts, 256)) == agv::Status::Ok));
+  AGV_CHECK_NO_ALLOCATIONS(CHECK(g_image.buildFromRings(agv::Span<const agv::RingPoint>(pts, 256)) == agv::Status::Ok));
 }
