@@ -1,6 +1,7 @@
 #include "places.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
@@ -8,6 +9,7 @@
 #include "agv/core/angle.hpp"
 #include "agv/datasets/lidar3d_scans.hpp"
 #include "agv/report/svg.hpp"
+#include "agv/sim/multibeam_world.hpp"
 
 namespace agv::places {
 
@@ -28,17 +30,81 @@ long frameOf(const std::string& path) {
   return std::strtol(stem.c_str(), nullptr, 10);
 }
 
-/// Runs the place database over the stored signatures with T_chi2 = chiSquareThreshold; fills the
+double distance(const Pose2d& a, const Pose2d& b) {
+  return std::hypot(a.x - b.x, a.y - b.y);
+}
+
+/// Image, signatures and the per-scan record of one revolution.
+void addRevolution(const PlacesOptions& options, std::size_t columns, Image& image, const datasets::Revolution& rev,
+                   ScanResult scan, PlacesResult& r) {
+  scan.points = rev.points.size();
+  NormalSignature sig;
+  OrientationSignature ori;
+  Status st = image.reset(std::max<std::size_t>(rev.rings, 1), columns);
+  if (st == Status::Ok) {
+    st = image.buildFromRings(Span<const RingPoint>(rev.points.data(), rev.points.size()));
+    scan.collisions = image.stats().collisions;
+  }
+  if (st == Status::Ok) {
+    st = computeNormalSignature(image, options.signature, sig);
+  }
+  if (st == Status::Ok && computeOrientationSignature(image, options.orientation, ori) != Status::Ok) {
+    ori = OrientationSignature{};  // no yaw for this scan; the place signature still counts
+  }
+  scan.status = st;
+  scan.normals = sig.counts.normals;
+  r.scans.push_back(scan);
+  r.signatures.push_back(sig);
+  r.orientations.push_back(ori);
+}
+
+/// The simulated route: the yard world, the sensor, one revolution per route pose.
+bool simulate(const PlacesOptions& options, Image& image, PlacesResult& r, std::string& error) {
+  const SimRouteOptions& o = options.sim;
+  sim::MultibeamSensor sensor;
+  if (o.sensor == "vlp16") {
+    sensor = sim::vlp16Sensor();
+  } else if (o.sensor == "hdl64") {
+    if (!datasets::readVelodyneCalibration(o.calibration, sensor.elevation, sensor.azimuthOffset, error)) {
+      return false;
+    }
+    sensor.firings = 2000;
+  } else {
+    error = "unknown simulated sensor '" + o.sensor + "' (hdl64, vlp16)";
+    return false;
+  }
+  if (sensor.elevation.size() > Image::kLasers || sensor.firings > Image::kFirings) {
+    error = "the simulated sensor exceeds the range image's capacity";
+    return false;
+  }
+  const sim::MultibeamWorld world = sim::yardWorld(o.width, o.height, o.seed);
+  const std::vector<sim::RoutePose> route = sim::yardRoute(o.width, o.height, o.step, o.back, o.again, o.lateral);
+  std::mt19937_64 rng(o.seed * 7919U + 1U);
+  datasets::Revolution rev;
+  rev.rings = sensor.elevation.size();
+  for (std::size_t i = 0; i < route.size(); ++i) {
+    sim::scanRevolution(world, sensor, route[i].pose, rng, rev.points);
+    ScanResult scan;
+    scan.file = "sim:" + o.sensor + ":lap" + std::to_string(route[i].lap);
+    scan.frame = static_cast<long>(i);
+    r.truth.push_back(route[i].pose);
+    addRevolution(options, sensor.firings, image, rev, scan, r);
+  }
+  return true;
+}
+
+/// Runs the place database over the stored signatures with T_chi2 and T_Sor times `scale`; fills the
 /// per-scan outcome when `record`. Returns the precision / recall figures.
-PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float chiSquareThreshold, bool record,
-                    const std::vector<Eigen::Matrix<double, 3, 4>>& poses) {
+PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float scale, bool record) {
   auto db = std::make_unique<Database>();
   PlaceParams p = options.place;
-  p.chiSquareThreshold = chiSquareThreshold;
+  p.chiSquareThreshold *= scale;
+  p.sorensenThreshold *= scale;
   PrPoint pr;
-  pr.chiSquareThreshold = chiSquareThreshold;
+  pr.chiSquareThreshold = p.chiSquareThreshold;
+  pr.sorensenThreshold = p.sorensenThreshold;
   (void)db->setParams(p);  // validated by runPlaces
-  const bool truth = !r.positions.empty();
+  const bool truth = !r.truth.empty();
   for (std::size_t i = 0; i < r.scans.size(); ++i) {
     ScanResult& scan = r.scans[i];
     if (scan.status != Status::Ok) {
@@ -48,7 +114,7 @@ PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float chiSqua
     if (truth) {
       const std::size_t eligible = db->size() > p.skipRecentKeys ? db->size() - p.skipRecentKeys : 0;
       for (std::size_t k = 0; k < eligible && !positive; ++k) {
-        positive = (r.positions[db->at(k)->scan] - r.positions[i]).norm() <= options.radius;
+        positive = distance(r.truth[db->at(k)->scan], r.truth[i]) <= options.radius;
       }
     }
     PlaceUpdate u;
@@ -57,7 +123,7 @@ PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float chiSqua
     if (u.loop) {
       ++pr.detected;
       if (truth) {
-        loopTrue = (r.positions[u.loopScan] - r.positions[i]).norm() <= options.radius;
+        loopTrue = distance(r.truth[u.loopScan], r.truth[i]) <= options.radius;
         pr.truePositives += loopTrue ? 1U : 0U;
       }
     }
@@ -68,13 +134,11 @@ PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float chiSqua
       scan.truePositiveCandidate = positive;
       scan.loopTrue = loopTrue;
       if (truth && u.loop) {
-        scan.loopDistance = (r.positions[u.loopScan] - r.positions[i]).norm();
+        scan.loopDistance = distance(r.truth[u.loopScan], r.truth[i]);
       }
-      const ScanResult& key = r.scans[u.loopScan];
-      if (u.loop && u.hasYaw && !poses.empty() && key.frame >= 0 && scan.frame >= 0) {
+      if (truth && u.loop && u.hasYaw) {
         scan.hasYawError = true;
-        scan.yawTruth = datasets::kittiRelativeYaw(poses[static_cast<std::size_t>(key.frame)],
-                                                   poses[static_cast<std::size_t>(scan.frame)]);
+        scan.yawTruth = angleDiff(r.truth[i].theta, r.truth[u.loopScan].theta);
         scan.yawError = angleDiff(static_cast<double>(u.yaw.yaw), scan.yawTruth);
       }
     }
@@ -91,60 +155,52 @@ PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float chiSqua
 
 bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error) {
   r = PlacesResult{};
+  const auto t0 = std::chrono::steady_clock::now();
   if (!isValid(options.place) || !isValid(options.signature.normals) || !(options.radius > 0.0)) {
     error = "parameters out of their domain";
     return false;
   }
-  if (options.files.empty()) {
-    error = "no revolution given";
-    return false;
-  }
-  std::vector<Eigen::Matrix<double, 3, 4>> poses;
-  if (!options.posesPath.empty() && !datasets::readKittiPoses(options.posesPath, poses, error)) {
-    return false;
-  }
-  const std::size_t columns = options.columns > 0 ? options.columns : (options.format == Format::Kitti ? 2000 : 1024);
   auto image = std::make_unique<Image>();
-  for (const std::string& file : options.files) {
-    ScanResult scan;
-    scan.file = file;
-    scan.frame = frameOf(file);
-    datasets::Revolution rev;
-    const bool read = options.format == Format::Kitti ? datasets::readKittiVelodyne(file, rev, error)
-                                                      : datasets::readNcltVelodyne(file, rev, error);
-    if (!read) {
+  if (!options.sim.sensor.empty()) {
+    if (!simulate(options, *image, r, error)) {
       return false;
     }
-    if (!poses.empty()) {
-      if (scan.frame < 0 || static_cast<std::size_t>(scan.frame) >= poses.size()) {
-        error = file + ": no pose for this file (frame " + std::to_string(scan.frame) + ")";
+  } else {
+    if (options.files.empty()) {
+      error = "no revolution given";
+      return false;
+    }
+    std::vector<Eigen::Matrix<double, 3, 4>> poses;
+    if (!options.posesPath.empty() && !datasets::readKittiPoses(options.posesPath, poses, error)) {
+      return false;
+    }
+    const std::size_t columns = options.columns > 0 ? options.columns : (options.format == Format::Kitti ? 2000 : 1024);
+    for (const std::string& file : options.files) {
+      ScanResult scan;
+      scan.file = file;
+      scan.frame = frameOf(file);
+      datasets::Revolution rev;
+      const bool read = options.format == Format::Kitti ? datasets::readKittiVelodyne(file, rev, error)
+                                                        : datasets::readNcltVelodyne(file, rev, error);
+      if (!read) {
         return false;
       }
-      r.positions.push_back(datasets::kittiPosition(poses[static_cast<std::size_t>(scan.frame)]));
+      if (!poses.empty()) {
+        if (scan.frame < 0 || static_cast<std::size_t>(scan.frame) >= poses.size()) {
+          error = file + ": no pose for this file (frame " + std::to_string(scan.frame) + ")";
+          return false;
+        }
+        // On the ground: the camera's x and z; yaw about the up axis (kittiRelativeYaw from identity).
+        const Eigen::Matrix<double, 3, 4>& p = poses[static_cast<std::size_t>(scan.frame)];
+        r.truth.push_back(
+            Pose2d{p(0, 3), p(2, 3), datasets::kittiRelativeYaw(Eigen::Matrix<double, 3, 4>::Identity(), p)});
+      }
+      addRevolution(options, columns, *image, rev, scan, r);
     }
-    scan.points = rev.points.size();
-    NormalSignature sig;
-    OrientationSignature ori;
-    Status st = image->reset(std::max<std::size_t>(rev.rings, 1), columns);
-    if (st == Status::Ok) {
-      st = image->buildFromRings(Span<const RingPoint>(rev.points.data(), rev.points.size()));
-      scan.collisions = image->stats().collisions;
-    }
-    if (st == Status::Ok) {
-      st = computeNormalSignature(*image, options.signature, sig);
-    }
-    if (st == Status::Ok && computeOrientationSignature(*image, options.orientation, ori) != Status::Ok) {
-      ori = OrientationSignature{};  // no yaw for this scan; the place signature still counts
-    }
-    scan.status = st;
-    scan.normals = sig.counts.normals;
-    r.scans.push_back(scan);
-    r.signatures.push_back(sig);
-    r.orientations.push_back(ori);
   }
-  r.summary = runDatabase(options, r, options.place.chiSquareThreshold, true, poses);
-  for (const float t : options.curveChiSquare) {
-    r.curve.push_back(runDatabase(options, r, t, false, poses));
+  r.summary = runDatabase(options, r, 1.0F, true);
+  for (const float t : options.curveScale) {
+    r.curve.push_back(runDatabase(options, r, t, false));
   }
   double sumAbs = 0.0;
   for (const ScanResult& s : r.scans) {
@@ -156,6 +212,7 @@ bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error
     }
   }
   r.yawErrorMeanAbsDeg = r.yawCount > 0 ? sumAbs / static_cast<double>(r.yawCount) : 0.0;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return true;
 }
 
@@ -163,6 +220,7 @@ namespace {
 report::Json prJson(const PrPoint& p) {
   report::Json j;
   j["chi_square_threshold"] = report::shortestDouble(p.chiSquareThreshold);
+  j["sorensen_threshold"] = report::shortestDouble(p.sorensenThreshold);
   j["detected"] = p.detected;
   j["true_positives"] = p.truePositives;
   j["positives"] = p.positives;
@@ -181,13 +239,15 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   params["skip_recent_keys"] = options.place.skipRecentKeys;
   params["chi_square_threshold"] = report::shortestDouble(options.place.chiSquareThreshold);
   params["sorensen_threshold"] = report::shortestDouble(options.place.sorensenThreshold);
+  params["orientation_check"] = report::shortestDouble(options.place.maxOrientationCost);
   params["radius_m"] = options.radius;
   params["firing_step"] = options.signature.normals.firingStep;
   params["laser_step"] = options.signature.normals.laserStep;
   doc["parameters"] = params;
   doc["scans"] = r.scans.size();
   doc["keys"] = r.keys;
-  doc["ground_truth"] = !r.positions.empty();
+  doc["ground_truth"] = !r.truth.empty();
+  doc["source"] = options.sim.sensor.empty() ? "files" : "sim:" + options.sim.sensor;
   doc["summary"] = prJson(r.summary);
   report::Json curve = report::Json::array();
   for (const PrPoint& p : r.curve) {
@@ -228,6 +288,7 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
       }
       if (s.update.hasYaw) {
         l["yaw_deg"] = rad2deg(static_cast<double>(s.update.yaw.yaw));
+        l["orientation_relative_cost"] = report::shortestDouble(s.update.yaw.relativeCost());
       }
       if (s.hasYawError) {
         l["yaw_truth_deg"] = rad2deg(s.yawTruth);
@@ -268,11 +329,15 @@ std::string placesSvg(const PlacesResult& r) {
     ++drawn;
   }
   // Right: the trajectory and its loops (green true, red false).
-  if (!r.positions.empty()) {
+  if (!r.truth.empty()) {
     const double ox = 470.0;
-    Eigen::Vector2d lo = r.positions.front();
+    std::vector<Eigen::Vector2d> positions;
+    for (const Pose2d& p : r.truth) {
+      positions.emplace_back(p.x, p.y);
+    }
+    Eigen::Vector2d lo = positions.front();
     Eigen::Vector2d hi = lo;
-    for (const Eigen::Vector2d& p : r.positions) {
+    for (const Eigen::Vector2d& p : positions) {
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
     }
@@ -281,12 +346,12 @@ std::string placesSvg(const PlacesResult& r) {
     const auto py = [&](const Eigen::Vector2d& p) { return y0 - 340.0 * (p.y() - lo.y()) / span; };
     svg.addText("text", {{"x", ox}, {"y", 20.0}}, "positions (ground truth) and detected loops");
     for (std::size_t i = 0; i < r.scans.size(); ++i) {
-      svg.add("circle", {{"cx", px(r.positions[i])}, {"cy", py(r.positions[i])}, {"r", 2.0}, {"fill", "#444"}});
+      svg.add("circle", {{"cx", px(positions[i])}, {"cy", py(positions[i])}, {"r", 2.0}, {"fill", "#444"}});
       const ScanResult& s = r.scans[i];
       if (s.update.loop) {
-        const Eigen::Vector2d& k = r.positions[s.update.loopScan];
-        svg.add("line", {{"x1", px(r.positions[i])},
-                         {"y1", py(r.positions[i])},
+        const Eigen::Vector2d& k = positions[s.update.loopScan];
+        svg.add("line", {{"x1", px(positions[i])},
+                         {"y1", py(positions[i])},
                          {"x2", px(k)},
                          {"y2", py(k)},
                          {"stroke", s.loopTrue ? "#2ca02c" : "#d62728"},

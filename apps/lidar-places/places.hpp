@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "agv/core/pose2.hpp"
 #include "agv/lidar3d/normal_signature.hpp"
 #include "agv/lidar3d/orientation_signature.hpp"
 #include "agv/lidar3d/place_database.hpp"
@@ -19,18 +20,33 @@ namespace agv::places {
 
 enum class Format { Kitti, Nclt };
 
+/// The simulated route (drivers/sim multibeam_world.hpp) instead of files.
+struct SimRouteOptions {
+  std::string sensor;       ///< "" (no simulation), "hdl64" or "vlp16"
+  std::string calibration;  ///< hdl64: factory calibration YAML (elevations, azimuth offsets)
+  double width = 120.0;     ///< [m] the yard's road rectangle
+  double height = 80.0;     ///< [m]
+  double step = 1.0;        ///< [m] between revolutions
+  double back = 0.5;        ///< fraction of the lap driven back in the opposite direction
+  double again = 0.3;       ///< fraction of the lap driven again in the first direction
+  double lateral = 1.0;     ///< [m] lateral offset of the repeated passes (sinusoidal)
+  std::uint64_t seed = 1;   ///< world and noise
+};
+
 /// What to run and how.
 struct PlacesOptions {
   Format format = Format::Kitti;
   std::vector<std::string> files;  ///< revolutions in driving order
-  std::string posesPath;           ///< KITTI poses (frame = the file name's number); empty: no truth
-  double radius = 5.0;             ///< [m] a loop is true when the two positions are this close
-  std::size_t columns = 0;         ///< range-image columns (0: 2000 for KITTI, 1024 for NCLT)
+  SimRouteOptions sim{};
+  std::string posesPath;    ///< KITTI poses (frame = the file name's number); empty: no truth
+  double radius = 5.0;      ///< [m] a loop is true when the two positions are this close
+  std::size_t columns = 0;  ///< range-image columns (0: 2000 for KITTI, 1024 for NCLT)
   PlaceParams place{};
   NormalSignatureParams signature{};
   OrientationParams orientation{};
-  /// T_chi2 values of the precision / recall curve (the database rerun for each; T_Sor and T_key kept).
-  std::vector<float> curveChiSquare = {5e-5F, 1e-4F, 2e-4F, 3e-4F, 5e-4F, 1e-3F, 2e-3F};
+  /// The precision / recall curve: the database rerun with T_chi2 and T_Sor both multiplied by
+  /// each factor (T_key and m kept).
+  std::vector<float> curveScale = {0.25F, 0.5F, 1.0F, 1.5F, 2.0F, 3.0F, 4.0F, 6.0F, 8.0F};
 };
 
 /// One revolution's outcome.
@@ -54,6 +70,7 @@ struct ScanResult {
 /// One point of the precision / recall curve.
 struct PrPoint {
   float chiSquareThreshold = 0.0F;
+  float sorensenThreshold = 0.0F;
   std::size_t detected = 0;
   std::size_t truePositives = 0;
   std::size_t positives = 0;  ///< scans with a true eligible key
@@ -69,10 +86,11 @@ struct PlacesResult {
   std::size_t keys = 0;
   PrPoint summary{};  ///< at the chosen T_chi2
   std::vector<PrPoint> curve;
-  std::vector<Eigen::Vector2d> positions;  ///< per scan when poses were given
+  std::vector<Pose2d> truth;  ///< per scan when poses were given: position on the ground, yaw
   double yawErrorMaxDeg = 0.0;
   double yawErrorMeanAbsDeg = 0.0;
   std::size_t yawCount = 0;
+  double seconds = 0.0;  ///< wall time of the run (reading / simulating included)
 };
 
 /// Runs the sequence. False with `error` on a file that cannot be read or bad options.

@@ -440,6 +440,51 @@ TEST_CASE("lidar3d: key-signatures, loops beyond the last 15 keys, capacity refu
   CHECK(small.size() == 2U);
 }
 
+TEST_CASE("lidar3d: the orientation check refuses a look-alike place whose surroundings differ", "[lidar3d]") {
+  static agv::PlaceDatabase<4> db;
+  agv::PlaceParams params;
+  params.skipRecentKeys = 0;
+  params.keyThreshold = 1e-7F;
+  params.maxOrientationCost = 0.2F;
+  REQUIRE(db.setParams(params) == agv::Status::Ok);
+  // Two keys: the same normal histogram, surroundings at 10 m (a) and at 10 m / 30 m alternating (b).
+  static agv::OrientationSignature a;
+  static agv::OrientationSignature b;
+  static agv::OrientationSignature aTurned;
+  for (std::size_t k = 0; k < agv::kOrientationBins; ++k) {
+    a.meanRange[k] = 10.0F + 4.0F * std::sin(static_cast<float>(k) * 0.05F);
+    b.meanRange[k] = (k / 45U) % 2U == 0U ? 10.0F : 30.0F;
+  }
+  a.filled = b.filled = static_cast<std::uint16_t>(agv::kOrientationBins);
+  for (std::size_t k = 0; k < agv::kOrientationBins; ++k) {
+    aTurned.meanRange[k] = a.meanRange[(k + 20U) % agv::kOrientationBins];  // a turned by 20 deg
+  }
+  aTurned.filled = a.filled;
+  const agv::NormalSignature s = bump(40.0, 0.3);
+  agv::NormalSignature s2 = s;
+  s2.bins[0] += 2e-3F;  // a new key, still within the loop thresholds
+  agv::PlaceUpdate u;
+  REQUIRE(db.add(s, b, 0, u) == agv::Status::Ok);
+  REQUIRE(db.add(s2, a, 1, u) == agv::Status::Ok);
+  REQUIRE(u.isKey);
+  // The query looks like key 0 by its histogram (nearest), but its surroundings are key 1's, turned.
+  REQUIRE(db.add(s, aTurned, 2, u) == agv::Status::Ok);
+  CHECK(u.candidates == 2U);
+  CHECK(u.rejectedByOrientation == 1U);
+  REQUIRE(u.loop);
+  CHECK(u.loopScan == 1U);
+  REQUIRE(u.hasYaw);
+  AGV_CHECK_NEAR(rad2deg(static_cast<double>(u.yaw.yaw)), 20.0, 0.01);
+  CHECK(u.yaw.relativeCost() < 1e-4F);
+  // With the check off the nearest histogram wins.
+  params.maxOrientationCost = 0.0F;
+  REQUIRE(db.setParams(params) == agv::Status::Ok);
+  REQUIRE(db.add(s, aTurned, 3, u) == agv::Status::Ok);
+  REQUIRE(u.loop);
+  CHECK(u.loopScan == 0U);
+  CHECK(u.rejectedByOrientation == 0U);
+}
+
 TEST_CASE("lidar3d: steady-state calls allocate nothing", "[lidar3d][alloc]") {
   agv::test::LoopRng rng{9};
   const agv::test::SimScene room = agv::test::boxRoom(-16.0, 24.0, -12.0, 18.0, -1.8, 5.0, false);

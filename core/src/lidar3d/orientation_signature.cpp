@@ -159,6 +159,11 @@ Result<YawEstimate> relativeYaw(const OrientationSignature& a, const Orientation
     }
   }
   YawEstimate e;
+  {
+    const Eigen::Map<const Bins> as(a2.data() + best);
+    const Eigen::Map<const Bins> ams(am2.data() + best);
+    e.meanRange = 0.5F * (ams * bw * (as + bv)).sum() / static_cast<float>(overlap[best]);
+  }
   e.shift = static_cast<std::uint16_t>(best);
   e.cost = cost[best];
   e.overlap = overlap[best];

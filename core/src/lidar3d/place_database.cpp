@@ -1,5 +1,6 @@
 #include "agv/lidar3d/place_database.hpp"
 
+#include <array>
 #include <cmath>
 
 namespace agv {
@@ -12,7 +13,8 @@ bool positiveFinite(float v) noexcept {
 
 bool isValid(const PlaceParams& p) noexcept {
   return positiveFinite(p.keyThreshold) && positiveFinite(p.chiSquareThreshold) &&
-         positiveFinite(p.sorensenThreshold) && p.minYawOverlap >= 1 && p.minYawOverlap <= kOrientationBins;
+         positiveFinite(p.sorensenThreshold) && p.minYawOverlap >= 1 && p.minYawOverlap <= kOrientationBins &&
+         std::isfinite(p.maxOrientationCost) && p.maxOrientationCost >= 0.0F;
 }
 
 Status PlaceDatabaseBase::setParams(const PlaceParams& params) noexcept {
@@ -30,7 +32,15 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
     ++refusedEmpty_;
     return Status::EmptyInput;
   }
-  // 1. Loop query over the keys older than the newest m.
+  // 1. Loop query over the keys older than the newest m: the candidates passing both thresholds,
+  // the kPlaceVerifyCandidates nearest by chi-square kept sorted.
+  struct Candidate {
+    std::uint32_t key;
+    float chi2;
+    float sor;
+  };
+  std::array<Candidate, kPlaceVerifyCandidates> best{};
+  std::size_t kept = 0;
   const std::size_t searchable = size_ > params_.skipRecentKeys ? size_ - params_.skipRecentKeys : 0;
   for (std::size_t i = 0; i < searchable; ++i) {
     const float chi2 = chiSquareDistance(keys_[i].normal, normal);
@@ -42,20 +52,31 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
       continue;
     }
     ++out.candidates;
-    if (!out.loop || chi2 < out.chiSquare) {
-      out.loop = true;
-      out.loopKey = static_cast<std::uint32_t>(i);
-      out.loopScan = keys_[i].scan;
-      out.chiSquare = chi2;
-      out.sorensen = sor;
+    if (kept == kPlaceVerifyCandidates && !(chi2 < best[kept - 1].chi2)) {
+      continue;
     }
+    std::size_t at = kept < kPlaceVerifyCandidates ? kept++ : kept - 1;
+    while (at > 0 && chi2 < best[at - 1].chi2) {  // insertion, nearest first
+      best[at] = best[at - 1];
+      --at;
+    }
+    best[at] = Candidate{static_cast<std::uint32_t>(i), chi2, sor};
   }
-  if (out.loop) {
-    const Result<YawEstimate> yaw = relativeYaw(keys_[out.loopKey].orientation, orientation, params_.minYawOverlap);
-    if (yaw.ok()) {
-      out.hasYaw = true;
-      out.yaw = yaw.value();
+  const bool check = params_.maxOrientationCost > 0.0F;
+  for (std::size_t c = 0; c < kept; ++c) {
+    const Result<YawEstimate> yaw = relativeYaw(keys_[best[c].key].orientation, orientation, params_.minYawOverlap);
+    if (check && (!yaw.ok() || yaw.value().relativeCost() > params_.maxOrientationCost)) {
+      ++out.rejectedByOrientation;
+      continue;
     }
+    out.loop = true;
+    out.loopKey = best[c].key;
+    out.loopScan = keys_[best[c].key].scan;
+    out.chiSquare = best[c].chi2;
+    out.sorensen = best[c].sor;
+    out.hasYaw = yaw.ok();
+    out.yaw = yaw.valueOr(YawEstimate{});
+    break;
   }
   // 2. Key decision.
   if (size_ == 0) {

@@ -154,6 +154,83 @@ bool readKittiPoses(const std::string& path, std::vector<Eigen::Matrix<double, 3
   return true;
 }
 
+bool readVelodyneCalibration(const std::string& path, std::vector<double>& elevation,
+                             std::vector<double>& azimuthOffset, std::string& error) {
+  elevation.clear();
+  azimuthOffset.clear();
+  std::string text;
+  if (!report::readTextFile(path, text, error)) {
+    return false;
+  }
+  struct Laser {
+    double id = -1.0;
+    double rot = std::nan("");
+    double vert = std::nan("");
+  };
+  std::vector<Laser> lasers;
+  std::size_t start = 0;
+  std::size_t lineNo = 0;
+  while (start < text.size()) {
+    std::size_t end = text.find('\n', start);
+    if (end == std::string::npos) {
+      end = text.size();
+    }
+    std::string_view line(text.data() + start, end - start);
+    start = end + 1;
+    ++lineNo;
+    const std::size_t first = line.find_first_not_of(' ');
+    if (first == std::string_view::npos) {
+      continue;
+    }
+    line.remove_prefix(first);
+    if (line.substr(0, 2) == "- ") {
+      lasers.emplace_back();
+      line.remove_prefix(2);
+    }
+    const std::size_t colon = line.find(':');
+    if (colon == std::string_view::npos || lasers.empty()) {
+      continue;
+    }
+    const std::string_view key = line.substr(0, colon);
+    std::string_view value = line.substr(colon + 1);
+    while (!value.empty() && (value.front() == ' ' || value.back() == '\r' || value.back() == ' ')) {
+      value = value.front() == ' ' ? value.substr(1) : value.substr(0, value.size() - 1);
+    }
+    double v = 0.0;
+    if (key == "laser_id" || key == "rot_correction" || key == "vert_correction") {
+      if (!report::toReal(value, v)) {
+        error = path + ":" + std::to_string(lineNo) + ": " + std::string(key) + " is not a number";
+        return false;
+      }
+      Laser& l = lasers.back();
+      if (key == "laser_id") {
+        l.id = v;
+      } else if (key == "rot_correction") {
+        l.rot = v;
+      } else {
+        l.vert = v;
+      }
+    }
+  }
+  elevation.assign(lasers.size(), std::nan(""));
+  azimuthOffset.assign(lasers.size(), std::nan(""));
+  for (const Laser& l : lasers) {
+    const std::size_t id = l.id < 0.0 ? lasers.size() : static_cast<std::size_t>(l.id);
+    if (id >= lasers.size() || static_cast<double>(id) != l.id || !std::isfinite(l.rot) || !std::isfinite(l.vert) ||
+        std::isfinite(elevation[id])) {
+      error = path + ": laser entries incomplete, repeated or not numbered 0..n-1";
+      return false;
+    }
+    elevation[id] = l.vert;
+    azimuthOffset[id] = l.rot;
+  }
+  if (lasers.empty()) {
+    error = path + ": no laser";
+    return false;
+  }
+  return true;
+}
+
 double kittiRelativeYaw(const Eigen::Matrix<double, 3, 4>& a, const Eigen::Matrix<double, 3, 4>& b) {
   const Eigen::Matrix3d r = a.leftCols<3>().transpose() * b.leftCols<3>();
   return -std::atan2(r(0, 2), r(2, 2));

@@ -74,6 +74,9 @@ struct YawEstimate {
   float cost = 0.0F;          ///< [m] mean absolute difference at the best integer shift
   std::uint16_t shift = 0;    ///< best integer shift [deg], 0..359
   std::uint16_t overlap = 0;  ///< bins valid in both at that shift
+  float meanRange = 0.0F;     ///< [m] mean of the two signatures over those bins
+  /// cost / meanRange: the mismatch relative to the scale of the scene (0 = identical).
+  float relativeCost() const noexcept { return meanRange > 0.0F ? cost / meanRange : 0.0F; }
 };
 
 /// The relative yaw of b with respect to a (see the convention above). NotEnoughData when either

@@ -6,7 +6,9 @@
 /// 1. Loop query: among the stored key-signatures except the newest `skipRecentKeys` (m = 15: the
 ///    places just driven through always look alike and are no loop), the key with the smallest
 ///    chi-square distance among those with chi-square < T_chi2 *and* Sorensen < T_Sor is the loop
-///    candidate; with its orientation signature the relative yaw is estimated too.
+///    candidate; with its orientation signature the relative yaw is estimated too. With the
+///    orientation check on (PlaceParams::maxOrientationCost > 0), the candidates are checked
+///    nearest first and the first whose orientation signatures agree is the loop.
 /// 2. Key decision: the first revolution is a key; afterwards a revolution becomes a new key when
 ///    its chi-square distance to the last key exceeds T_key (the place has changed enough).
 ///
@@ -15,7 +17,8 @@
 /// refused with CapacityExceeded and counted (the loop query of that revolution still ran and its
 /// result is in the update). An empty signature (no normals) is refused (EmptyInput, counted).
 ///
-/// Work per add(): O(N) chi-square + Sorensen distances (101 terms each) + one relativeYaw.
+/// Work per add(): O(N) chi-square + Sorensen distances (101 terms each) + one relativeYaw, or up to
+/// kPlaceVerifyCandidates relativeYaw calls with the orientation check.
 
 #include <array>
 #include <cstddef>
@@ -38,9 +41,18 @@ struct PlaceParams {
   float chiSquareThreshold = 3.0e-4F;  ///< T_chi2: a loop needs chi-square below this
   float sorensenThreshold = 0.035F;    ///< T_Sor: and Sorensen below this
   std::size_t minYawOverlap = 36;      ///< bins valid in both orientation signatures for a yaw
+  /// Orientation check (an addition to the thesis; 0 = off): a candidate is accepted only when both
+  /// it and the query have orientation signatures and their relative cost at the best shift
+  /// (YawEstimate::relativeCost) is at most this. Structurally similar places have similar normal
+  /// histograms but not the same ranges around them. Up to kPlaceVerifyCandidates candidates, the
+  /// nearest by chi-square first, are checked; the first that passes is the loop.
+  float maxOrientationCost = 0.0F;
 };
 
-/// True when the thresholds are finite and positive.
+/// Candidates (nearest by chi-square) an orientation check examines per query at most.
+inline constexpr std::size_t kPlaceVerifyCandidates = 8;
+
+/// True when the thresholds are finite and positive (maxOrientationCost finite and >= 0).
 bool isValid(const PlaceParams& p) noexcept;
 
 /// One stored key.
@@ -60,8 +72,9 @@ struct PlaceUpdate {
   std::uint32_t loopScan = 0;       ///< scan id of the matched key
   float chiSquare = 0.0F;           ///< distances to it
   float sorensen = 0.0F;
-  std::uint32_t candidates = 0;  ///< keys that passed both thresholds (the best is reported)
-  bool hasYaw = false;           ///< relative yaw of this revolution w.r.t. the matched key estimated
+  std::uint32_t candidates = 0;             ///< keys that passed both thresholds (the best is reported)
+  std::uint32_t rejectedByOrientation = 0;  ///< of those, checked and refused by the orientation check
+  bool hasYaw = false;                      ///< relative yaw of this revolution w.r.t. the matched key estimated
   YawEstimate yaw{};
 };
 

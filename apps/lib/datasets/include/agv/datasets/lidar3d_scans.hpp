@@ -35,6 +35,12 @@ bool readKittiVelodyne(const std::string& path, Revolution& out, std::string& er
 /// with `error` on a bad file.
 bool readNcltVelodyne(const std::string& path, Revolution& out, std::string& error);
 
+/// Per-laser angles of a Velodyne calibration YAML (ros-drivers/velodyne format: a `lasers:` list
+/// with `laser_id`, `rot_correction` [rad], `vert_correction` [rad] per entry), indexed by laser
+/// id. False with `error` when a laser lacks a field, an id repeats or the ids are not 0..n-1.
+bool readVelodyneCalibration(const std::string& path, std::vector<double>& elevation,
+                             std::vector<double>& azimuthOffset, std::string& error);
+
 /// KITTI ground-truth poses (one 3 x 4 [R | t] row-major per line, left-camera frame: x right,
 /// y down, z forward). False with `error` naming the line on a malformed line.
 bool readKittiPoses(const std::string& path, std::vector<Eigen::Matrix<double, 3, 4>>& out, std::string& error);
