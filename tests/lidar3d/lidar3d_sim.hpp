@@ -117,4 +117,22 @@ inline std::size_t castScene(const SimScene& scene, const SimLidar& lidar, const
   return hits;
 }
 
+/// The benchmark scene: a 40 x 30 m box room without ceiling around the sensor (floor 1.8 m below)
+/// with a ramp rising at 35 deg towards +x from (6, 0, -1.8).
+inline SimScene rampYard() noexcept {
+  SimScene scene = boxRoom(-16.0, 24.0, -12.0, 18.0, -1.8, 5.0, false);
+  const Eigen::Vector3d ramp(-std::sin(deg2rad(35.0)), 0.0, std::cos(deg2rad(35.0)));
+  scene.add(ramp, ramp.dot(Eigen::Vector3d(6.0, 0.0, -1.8)));
+  return scene;
+}
+
+/// A VLP-16 at 10 Hz (16 lasers -15..+15 deg, 1800 firings) with range noise [m].
+inline SimLidar vlp16At10Hz(double noise) noexcept {
+  SimLidar lidar;
+  lidar.lasers = 16;
+  lidar.firings = 1800;
+  lidar.rangeNoise = noise;
+  return lidar;
+}
+
 }  // namespace agv::test

@@ -38,13 +38,8 @@ int main() {
     semihosting_write0("SysTick does not run: start QEMU with -icount shift=0\n");
     return 1;
   }
-  agv::test::SimLidar lidar;
-  lidar.lasers = 16;
-  lidar.firings = 1800;
-  lidar.rangeNoise = 0.005;
-  agv::test::SimScene scene = agv::test::boxRoom(-16.0, 24.0, -12.0, 18.0, -1.8, 5.0, false);
-  const Eigen::Vector3d ramp(-0.5736, 0.0, 0.8192);
-  scene.add(ramp, ramp.dot(Eigen::Vector3d(6.0, 0.0, -1.8)));
+  const agv::test::SimLidar lidar = agv::test::vlp16At10Hz(0.005);
+  const agv::test::SimScene scene = agv::test::rampYard();
   agv::test::LoopRng rng{1};
   const std::size_t points = agv::test::castScene(scene, lidar, Eigen::Vector3d::Zero(), 0.3, 0.0, rng, g_image);
   print("vlp16 returns: ", static_cast<std::uint32_t>(points));

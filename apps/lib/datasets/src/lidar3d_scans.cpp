@@ -23,16 +23,24 @@ T readLe(const char* p) {
   std::memcpy(&v, p, sizeof(T));  // the data and every target of the tools are little-endian
   return v;
 }
+/// The whole file as bytes, refused unless its size is a whole number of `recordSize` records.
+bool readRecords(const std::string& path, std::size_t recordSize, std::string& bytes, std::string& error) {
+  if (!report::readTextFile(path, bytes, error, kMaxScanBytes)) {
+    return false;
+  }
+  if (bytes.size() % recordSize != 0U) {
+    error = path + ": size " + std::to_string(bytes.size()) + " is not a multiple of " + std::to_string(recordSize) +
+            " bytes";
+    return false;
+  }
+  return true;
+}
 }  // namespace
 
 bool readKittiVelodyne(const std::string& path, Revolution& out, std::string& error) {
   out = Revolution{};
   std::string bytes;
-  if (!report::readTextFile(path, bytes, error, kMaxScanBytes)) {
-    return false;
-  }
-  if (bytes.size() % 16U != 0U) {
-    error = path + ": size " + std::to_string(bytes.size()) + " is not a multiple of 16 bytes";
+  if (!readRecords(path, 16U, bytes, error)) {
     return false;
   }
   const std::size_t n = bytes.size() / 16U;
@@ -67,11 +75,7 @@ bool readKittiVelodyne(const std::string& path, Revolution& out, std::string& er
 bool readNcltVelodyne(const std::string& path, Revolution& out, std::string& error) {
   out = Revolution{};
   std::string bytes;
-  if (!report::readTextFile(path, bytes, error, kMaxScanBytes)) {
-    return false;
-  }
-  if (bytes.size() % 8U != 0U) {
-    error = path + ": size " + std::to_string(bytes.size()) + " is not a multiple of 8 bytes";
+  if (!readRecords(path, 8U, bytes, error)) {
     return false;
   }
   const std::size_t n = bytes.size() / 8U;
