@@ -351,6 +351,7 @@ TEST_CASE("lidar3d: bad input is refused and counted", "[lidar3d]") {
   // Too few normals for a signature.
   CHECK(agv::computeNormalSignature(g_image, vlpSignature(), sig) == agv::Status::NotEnoughData);
   CHECK(sig.empty());
+  CHECK(sig.counts.belowMinimum < vlpSignature().minNormals);
   agv::NormalSignatureParams bad;
   bad.normals.maxRange = std::nanf("");
   CHECK(agv::computeNormalSignature(g_image, bad, sig) == agv::Status::InvalidArgument);

@@ -56,6 +56,7 @@ Status computeNormalSignature(const RangeImageBase& image, const NormalSignature
     const NormalCounts seen = out.counts;
     out = NormalSignature{};
     out.counts = seen;
+    out.counts.belowMinimum = seen.normals;
     out.counts.normals = 0;
     return Status::NotEnoughData;
   }

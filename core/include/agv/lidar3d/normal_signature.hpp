@@ -39,6 +39,7 @@ struct NormalCounts {
   std::uint32_t missingNeighbour = 0;  ///< a neighbour outside the image or without return
   std::uint32_t neighbourTooFar = 0;   ///< depth jump
   std::uint32_t degenerate = 0;        ///< parallel differences
+  std::uint32_t belowMinimum = 0;      ///< normals found but not used: fewer than minNormals
 };
 
 /// The signature of one revolution.
@@ -61,7 +62,8 @@ std::size_t normalBin(float nz) noexcept;
 /// Computes the signature of `image` into `out`. Ok; InvalidArgument for parameters out of their
 /// domain or an image with no more than 2 * firingStep columns; EmptyInput when the image holds
 /// no valid cell; NotEnoughData when fewer than minNormals normals were found. On every failure
-/// `out.bins` is all zero (an empty signature) and `out.counts` says what was seen.
+/// `out.bins` is all zero (an empty signature) and `out.counts` says what was seen (on NotEnoughData
+/// the normals found are in `counts.belowMinimum`, `counts.normals` is 0).
 Status computeNormalSignature(const RangeImageBase& image, const NormalSignatureParams& params,
                               NormalSignature& out) noexcept;
 
