@@ -31,7 +31,7 @@ bool readKittiVelodyne(const std::string& path, Revolution& out, std::string& er
 /// Reads an NCLT velodyne_sync file (uint16 x, y, z as v * 0.005 - 100 m, uint8 intensity, uint8
 /// laser id). The rows are the laser ids ranked by their mean elevation in this file (HDL-32E ids
 /// are interleaved in elevation). The coordinates are kept as stored: in the shared file z points
-/// up (the lasers' mean elevations span -34..+1 deg, the ground lies at z ~ -1 to -2 m). False
+/// up (the lasers' mean elevations span -34..+1 deg; most points lie at z in [-2, 0) m). False
 /// with `error` on a bad file.
 bool readNcltVelodyne(const std::string& path, Revolution& out, std::string& error);
 
