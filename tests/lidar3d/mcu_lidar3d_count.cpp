@@ -6,32 +6,21 @@
 
 #include "agv/lidar3d/normal_signature.hpp"
 #include "agv/lidar3d/orientation_signature.hpp"
+#include "instruction_count.hpp"
 #include "instruction_counter.h"
 #include "lidar3d_sim.hpp"
 #include "semihosting.h"
 
 namespace {
 
-void print(const char* label, std::uint32_t value) {
-  semihosting_write0(label);
-  semihosting_write_int(value);
-  semihosting_write0("\n");
-}
-
 agv::Vlp16RangeImage g_image;  // 16 x 1800 cells, 460 KiB
 agv::NormalSignature g_sig;
 agv::OrientationSignature g_oa;
 agv::OrientationSignature g_ob;
 
-template <typename F>
-std::uint32_t count(F&& f) {
-  const std::uint64_t t0 = agv_icount_ticks();
-  f();
-  const std::uint64_t t1 = agv_icount_ticks();
-  return static_cast<std::uint32_t>(agv_icount_instructions(t1 - t0));
-}
-
 }  // namespace
+
+using agv::mcu::printValue;
 
 int main() {
   if (agv_icount_init() == 0U) {
@@ -42,19 +31,22 @@ int main() {
   const agv::test::SimScene scene = agv::test::rampYard();
   agv::test::LoopRng rng{1};
   const std::size_t points = agv::test::castScene(scene, lidar, Eigen::Vector3d::Zero(), 0.3, 0.0, rng, g_image);
-  print("vlp16 returns: ", static_cast<std::uint32_t>(points));
+  printValue("vlp16 returns: ", static_cast<std::uint32_t>(points));
   agv::NormalSignatureParams params;
   params.normals.laserStep = 1;  // VLP-16: 2-deg laser steps (tests/lidar3d)
   agv::Status st = agv::Status::Ok;
-  print("vlp16 signature instructions: ", count([&] { st = agv::computeNormalSignature(g_image, params, g_sig); }));
-  print("vlp16 normals: ", g_sig.counts.normals);
+  printValue("vlp16 signature instructions: ",
+             agv::mcu::countInstructions([&] { st = agv::computeNormalSignature(g_image, params, g_sig); }));
+  printValue("vlp16 normals: ", g_sig.counts.normals);
   int failures = st == agv::Status::Ok ? 0 : 1;
-  print("orientation signature instructions: ",
-        count([&] { st = agv::computeOrientationSignature(g_image, agv::OrientationParams{}, g_oa); }));
+  printValue("orientation signature instructions: ", agv::mcu::countInstructions([&] {
+               st = agv::computeOrientationSignature(g_image, agv::OrientationParams{}, g_oa);
+             }));
   failures += st == agv::Status::Ok ? 0 : 1;
   g_ob = g_oa;
   bool ok = false;
-  print("relative yaw instructions: ", count([&] { ok = agv::relativeYaw(g_oa, g_ob).ok(); }));
+  printValue("relative yaw instructions: ",
+             agv::mcu::countInstructions([&] { ok = agv::relativeYaw(g_oa, g_ob).ok(); }));
   failures += ok ? 0 : 1;
   return failures == 0 ? 0 : 1;
 }
