@@ -9,17 +9,12 @@
 #include "agv/loop/correspondence_graph.hpp"
 #include "agv/loop/glarot.hpp"
 #include "agv/loop/ransac_association.hpp"
+#include "instruction_count.hpp"
 #include "instruction_counter.h"
 #include "loop_test_util.hpp"
 #include "semihosting.h"
 
 namespace {
-
-void print(const char* label, std::uint32_t value) {
-  semihosting_write0(label);
-  semihosting_write_int(value);
-  semihosting_write0("\n");
-}
 
 constexpr std::size_t kN = 16;
 Eigen::Vector2f g_first[kN];
@@ -31,15 +26,9 @@ agv::PointAssociation g_out;
 agv::GlarotSignature g_sa;
 agv::GlarotSignature g_sb;
 
-template <typename F>
-std::uint32_t count(F&& f) {
-  const std::uint64_t t0 = agv_icount_ticks();
-  f();
-  const std::uint64_t t1 = agv_icount_ticks();
-  return static_cast<std::uint32_t>(agv_icount_instructions(t1 - t0));
-}
-
 }  // namespace
+
+using agv::mcu::printValue;
 
 int main() {
   agv::test::LoopRng rng{100};
@@ -57,14 +46,16 @@ int main() {
     const agv::Span<const Eigen::Vector2f> b(n == kN ? g_second : g_second + 5, n);
     semihosting_write0(n == kN ? "scene 16x16 (5 outliers)\n" : "scene 5x5\n");
     agv::Status st = agv::Status::Ok;
-    print("  cg instructions: ", count([&] { st = g_cg.match(a, b, g_out); }));
-    print("  cg pairs: ", static_cast<std::uint32_t>(g_out.pairs.size()));
+    printValue("  cg instructions: ", agv::mcu::countInstructions([&] { st = g_cg.match(a, b, g_out); }));
+    printValue("  cg pairs: ", static_cast<std::uint32_t>(g_out.pairs.size()));
     failures += st == agv::Status::Ok ? 0 : 1;
-    print("  ah instructions: ", count([&] { st = g_ah.match(a, b, g_out); }));
-    print("  ransac instructions: ", count([&] { st = g_ransac.match(a, b, g_out); }));
-    print("  glarot signature instructions: ", count([&] { (void)agv::computeGlarot(a, agv::GlarotParams{}, g_sa); }));
+    printValue("  ah instructions: ", agv::mcu::countInstructions([&] { st = g_ah.match(a, b, g_out); }));
+    printValue("  ransac instructions: ", agv::mcu::countInstructions([&] { st = g_ransac.match(a, b, g_out); }));
+    printValue("  glarot signature instructions: ",
+               agv::mcu::countInstructions([&] { (void)agv::computeGlarot(a, agv::GlarotParams{}, g_sa); }));
     (void)agv::computeGlarot(b, agv::GlarotParams{}, g_sb);
-    print("  glarot SL1 instructions: ", count([&] { (void)agv::glarotDistance(g_sa, g_sb); }));
+    printValue("  glarot SL1 instructions: ",
+               agv::mcu::countInstructions([&] { (void)agv::glarotDistance(g_sa, g_sb); }));
   }
   return failures == 0 ? 0 : 1;
 }

@@ -1,0 +1,130 @@
+// agvnav-lidar-places: normal-histogram place recognition on a sequence of multi-beam lidar
+// revolutions (KITTI or NCLT velodyne .bin files): signatures, key-signatures, loops, precision /
+// recall against ground-truth positions (KITTI poses) and yaw errors. Figures on stdout, --json, --svg.
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <string>
+
+#include "agv/core/angle.hpp"
+#include "agv/report/json.hpp"
+#include "agv/report/text_file.hpp"
+#include "places.hpp"
+
+int main(int argc, char** argv) {
+  agv::places::PlacesOptions options;
+  std::string jsonPath;
+  std::string svgPath;
+  double minPrecision = -1.0;
+  double minRecall = -1.0;
+  bool verbose = false;
+  CLI::App app{"agvnav-lidar-places: normal-histogram place signatures, key-signatures and loops on 3D lidar scans"};
+  app.add_option("scans", options.files, "revolutions in driving order (.bin)")->check(CLI::ExistingFile);
+  app.add_option("--sim", options.sim.sensor, "run the simulated yard route instead of files: hdl64 or vlp16")
+      ->check(CLI::IsMember({"hdl64", "vlp16"}));
+  app.add_option("--sim-calibration", options.sim.calibration,
+                 "hdl64: factory calibration YAML (default: the shared HDL-64E S2.1 file)");
+  app.add_option("--sim-step", options.sim.step, "[m] between simulated revolutions")->check(CLI::Range(0.1, 20.0));
+  app.add_option("--sim-back", options.sim.back, "fraction of the lap driven back (opposite direction)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--sim-again", options.sim.again, "fraction of the lap driven again (same direction)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--sim-lateral", options.sim.lateral, "[m] lateral offset of the repeated passes")
+      ->check(CLI::Range(0.0, 5.0));
+  app.add_option("--sim-seed", options.sim.seed, "world and noise seed");
+  const std::map<std::string, agv::places::Format> formats{{"kitti", agv::places::Format::Kitti},
+                                                           {"nclt", agv::places::Format::Nclt}};
+  app.add_option("--format", options.format, "kitti (float32 x y z r) or nclt (velodyne_sync)")
+      ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case));
+  app.add_option("--poses", options.posesPath, "KITTI poses file (frame = the number in each file name)");
+  app.add_option("--radius", options.radius, "[m] a loop is true when its two positions are this close")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--columns", options.columns, "range-image columns (0: 2000 KITTI, 1024 NCLT)")
+      ->check(CLI::Range(0, 2048));
+  app.add_option("--key-threshold", options.place.keyThreshold, "T_key (chi-square to the last key)");
+  app.add_option("--chi2-threshold", options.place.chiSquareThreshold, "T_chi2");
+  app.add_option("--sorensen-threshold", options.place.sorensenThreshold, "T_Sor");
+  app.add_option("--orientation-check", options.place.maxOrientationCost,
+                 "loop candidates need a relative orientation-signature cost <= this (0: off)")
+      ->check(CLI::Range(0.0, 10.0));
+  app.add_option("--skip-recent-keys", options.place.skipRecentKeys, "m: newest keys left out of the loop query");
+  app.add_option("--laser-step", options.signature.normals.laserStep, "normal neighbours: lasers above/below")
+      ->check(CLI::Range(1, 8));
+  app.add_option("--firing-step", options.signature.normals.firingStep, "normal neighbours: firings before/after")
+      ->check(CLI::Range(1, 64));
+  app.add_flag("--verbose", verbose, "print every revolution (default: only the loops and failures)");
+  app.add_option("--json", jsonPath, "write the figures as JSON");
+  app.add_option("--svg", svgPath, "write the key signatures and the loops as SVG");
+  app.add_option("--min-precision", minPrecision, "exit 1 when the precision is below this (with poses)");
+  app.add_option("--min-recall", minRecall, "exit 1 when the recall is below this (with poses)");
+  CLI11_PARSE(app, argc, argv);
+  if (options.sim.sensor.empty() == options.files.empty()) {
+    std::fprintf(stderr, "agvnav-lidar-places: give either scan files or --sim\n");
+    return 2;
+  }
+  if (options.sim.sensor == "hdl64" && options.sim.calibration.empty()) {
+    options.sim.calibration = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/hdl64e_s2.1_sztaki.yaml";
+  }
+
+  agv::places::PlacesResult result;
+  std::string error;
+  if (!agv::places::runPlaces(options, result, error)) {
+    std::fprintf(stderr, "agvnav-lidar-places: %s\n", error.c_str());
+    return 2;
+  }
+  for (std::size_t i = 0; i < result.scans.size(); ++i) {
+    const agv::places::ScanResult& s = result.scans[i];
+    if (!verbose && !s.update.loop && s.status == agv::Status::Ok) {
+      continue;  // long runs: the loops and the failures only
+    }
+    std::printf("scan %zu (%s): %zu points, %u normals, %s%s", i, s.file.c_str(), s.points, s.normals,
+                agv::toString(s.status), s.update.isKey ? ", key" : "");
+    if (s.update.loop) {
+      std::printf(", loop with scan %u: chi2 %.3g sorensen %.3g", s.update.loopScan,
+                  static_cast<double>(s.update.chiSquare), static_cast<double>(s.update.sorensen));
+      if (s.hasTruth) {
+        std::printf(" (%s, %.2f m)", s.loopTrue ? "true" : "FALSE", s.loopDistance);
+      }
+      if (s.update.hasYaw) {
+        std::printf(", yaw %.2f deg (relative cost %.3f)", agv::rad2deg(static_cast<double>(s.update.yaw.yaw)),
+                    static_cast<double>(s.update.yaw.relativeCost()));
+      }
+      if (s.hasYawError) {
+        std::printf(" (truth %.2f, error %.2f deg)", agv::rad2deg(s.yawTruth), agv::rad2deg(s.yawError));
+      }
+    }
+    std::printf("\n");
+  }
+  std::printf("%zu revolutions in %.1f s; keys %zu; loops detected %zu", result.scans.size(), result.seconds,
+              result.keys, result.summary.detected);
+  if (!result.truth.empty()) {
+    std::printf(", true %zu of %zu to find (radius %.1f m): precision %.3f recall %.3f", result.summary.truePositives,
+                result.summary.positives, options.radius, result.summary.precision, result.summary.recall);
+  }
+  std::printf("\n");
+  for (const agv::places::PrPoint& p : result.curve) {
+    std::printf("  T_chi2 %.2e T_Sor %.4f: detected %zu, true %zu, precision %.3f recall %.3f\n",
+                static_cast<double>(p.chiSquareThreshold), static_cast<double>(p.sorensenThreshold), p.detected,
+                p.truePositives, p.precision, p.recall);
+  }
+  if (result.yawCount > 0) {
+    std::printf("yaw error over %zu loops: mean |e| %.3f deg, max %.3f deg\n", result.yawCount,
+                result.yawErrorMeanAbsDeg, result.yawErrorMaxDeg);
+  }
+  if (!jsonPath.empty() && !agv::report::writeJsonFile(jsonPath, agv::places::placesJson(options, result), error)) {
+    std::fprintf(stderr, "agvnav-lidar-places: %s\n", error.c_str());
+    return 2;
+  }
+  if (!svgPath.empty() && !agv::report::writeTextFile(svgPath, agv::places::placesSvg(result), error)) {
+    std::fprintf(stderr, "agvnav-lidar-places: %s\n", error.c_str());
+    return 2;
+  }
+  if (!result.truth.empty() && (result.summary.precision < minPrecision || result.summary.recall < minRecall)) {
+    std::fprintf(stderr, "agvnav-lidar-places: precision %.3f / recall %.3f below the required %.3f / %.3f\n",
+                 result.summary.precision, result.summary.recall, minPrecision, minRecall);
+    return 1;
+  }
+  return 0;
+}

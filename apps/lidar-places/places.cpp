@@ -1,0 +1,365 @@
+#include "places.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+
+#include "agv/core/angle.hpp"
+#include "agv/datasets/lidar3d_scans.hpp"
+#include "agv/report/svg.hpp"
+#include "agv/sim/multibeam_world.hpp"
+
+namespace agv::places {
+
+namespace {
+
+constexpr std::size_t kMaxKeys = 8192;
+using Database = PlaceDatabase<kMaxKeys>;
+using Image = RangeImage<64, 2048>;
+
+/// The number in a file name ("000094.bin" -> 94), -1 when there is none.
+long frameOf(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+  const std::string stem = name.substr(0, name.find('.'));
+  if (stem.empty() || stem.size() > 18 || stem.find_first_not_of("0123456789") != std::string::npos) {
+    return -1;
+  }
+  return std::strtol(stem.c_str(), nullptr, 10);
+}
+
+double distance(const Pose2d& a, const Pose2d& b) {
+  return std::hypot(a.x - b.x, a.y - b.y);
+}
+
+/// Image, signatures and the per-scan record of one revolution.
+void addRevolution(const PlacesOptions& options, std::size_t columns, Image& image, const datasets::Revolution& rev,
+                   ScanResult scan, PlacesResult& r) {
+  scan.points = rev.points.size();
+  NormalSignature sig;
+  OrientationSignature ori;
+  Status st = image.reset(std::max<std::size_t>(rev.rings, 1), columns);
+  if (st == Status::Ok) {
+    st = image.buildFromRings(Span<const RingPoint>(rev.points.data(), rev.points.size()));
+    scan.collisions = image.stats().collisions;
+  }
+  if (st == Status::Ok) {
+    st = computeNormalSignature(image, options.signature, sig);
+  }
+  if (st == Status::Ok && computeOrientationSignature(image, options.orientation, ori) != Status::Ok) {
+    ori = OrientationSignature{};  // no yaw for this scan; the place signature still counts
+  }
+  scan.status = st;
+  scan.normals = sig.counts.normals;
+  r.scans.push_back(scan);
+  r.signatures.push_back(sig);
+  r.orientations.push_back(ori);
+}
+
+/// The simulated route: the yard world, the sensor, one revolution per route pose.
+bool simulate(const PlacesOptions& options, Image& image, PlacesResult& r, std::string& error) {
+  const SimRouteOptions& o = options.sim;
+  sim::MultibeamSensor sensor;
+  if (o.sensor == "vlp16") {
+    sensor = sim::vlp16Sensor();
+  } else if (o.sensor == "hdl64") {
+    if (!datasets::readVelodyneCalibration(o.calibration, sensor.elevation, sensor.azimuthOffset, error)) {
+      return false;
+    }
+    sensor.firings = 2000;
+  } else {
+    error = "unknown simulated sensor '" + o.sensor + "' (hdl64, vlp16)";
+    return false;
+  }
+  if (sensor.elevation.size() > Image::kLasers || sensor.firings > Image::kFirings) {
+    error = "the simulated sensor exceeds the range image's capacity";
+    return false;
+  }
+  const sim::MultibeamWorld world = sim::yardWorld(o.width, o.height, o.seed);
+  const std::vector<sim::RoutePose> route = sim::yardRoute(o.width, o.height, o.step, o.back, o.again, o.lateral);
+  std::mt19937_64 rng(o.seed * 7919U + 1U);
+  datasets::Revolution rev;
+  rev.rings = sensor.elevation.size();
+  for (std::size_t i = 0; i < route.size(); ++i) {
+    sim::scanRevolution(world, sensor, route[i].pose, rng, rev.points);
+    ScanResult scan;
+    scan.file = "sim:" + o.sensor + ":lap" + std::to_string(route[i].lap);
+    scan.frame = static_cast<long>(i);
+    r.truth.push_back(route[i].pose);
+    addRevolution(options, sensor.firings, image, rev, scan, r);
+  }
+  return true;
+}
+
+/// Runs the place database over the stored signatures with T_chi2 and T_Sor times `scale`; fills the
+/// per-scan outcome when `record`. Returns the precision / recall figures.
+PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float scale, bool record) {
+  auto db = std::make_unique<Database>();
+  PlaceParams p = options.place;
+  p.chiSquareThreshold *= scale;
+  p.sorensenThreshold *= scale;
+  PrPoint pr;
+  pr.chiSquareThreshold = p.chiSquareThreshold;
+  pr.sorensenThreshold = p.sorensenThreshold;
+  (void)db->setParams(p);  // validated by runPlaces
+  const bool truth = !r.truth.empty();
+  for (std::size_t i = 0; i < r.scans.size(); ++i) {
+    ScanResult& scan = r.scans[i];
+    if (scan.status != Status::Ok) {
+      continue;
+    }
+    bool positive = false;
+    if (truth) {
+      const std::size_t eligible = db->size() > p.skipRecentKeys ? db->size() - p.skipRecentKeys : 0;
+      for (std::size_t k = 0; k < eligible && !positive; ++k) {
+        positive = distance(r.truth[db->at(k)->scan], r.truth[i]) <= options.radius;
+      }
+    }
+    PlaceUpdate u;
+    (void)db->add(r.signatures[i], r.orientations[i], static_cast<std::uint32_t>(i), u);  // refusals counted
+    bool loopTrue = false;
+    if (u.loop) {
+      ++pr.detected;
+      if (truth) {
+        loopTrue = distance(r.truth[u.loopScan], r.truth[i]) <= options.radius;
+        pr.truePositives += loopTrue ? 1U : 0U;
+      }
+    }
+    pr.positives += positive ? 1U : 0U;
+    if (record) {
+      scan.update = u;
+      scan.hasTruth = truth;
+      scan.truePositiveCandidate = positive;
+      scan.loopTrue = loopTrue;
+      if (truth && u.loop) {
+        scan.loopDistance = distance(r.truth[u.loopScan], r.truth[i]);
+      }
+      if (truth && u.loop && u.hasYaw) {
+        scan.hasYawError = true;
+        scan.yawTruth = angleDiff(r.truth[i].theta, r.truth[u.loopScan].theta);
+        scan.yawError = angleDiff(static_cast<double>(u.yaw.yaw), scan.yawTruth);
+      }
+    }
+  }
+  if (record) {
+    r.keys = db->size();
+  }
+  pr.precision = pr.detected > 0 ? static_cast<double>(pr.truePositives) / static_cast<double>(pr.detected) : 1.0;
+  pr.recall = pr.positives > 0 ? static_cast<double>(pr.truePositives) / static_cast<double>(pr.positives) : 1.0;
+  return pr;
+}
+
+}  // namespace
+
+bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error) {
+  r = PlacesResult{};
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!isValid(options.place) || !isValid(options.signature.normals) || !(options.radius > 0.0)) {
+    error = "parameters out of their domain";
+    return false;
+  }
+  auto image = std::make_unique<Image>();
+  if (!options.sim.sensor.empty()) {
+    if (!simulate(options, *image, r, error)) {
+      return false;
+    }
+  } else {
+    if (options.files.empty()) {
+      error = "no revolution given";
+      return false;
+    }
+    std::vector<Eigen::Matrix<double, 3, 4>> poses;
+    if (!options.posesPath.empty() && !datasets::readKittiPoses(options.posesPath, poses, error)) {
+      return false;
+    }
+    const std::size_t columns = options.columns > 0 ? options.columns : (options.format == Format::Kitti ? 2000 : 1024);
+    for (const std::string& file : options.files) {
+      ScanResult scan;
+      scan.file = file;
+      scan.frame = frameOf(file);
+      datasets::Revolution rev;
+      const bool read = options.format == Format::Kitti ? datasets::readKittiVelodyne(file, rev, error)
+                                                        : datasets::readNcltVelodyne(file, rev, error);
+      if (!read) {
+        return false;
+      }
+      if (!poses.empty()) {
+        if (scan.frame < 0 || static_cast<std::size_t>(scan.frame) >= poses.size()) {
+          error = file + ": no pose for this file (frame " + std::to_string(scan.frame) + ")";
+          return false;
+        }
+        // On the ground: the camera's x and z; yaw about the up axis (kittiRelativeYaw from identity).
+        const Eigen::Matrix<double, 3, 4>& p = poses[static_cast<std::size_t>(scan.frame)];
+        r.truth.push_back(
+            Pose2d{p(0, 3), p(2, 3), datasets::kittiRelativeYaw(Eigen::Matrix<double, 3, 4>::Identity(), p)});
+      }
+      addRevolution(options, columns, *image, rev, scan, r);
+    }
+  }
+  r.summary = runDatabase(options, r, 1.0F, true);
+  for (const float t : options.curveScale) {
+    r.curve.push_back(runDatabase(options, r, t, false));
+  }
+  double sumAbs = 0.0;
+  for (const ScanResult& s : r.scans) {
+    if (s.hasYawError) {
+      const double e = std::fabs(rad2deg(s.yawError));
+      r.yawErrorMaxDeg = std::max(r.yawErrorMaxDeg, e);
+      sumAbs += e;
+      ++r.yawCount;
+    }
+  }
+  r.yawErrorMeanAbsDeg = r.yawCount > 0 ? sumAbs / static_cast<double>(r.yawCount) : 0.0;
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return true;
+}
+
+namespace {
+report::Json prJson(const PrPoint& p) {
+  report::Json j;
+  j["chi_square_threshold"] = report::shortestDouble(p.chiSquareThreshold);
+  j["sorensen_threshold"] = report::shortestDouble(p.sorensenThreshold);
+  j["detected"] = p.detected;
+  j["true_positives"] = p.truePositives;
+  j["positives"] = p.positives;
+  j["precision"] = p.precision;
+  j["recall"] = p.recall;
+  return j;
+}
+}  // namespace
+
+report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
+  report::Json doc;
+  doc["program"] = "agvnav-lidar-places";
+  doc["format"] = options.format == Format::Kitti ? "kitti" : "nclt";
+  report::Json params;
+  params["key_threshold"] = report::shortestDouble(options.place.keyThreshold);
+  params["skip_recent_keys"] = options.place.skipRecentKeys;
+  params["chi_square_threshold"] = report::shortestDouble(options.place.chiSquareThreshold);
+  params["sorensen_threshold"] = report::shortestDouble(options.place.sorensenThreshold);
+  params["orientation_check"] = report::shortestDouble(options.place.maxOrientationCost);
+  params["radius_m"] = options.radius;
+  params["firing_step"] = options.signature.normals.firingStep;
+  params["laser_step"] = options.signature.normals.laserStep;
+  doc["parameters"] = params;
+  doc["scans"] = r.scans.size();
+  doc["keys"] = r.keys;
+  doc["ground_truth"] = !r.truth.empty();
+  doc["source"] = options.sim.sensor.empty() ? "files" : "sim:" + options.sim.sensor;
+  doc["summary"] = prJson(r.summary);
+  report::Json curve = report::Json::array();
+  for (const PrPoint& p : r.curve) {
+    curve.push_back(prJson(p));
+  }
+  doc["pr_curve"] = curve;
+  report::Json yaw;
+  yaw["count"] = r.yawCount;
+  yaw["max_abs_error_deg"] = r.yawErrorMaxDeg;
+  yaw["mean_abs_error_deg"] = r.yawErrorMeanAbsDeg;
+  doc["yaw"] = yaw;
+  report::Json loops = report::Json::array();
+  report::Json scans = report::Json::array();
+  for (std::size_t i = 0; i < r.scans.size(); ++i) {
+    const ScanResult& s = r.scans[i];
+    report::Json js;
+    js["file"] = s.file;
+    js["frame"] = s.frame;
+    js["points"] = s.points;
+    js["normals"] = s.normals;
+    js["collisions"] = s.collisions;
+    js["status"] = toString(s.status);
+    js["key"] = s.update.isKey;
+    js["chi_square_to_last_key"] = report::shortestDouble(s.update.chiSquareToLastKey);
+    scans.push_back(js);
+    if (s.update.loop) {
+      report::Json l;
+      l["scan"] = i;
+      l["frame"] = s.frame;
+      l["key_scan"] = s.update.loopScan;
+      l["key_frame"] = r.scans[s.update.loopScan].frame;
+      l["chi_square"] = report::shortestDouble(s.update.chiSquare);
+      l["sorensen"] = report::shortestDouble(s.update.sorensen);
+      l["candidates"] = s.update.candidates;
+      if (s.hasTruth) {
+        l["true"] = s.loopTrue;
+        l["distance_m"] = s.loopDistance;
+      }
+      if (s.update.hasYaw) {
+        l["yaw_deg"] = rad2deg(static_cast<double>(s.update.yaw.yaw));
+        l["orientation_relative_cost"] = report::shortestDouble(s.update.yaw.relativeCost());
+      }
+      if (s.hasYawError) {
+        l["yaw_truth_deg"] = rad2deg(s.yawTruth);
+        l["yaw_error_deg"] = rad2deg(s.yawError);
+      }
+      loops.push_back(l);
+    }
+  }
+  doc["loops"] = loops;
+  doc["per_scan"] = scans;
+  return doc;
+}
+
+std::string placesSvg(const PlacesResult& r) {
+  const double w = 900.0;
+  const double h = 420.0;
+  report::SvgDocument svg(w, h, {{"font-family", "sans-serif"}, {"font-size", "12"}});
+  // Left: the key signatures (n.z on x, share on a square-root y scale).
+  const double x0 = 40.0;
+  const double y0 = 380.0;
+  const double pw = 380.0;
+  const double ph = 340.0;
+  svg.addText("text", {{"x", x0}, {"y", 20.0}}, "normal signatures of the keys (x: n.z -1..1, y: sqrt share)");
+  svg.add("rect", {{"x", x0}, {"y", y0 - ph}, {"width", pw}, {"height", ph}, {"fill", "none"}, {"stroke", "#888"}});
+  std::size_t drawn = 0;
+  for (std::size_t i = 0; i < r.scans.size() && drawn < 12; ++i) {
+    if (!r.scans[i].update.isKey) {
+      continue;
+    }
+    report::SvgPoints pts;
+    for (std::size_t b = 0; b < kNormalSignatureBins; ++b) {
+      pts.add(x0 + pw * static_cast<double>(b) / 100.0,
+              y0 - ph * std::sqrt(static_cast<double>(r.signatures[i].bins[b])));
+    }
+    const char* colours[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b"};
+    svg.add("polyline",
+            {{"fill", "none"}, {"stroke", colours[drawn % 6]}, {"stroke-width", "1"}, {"points", pts.str()}});
+    ++drawn;
+  }
+  // Right: the trajectory and its loops (green true, red false).
+  if (!r.truth.empty()) {
+    const double ox = 470.0;
+    std::vector<Eigen::Vector2d> positions;
+    for (const Pose2d& p : r.truth) {
+      positions.emplace_back(p.x, p.y);
+    }
+    Eigen::Vector2d lo = positions.front();
+    Eigen::Vector2d hi = lo;
+    for (const Eigen::Vector2d& p : positions) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    const double span = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1.0});
+    const auto px = [&](const Eigen::Vector2d& p) { return ox + 10.0 + 380.0 * (p.x() - lo.x()) / span; };
+    const auto py = [&](const Eigen::Vector2d& p) { return y0 - 340.0 * (p.y() - lo.y()) / span; };
+    svg.addText("text", {{"x", ox}, {"y", 20.0}}, "positions (ground truth) and detected loops");
+    for (std::size_t i = 0; i < r.scans.size(); ++i) {
+      svg.add("circle", {{"cx", px(positions[i])}, {"cy", py(positions[i])}, {"r", 2.0}, {"fill", "#444"}});
+      const ScanResult& s = r.scans[i];
+      if (s.update.loop) {
+        const Eigen::Vector2d& k = positions[s.update.loopScan];
+        svg.add("line", {{"x1", px(positions[i])},
+                         {"y1", py(positions[i])},
+                         {"x2", px(k)},
+                         {"y2", py(k)},
+                         {"stroke", s.loopTrue ? "#2ca02c" : "#d62728"},
+                         {"stroke-width", "1.5"}});
+      }
+    }
+  }
+  return svg.str();
+}
+
+}  // namespace agv::places

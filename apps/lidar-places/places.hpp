@@ -1,0 +1,105 @@
+#pragma once
+/// @file places.hpp
+/// agvnav-lidar-places: a sequence of multi-beam revolutions (KITTI or NCLT velodyne `.bin`) run
+/// through the normal-histogram signatures, key-signatures and loop detection of agv/lidar3d, with
+/// precision / recall against ground-truth positions and yaw errors where poses exist.
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "agv/core/pose2.hpp"
+#include "agv/lidar3d/normal_signature.hpp"
+#include "agv/lidar3d/orientation_signature.hpp"
+#include "agv/lidar3d/place_database.hpp"
+#include "agv/report/json.hpp"
+
+namespace agv::places {
+
+enum class Format { Kitti, Nclt };
+
+/// The simulated route (drivers/sim multibeam_world.hpp) instead of files.
+struct SimRouteOptions {
+  std::string sensor;       ///< "" (no simulation), "hdl64" or "vlp16"
+  std::string calibration;  ///< hdl64: factory calibration YAML (elevations, azimuth offsets)
+  double width = 120.0;     ///< [m] the yard's road rectangle
+  double height = 80.0;     ///< [m]
+  double step = 1.0;        ///< [m] between revolutions
+  double back = 0.5;        ///< fraction of the lap driven back in the opposite direction
+  double again = 0.3;       ///< fraction of the lap driven again in the first direction
+  double lateral = 1.0;     ///< [m] lateral offset of the repeated passes (sinusoidal)
+  std::uint64_t seed = 1;   ///< world and noise
+};
+
+/// What to run and how.
+struct PlacesOptions {
+  Format format = Format::Kitti;
+  std::vector<std::string> files;  ///< revolutions in driving order
+  SimRouteOptions sim{};
+  std::string posesPath;    ///< KITTI poses (frame = the file name's number); empty: no truth
+  double radius = 5.0;      ///< [m] a loop is true when the two positions are this close
+  std::size_t columns = 0;  ///< range-image columns (0: 2000 for KITTI, 1024 for NCLT)
+  PlaceParams place{};
+  NormalSignatureParams signature{};
+  OrientationParams orientation{};
+  /// The precision / recall curve: the database rerun with T_chi2 and T_Sor both multiplied by
+  /// each factor (T_key and m kept).
+  std::vector<float> curveScale = {0.25F, 0.5F, 1.0F, 1.5F, 2.0F, 3.0F, 4.0F, 6.0F, 8.0F};
+};
+
+/// One revolution's outcome.
+struct ScanResult {
+  std::string file;
+  long frame = -1;  ///< number in the file name (KITTI frame), -1 when none
+  std::size_t points = 0;
+  std::uint32_t normals = 0;
+  std::uint32_t collisions = 0;  ///< returns that fell on an occupied cell of the range image
+  Status status = Status::Ok;    ///< of the signature (a failed scan is not added)
+  PlaceUpdate update{};
+  bool hasTruth = false;
+  bool truePositiveCandidate = false;  ///< an eligible key was within the radius (a loop to find)
+  bool loopTrue = false;               ///< the detected loop's positions are within the radius
+  double loopDistance = 0.0;           ///< [m] between the two positions of the detected loop
+  bool hasYawError = false;
+  double yawTruth = 0.0;  ///< [rad]
+  double yawError = 0.0;  ///< [rad] estimate - truth
+};
+
+/// One point of the precision / recall curve.
+struct PrPoint {
+  float chiSquareThreshold = 0.0F;
+  float sorensenThreshold = 0.0F;
+  std::size_t detected = 0;
+  std::size_t truePositives = 0;
+  std::size_t positives = 0;  ///< scans with a true eligible key
+  double precision = 0.0;     ///< 1 when nothing was detected
+  double recall = 0.0;        ///< 1 when there is nothing to find
+};
+
+/// The run.
+struct PlacesResult {
+  std::vector<ScanResult> scans;
+  std::vector<NormalSignature> signatures;         ///< per scan (empty on failure)
+  std::vector<OrientationSignature> orientations;  ///< per scan (empty on failure)
+  std::size_t keys = 0;
+  PrPoint summary{};  ///< at the chosen T_chi2
+  std::vector<PrPoint> curve;
+  std::vector<Pose2d> truth;  ///< per scan when poses were given: position on the ground, yaw
+  double yawErrorMaxDeg = 0.0;
+  double yawErrorMeanAbsDeg = 0.0;
+  std::size_t yawCount = 0;
+  double seconds = 0.0;  ///< wall time of the run (reading / simulating included)
+};
+
+/// Runs the sequence. False with `error` on a file that cannot be read or bad options.
+bool runPlaces(const PlacesOptions& options, PlacesResult& result, std::string& error);
+
+/// The JSON document of a run.
+report::Json placesJson(const PlacesOptions& options, const PlacesResult& result);
+
+/// The SVG of a run: the key signatures, and the trajectory with its loops when poses exist.
+std::string placesSvg(const PlacesResult& result);
+
+}  // namespace agv::places
