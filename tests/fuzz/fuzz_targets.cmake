@@ -8,6 +8,7 @@ add_library(agv_fuzz_protocol STATIC
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/cola_a_scan.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/nav350.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/plc_register_map.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/modbus_request.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/canopen_encoders.cpp)
 target_include_directories(agv_fuzz_protocol PUBLIC ${AGV_FUZZ_ROOT}/core/include ${AGV_FUZZ_ROOT}/hal/include
                                                     ${AGV_FUZZ_ROOT}/drivers/protocol/include)
