@@ -2,6 +2,7 @@
 
 #include "agv/drivers/linux/tcp_stream.hpp"
 
+#include <fcntl.h>
 #include <modbus.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -13,6 +14,9 @@
 namespace agv::drivers {
 namespace {
 constexpr int kMaxRequestsPerCycle = 16;  // bound of the server loop in one cycle
+constexpr int kMaxAcceptsPerCycle = 8;    // connections accepted per ready listening socket
+constexpr int kMaxReadsPerVisit = 4;      // recv() calls per peer and round
+constexpr int kPeerSendBuffer = 8192;     // SO_SNDBUF of a server connection
 
 modbus_mapping_t* asMapping(void* p) noexcept {
   return static_cast<modbus_mapping_t*>(p);
@@ -38,7 +42,6 @@ std::uint16_t be16(const std::uint8_t* p) noexcept {
 
 ModbusPlcLink::ModbusPlcLink(const ModbusPlcLinkConfig& config) noexcept : config_(config), map_(config.map) {
   config_.address[sizeof(config_.address) - 1] = '\0';
-  clients_.fill(-1);
   if (config_.maxConnections < 1) {
     config_.maxConnections = 1;
   }
@@ -48,9 +51,9 @@ ModbusPlcLink::ModbusPlcLink(const ModbusPlcLinkConfig& config) noexcept : confi
 }
 
 ModbusPlcLink::~ModbusPlcLink() {
-  for (int i = 0; i < kMaxClients; ++i) {
-    if (clients_[static_cast<std::size_t>(i)] >= 0) {
-      ::close(clients_[static_cast<std::size_t>(i)]);
+  for (const Peer& p : clients_) {
+    if (p.fd >= 0) {
+      ::close(p.fd);
     }
   }
   if (listenFd_ >= 0) {
@@ -71,8 +74,8 @@ bool ModbusPlcLink::connected() const noexcept {
   if (config_.role == PlcLinkRole::Client) {
     return clientConnected_;
   }
-  for (const int fd : clients_) {
-    if (fd >= 0) {
+  for (const Peer& p : clients_) {
+    if (p.fd >= 0) {
       return true;
     }
   }
@@ -99,10 +102,14 @@ Status ModbusPlcLink::open() noexcept {
   if (mapping_ == nullptr) {
     return Status::CapacityExceeded;
   }
-  listenFd_ = modbus_tcp_listen(ctx_, config_.maxConnections);
+  // Backlog: room for a burst of connections between two cycles (the policy sorts them out).
+  listenFd_ = modbus_tcp_listen(ctx_, 2 * kMaxClients);
   if (listenFd_ < 0) {
     return Status::Lost;
   }
+  const int flags = ::fcntl(listenFd_, F_GETFL, 0);
+  (void)::fcntl(listenFd_, F_SETFL, flags | O_NONBLOCK);  // accept4 never waits
+  (void)::fcntl(listenFd_, F_SETFD, FD_CLOEXEC);
   sockaddr_in a{};
   socklen_t len = sizeof a;
   // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
@@ -203,28 +210,137 @@ Status ModbusPlcLink::cycle(const plc::PlcStatus& status, Timestamp now, Duratio
 }
 
 void ModbusPlcLink::closeClient(int index) noexcept {
-  int& fd = clients_[static_cast<std::size_t>(index)];
-  if (fd >= 0) {
-    ::close(fd);
-    fd = -1;
+  Peer& p = clients_[static_cast<std::size_t>(index)];
+  if (p.fd >= 0) {
+    ::close(p.fd);
+    p.fd = -1;
+    p.framer.next();
     ++counters_.disconnects;
   }
 }
 
+int ModbusPlcLink::inputDescriptors(int* out, int capacity) const noexcept {
+  int n = 0;
+  if (config_.role != PlcLinkRole::Server || listenFd_ < 0) {
+    return 0;
+  }
+  if (n < capacity) {
+    out[n++] = listenFd_;
+  }
+  for (const Peer& p : clients_) {
+    if (p.fd >= 0 && n < capacity) {
+      out[n++] = p.fd;
+    }
+  }
+  return n;
+}
+
+bool ModbusPlcLink::peerAllowed(std::uint32_t address) const noexcept {
+  if (config_.allowedPeerCount <= 0) {
+    return true;
+  }
+  for (int i = 0; i < config_.allowedPeerCount && i < static_cast<int>(config_.allowedPeers.size()); ++i) {
+    if (config_.allowedPeers[static_cast<std::size_t>(i)] == address) {
+      return true;
+    }
+  }
+  return false;
+}
+
+void ModbusPlcLink::acceptPeers(Timestamp now) noexcept {
+  for (int k = 0; k < kMaxAcceptsPerCycle; ++k) {
+    sockaddr_in from{};
+    socklen_t len = sizeof from;
+    // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
+    const int fd = ::accept4(listenFd_, reinterpret_cast<sockaddr*>(&from), &len, SOCK_CLOEXEC | SOCK_NONBLOCK);
+    if (fd < 0) {
+      return;  // EAGAIN: no more waiting connections (or an aborted one)
+    }
+    if (from.sin_family != AF_INET || !peerAllowed(from.sin_addr.s_addr)) {
+      ::close(fd);
+      ++counters_.refusedPeers;
+      continue;
+    }
+    int slot = -1;
+    for (int i = 0; i < config_.maxConnections && slot < 0; ++i) {
+      if (clients_[static_cast<std::size_t>(i)].fd < 0) {
+        slot = i;
+      }
+    }
+    if (slot < 0) {
+      // Full. First choice: the oldest peer that never completed a request (a slot holder, or a
+      // client that connected and said nothing). Else the longest-silent peer, if it has been
+      // silent for evictSilentAfter. Else the newcomer is refused.
+      int neverServed = -1;
+      int silent = -1;
+      for (int i = 0; i < config_.maxConnections; ++i) {
+        const Peer& p = clients_[static_cast<std::size_t>(i)];
+        if (!p.served) {
+          if (neverServed < 0 || p.accepted < clients_[static_cast<std::size_t>(neverServed)].accepted) {
+            neverServed = i;
+          }
+        } else if (now - p.lastRequest >= config_.evictSilentAfter &&
+                   (silent < 0 || p.lastRequest < clients_[static_cast<std::size_t>(silent)].lastRequest)) {
+          silent = i;
+        }
+      }
+      slot = neverServed >= 0 ? neverServed : silent;
+      if (slot >= 0) {
+        closeClient(slot);
+        ++counters_.evictions;
+      }
+    }
+    if (slot < 0) {
+      ::close(fd);
+      ++counters_.connectFailures;
+      continue;
+    }
+    // A small send buffer (the kernel doubles it: 16 KiB, about 60 of the longest replies): a PLC
+    // has one reply outstanding, so only a peer that does not read fills it, and is then dropped
+    // at once instead of after megabytes of autotuned buffer.
+    (void)::setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &kPeerSendBuffer, sizeof kPeerSendBuffer);
+    Peer& p = clients_[static_cast<std::size_t>(slot)];
+    p.fd = fd;
+    p.framer.next();
+    p.accepted = now;
+    p.lastRequest = now;
+    p.served = false;
+    ++counters_.connects;
+  }
+}
+
 Status ModbusPlcLink::serve(Timestamp now, Duration budget) noexcept {
+  // Bounds first: a request not whole within responseTimeout of its first byte, or a connection
+  // without a request for idleTimeout, is dropped.
+  for (int i = 0; i < kMaxClients; ++i) {
+    const Peer& p = clients_[static_cast<std::size_t>(i)];
+    if (p.fd < 0) {
+      continue;
+    }
+    if (p.framer.started() && now - p.firstByte > config_.responseTimeout) {
+      ++counters_.requestTimeouts;
+      ++counters_.requestErrors;
+      closeClient(i);
+    } else if (now - p.lastRequest > config_.idleTimeout) {
+      ++counters_.idleTimeouts;
+      closeClient(i);
+    }
+  }
   int handled = 0;
   bool first = true;
-  // One poll waits up to the budget; then pending requests are drained without waiting, at most
-  // kMaxRequestsPerCycle of them.
-  while (handled < kMaxRequestsPerCycle) {
+  // One poll waits up to the budget (0 from the vehicle loop, which waits on inputDescriptors()
+  // itself); then rounds without waiting, each reading every ready peer once and answering at most
+  // one complete request per peer, until nothing is ready or kMaxRequestsPerCycle were answered.
+  for (int round = 0; round < kMaxRequestsPerCycle && handled < kMaxRequestsPerCycle; ++round) {
     pollfd fds[kMaxClients + 1];
     int idx[kMaxClients + 1];
     nfds_t n = 0;
     fds[n] = pollfd{listenFd_, POLLIN, 0};
     idx[n++] = -1;
     for (int i = 0; i < kMaxClients; ++i) {
-      if (clients_[static_cast<std::size_t>(i)] >= 0) {
-        fds[n] = pollfd{clients_[static_cast<std::size_t>(i)], POLLIN, 0};
+      const Peer& p = clients_[static_cast<std::size_t>(i)];
+      if (p.fd >= 0) {
+        fds[n] = pollfd{p.fd, POLLIN, 0};
         idx[n++] = i;
       }
     }
@@ -238,35 +354,26 @@ Status ModbusPlcLink::serve(Timestamp now, Duration budget) noexcept {
         continue;
       }
       if (idx[k] < 0) {
-        const int fd = ::accept4(listenFd_, nullptr, nullptr, SOCK_CLOEXEC);
-        if (fd < 0) {
-          continue;
-        }
-        int slot = -1;
-        for (int i = 0; i < config_.maxConnections; ++i) {
-          if (clients_[static_cast<std::size_t>(i)] < 0) {
-            slot = i;
-            break;
-          }
-        }
-        if (slot < 0) {
-          ::close(fd);
-          ++counters_.connectFailures;
-        } else {
-          clients_[static_cast<std::size_t>(slot)] = fd;
-          ++counters_.connects;
-        }
+        acceptPeers(now);
         continue;
       }
-      if ((fds[k].revents & (POLLIN | POLLHUP | POLLERR)) != 0) {
-        const int fd = clients_[static_cast<std::size_t>(idx[k])];
-        handleRequest(fd, now);
-        if (modbus_get_socket(ctx_) < 0) {  // the exchange failed: drop this connection
-          clients_[static_cast<std::size_t>(idx[k])] = -1;
-          ::close(fd);
-          ++counters_.disconnects;
-        }
+      Peer& p = clients_[static_cast<std::size_t>(idx[k])];
+      if (p.fd != fds[k].fd) {
+        continue;  // evicted by an accept of this round
+      }
+      if (!readPeer(p, now)) {
+        closeClient(idx[k]);
+        continue;
+      }
+      if (p.framer.complete()) {
         ++handled;
+        const bool keep = handleRequest(p, now);
+        p.framer.next();
+        p.lastRequest = now;
+        p.served = true;
+        if (!keep) {
+          closeClient(idx[k]);
+        }
       }
     }
   }
@@ -274,105 +381,99 @@ Status ModbusPlcLink::serve(Timestamp now, Duration budget) noexcept {
   return Status::Ok;
 }
 
-void ModbusPlcLink::handleRequest(int fd, Timestamp now) noexcept {
-  std::uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
-  (void)modbus_set_socket(ctx_, fd);
-  const int rc = modbus_receive(ctx_, query);
-  if (rc < 0) {
-    ++counters_.requestErrors;
-    (void)modbus_set_socket(ctx_, -1);  // tells serve() to drop the connection
-    return;
+bool ModbusPlcLink::readPeer(Peer& p, Timestamp now) noexcept {
+  // Bounded: a request needs at most a header read and a body read; an oversized one is dropped in
+  // pieces of up to 252 bytes, so a few reads per round (the rest waits for the next round/cycle).
+  for (int reads = 0; reads < kMaxReadsPerVisit && !p.framer.complete(); ++reads) {
+    const Span<std::uint8_t> space = p.framer.space();
+    const ssize_t r = ::recv(p.fd, space.data(), space.size(), MSG_DONTWAIT);
+    if (r == 0) {
+      return false;  // the peer closed
+    }
+    if (r < 0) {
+      return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR;
+    }
+    if (!p.framer.started()) {
+      p.firstByte = now;
+    }
+    if (p.framer.commit(static_cast<std::size_t>(r)) != Status::Ok) {
+      ++counters_.requestErrors;  // an MBAP length that frames nothing: the stream is lost
+      return false;
+    }
   }
-  if (rc == 0) {
-    return;  // not for us
+  return true;
+}
+
+bool ModbusPlcLink::sendAll(int fd, const std::uint8_t* data, std::size_t n) noexcept {
+  const ssize_t r = ::send(fd, data, n, MSG_DONTWAIT | MSG_NOSIGNAL);
+  if (r == static_cast<ssize_t>(n)) {
+    return true;
   }
-  const int hl = modbus_get_header_length(ctx_);
-  const auto len = static_cast<std::size_t>(rc);
-  const auto h = static_cast<std::size_t>(hl);
-  const std::uint8_t function = query[h];
-  // MBAP protocol identifier 0 (Modbus): anything else is not a Modbus request and is discarded
-  // unanswered, as the Modbus TCP specification says (a write with protocol id 0xFFFF used to be
-  // applied).
-  if (h >= 7 && (query[2] != 0U || query[3] != 0U)) {
-    ++counters_.refusedRequests;
-    return;
-  }
-  // Only the functions of the register map are served: read holding registers (03), write single
-  // register (06), write multiple registers (16), read/write registers (23); the coil and mask
-  // writes below are refused as writes. Every other code (00, diagnostics 07/08, report server id
-  // 17, which would tell the library and its version, an exception-flagged 0x80+ code ...) gets
-  // exception 01, without touching the command state.
-  const bool served = function == MODBUS_FC_READ_HOLDING_REGISTERS || function == MODBUS_FC_WRITE_SINGLE_REGISTER ||
-                      function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS || function == MODBUS_FC_WRITE_AND_READ_REGISTERS;
-  const bool refusedWrite = function == MODBUS_FC_MASK_WRITE_REGISTER || function == MODBUS_FC_WRITE_SINGLE_COIL ||
-                            function == MODBUS_FC_WRITE_MULTIPLE_COILS;
-  if (!served && !refusedWrite) {
-    ++counters_.refusedRequests;
-    (void)modbus_reply_exception(ctx_, query, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
+  ++counters_.sendFailures;  // full send buffer (a peer that does not read) or a broken link
+  return false;
+}
+
+bool ModbusPlcLink::handleRequest(Peer& p, Timestamp now) noexcept {
+  const Span<const std::uint8_t> adu = p.framer.adu();
+  const plc::RequestCheck c = plc::checkModbusRequest(adu, p.framer.oversized(), plc::PlcRegisterMap::kRegisterCount);
+  std::uint8_t exceptionReply[9];
+  auto refuse = [&](plc::ModbusException code) {
+    const std::size_t n = plc::buildExceptionResponse(adu, code, exceptionReply);
     ++counters_.requests;
-    return;
+    return n == 0 || sendAll(p.fd, exceptionReply, n);
+  };
+  switch (c.verdict) {
+    case plc::RequestVerdict::Discard:
+      // Not Modbus (protocol id not 0), or an exception-flagged code (0x83 ...): unanswered.
+      ++counters_.refusedRequests;
+      return true;
+    case plc::RequestVerdict::RefusedWrite:
+      ++counters_.rejectedWrites;
+      lastRejected_ = true;
+      return refuse(c.exception);
+    case plc::RequestVerdict::Exception:
+      if (c.exception == plc::ModbusException::IllegalFunction) {
+        ++counters_.refusedRequests;  // a function the map does not serve (00, 07, 17 ...)
+      } else if (c.isWrite) {
+        ++counters_.rejectedWrites;  // a malformed or oversized write
+        lastRejected_ = true;
+      }
+      return refuse(c.exception);
+    case plc::RequestVerdict::Serve:
+      break;
   }
   modbus_mapping_t* m = asMapping(mapping_);
   const Span<const std::uint16_t> table(m->tab_registers, static_cast<std::size_t>(m->nb_registers));
-  std::uint16_t values[MODBUS_MAX_WRITE_REGISTERS];
-  std::size_t count = 0;
-  std::uint16_t address = 0;
-  bool isWrite = false;
-  bool malformed = false;
-  if (function == MODBUS_FC_WRITE_SINGLE_REGISTER) {
-    isWrite = true;
-    malformed = len < h + 5;
-    if (!malformed) {
-      address = be16(query + h + 1);
-      values[0] = be16(query + h + 3);
-      count = 1;
+  if (c.isWrite) {
+    std::uint16_t values[MODBUS_MAX_WRITE_REGISTERS];
+    for (std::size_t i = 0; i < c.writeCount; ++i) {
+      values[i] = be16(adu.data() + c.writeValuesOffset + 2 * i);
     }
-  } else if (function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS || function == MODBUS_FC_WRITE_AND_READ_REGISTERS) {
-    isWrite = true;
-    const std::size_t at = function == MODBUS_FC_WRITE_MULTIPLE_REGISTERS ? h + 1 : h + 5;
-    malformed = len < at + 5;
-    if (!malformed) {
-      address = be16(query + at);
-      count = be16(query + at + 2);
-      malformed = count == 0 || count > MODBUS_MAX_WRITE_REGISTERS || len < at + 5 + 2 * count;
-      for (std::size_t i = 0; !malformed && i < count; ++i) {
-        values[i] = be16(query + at + 5 + 2 * i);
-      }
-    }
-  } else if (function == MODBUS_FC_MASK_WRITE_REGISTER || function == MODBUS_FC_WRITE_SINGLE_COIL ||
-             function == MODBUS_FC_WRITE_MULTIPLE_COILS) {
-    ++counters_.rejectedWrites;
-    lastRejected_ = true;
-    (void)modbus_reply_exception(ctx_, query, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
-    ++counters_.requests;
-    return;
-  }
-  if (isWrite) {
-    const Status s =
-        malformed ? Status::Malformed : map_.checkWrite(address, Span<const std::uint16_t>(values, count), table);
+    const Status s = map_.checkWrite(c.writeAddress, Span<const std::uint16_t>(values, c.writeCount), table);
     if (s != Status::Ok) {
       ++counters_.rejectedWrites;
       lastRejected_ = true;
-      const unsigned code =
-          s == Status::OutOfRange ? MODBUS_EXCEPTION_ILLEGAL_DATA_ADDRESS : MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE;
-      (void)modbus_reply_exception(ctx_, query, code);
-      ++counters_.requests;
-      return;
+      return refuse(s == Status::OutOfRange ? plc::ModbusException::IllegalDataAddress
+                                            : plc::ModbusException::IllegalDataValue);
     }
   }
-  if (modbus_reply(ctx_, query, rc, m) < 0) {
+  // Checked above to be one libmodbus answers without an exception; it writes the reply with one
+  // send() on the non-blocking socket (a short or refused send fails the call: the peer is dropped).
+  (void)modbus_set_socket(ctx_, p.fd);
+  if (modbus_reply(ctx_, adu.data(), static_cast<int>(adu.size()), m) < 0) {
+    ++counters_.sendFailures;
     ++counters_.requestErrors;
-    (void)modbus_set_socket(ctx_, -1);
-    return;
+    return false;
   }
   ++counters_.requests;
-  if (isWrite) {
-    lastRejected_ = false;
-    const Result<plc::PlcCommand> c = map_.decodeCommand(table);
-    if (c.ok()) {
-      acceptCommand(c.value(), now);
+  if (c.isWrite) {
+    lastRejected_ = false;  // cleared only by a write actually applied
+    const Result<plc::PlcCommand> cmd = map_.decodeCommand(table);
+    if (cmd.ok()) {
+      acceptCommand(cmd.value(), now);
     }
   }
+  return true;
 }
 
 Status ModbusPlcLink::exchange(Timestamp now) noexcept {
