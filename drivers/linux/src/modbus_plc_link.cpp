@@ -209,6 +209,13 @@ Status ModbusPlcLink::cycle(const plc::PlcStatus& status, Timestamp now, Duratio
   return exchange(now);
 }
 
+Status ModbusPlcLink::service(Timestamp now) noexcept {
+  if (ctx_ == nullptr || (config_.role == PlcLinkRole::Server && listenFd_ < 0)) {
+    return Status::NotInitialized;
+  }
+  return config_.role == PlcLinkRole::Server ? serve(now, Duration{}) : Status::Ok;
+}
+
 void ModbusPlcLink::closeClient(int index) noexcept {
   Peer& p = clients_[static_cast<std::size_t>(index)];
   if (p.fd >= 0) {

@@ -83,6 +83,10 @@ bool SickLaserSource::connected() const noexcept {
   return config_.model == SickLaserModel::Nav350 ? nav_.connected() : cola_.connected();
 }
 
+int SickLaserSource::fileDescriptor() const noexcept {
+  return config_.model == SickLaserModel::Nav350 ? nav_.fileDescriptor() : cola_.fileDescriptor();
+}
+
 const TcpStreamCounters& SickLaserSource::tcpCounters() const noexcept {
   return config_.model == SickLaserModel::Nav350 ? nav_.tcpCounters() : cola_.tcpCounters();
 }

@@ -98,6 +98,10 @@ class ModbusPlcLink final : public hal::PlcLink {
   /// (server) or writes the status and reads the commands (client). Ok; Lost (client: PLC not
   /// reachable, retried later); NotInitialized (open() not called or failed).
   Status cycle(const plc::PlcStatus& status, Timestamp now, Duration budget) noexcept;
+  /// Server: answers the requests pending now (and accepts connections) without waiting and
+  /// without a new status: the registers keep the last published one. Lets a loop answer the PLC
+  /// every cycle while it publishes less often. Client: nothing (Ok). NotInitialized before open().
+  Status service(Timestamp now) noexcept;
 
   /// hal::PlcLink: publishes `report` (heartbeat counted here; health bits `report.health.bits`
   /// ORed with the link's own; calibration from setCalibration()) with one cycle of

@@ -52,6 +52,8 @@ class ColaAScanClient {
   const LaserClientCounters& counters() const noexcept { return counters_; }
   const sick::FramerCounters& framerCounters() const noexcept { return framer_.counters(); }
   const TcpStreamCounters& tcpCounters() const noexcept { return tcp_.counters(); }
+  /// The connection's socket (-1 when not connected), to wait on; valid until the next call.
+  int fileDescriptor() const noexcept { return tcp_.fileDescriptor(); }
   const sick::ColaAScanInfo& lastInfo() const noexcept { return info_; }
 
  private:
@@ -96,6 +98,8 @@ class Nav350Client {
   const LaserClientCounters& counters() const noexcept { return counters_; }
   const sick::FramerCounters& framerCounters() const noexcept { return framer_.counters(); }
   const TcpStreamCounters& tcpCounters() const noexcept { return tcp_.counters(); }
+  /// The connection's socket (-1 when not connected), to wait on; valid until the next call.
+  int fileDescriptor() const noexcept { return tcp_.fileDescriptor(); }
 
  private:
   bool decodeBuffered(sick::Nav350PoseReply& reply, Status& result) noexcept;

@@ -83,6 +83,9 @@ class SickLaserSource final : public hal::LaserSource {
   Status health() const noexcept override;
 
   bool connected() const noexcept;
+  /// The laser connection's socket (-1 when not connected), for a loop that waits for input on it
+  /// (apps/vehicle); valid until the next `read()`.
+  int fileDescriptor() const noexcept;
   const SickLaserSourceCounters& counters() const noexcept { return counters_; }
   /// Connection counters of the TCP stream in use.
   const TcpStreamCounters& tcpCounters() const noexcept;

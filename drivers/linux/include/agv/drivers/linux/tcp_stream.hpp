@@ -54,6 +54,8 @@ class TcpStream {
   Timestamp nextAttempt() const noexcept { return nextAttempt_; }
 
   const TcpStreamCounters& counters() const noexcept { return counters_; }
+  /// The socket while connected (-1 otherwise), for a caller that waits on it; valid until the next call.
+  int fileDescriptor() const noexcept { return fd_; }
   const TcpStreamConfig& config() const noexcept { return config_; }
 
  private:
