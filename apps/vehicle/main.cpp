@@ -85,6 +85,13 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "agvnav-vehicle: loop: %llu cycles, %llu input wakes, %llu overruns, longest cycle %.3f ms\n",
                static_cast<unsigned long long>(loop.cycles), static_cast<unsigned long long>(loop.inputWakes),
                static_cast<unsigned long long>(loop.overruns), static_cast<double>(loop.longestCycleNs) * 1e-6);
+  const agv::drivers::PlcLinkCounters& p = runtime.plcCounters();
+  std::fprintf(stderr,
+               "agvnav-vehicle: modbus: %u requests, %u connects, %u refused connections, %u refused peers, %u "
+               "evictions, %u request timeouts, %u idle timeouts, %u send failures, %u refused requests, %u refused "
+               "writes\n",
+               p.requests, p.connects, p.connectFailures, p.refusedPeers, p.evictions, p.requestTimeouts,
+               p.idleTimeouts, p.sendFailures, p.refusedRequests, p.rejectedWrites);
   const agv::nav::PipelineCounters& c = runtime.counters();
   std::fprintf(stderr,
                "agvnav-vehicle: stopped after %llu cycles (%llu encoder samples, %llu sweeps, %llu corrections, "

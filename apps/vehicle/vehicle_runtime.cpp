@@ -114,6 +114,10 @@ const VehicleRuntime::LoopStats& VehicleRuntime::loopStats() const noexcept {
   return impl_->stats;
 }
 
+const drivers::PlcLinkCounters& VehicleRuntime::plcCounters() const noexcept {
+  return impl_->modbus.counters();
+}
+
 void VehicleRuntime::run(const volatile std::sig_atomic_t& stop) {
   Impl& m = *impl_;
   const Duration period = m.config.cyclePeriod;

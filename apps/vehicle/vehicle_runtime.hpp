@@ -11,6 +11,7 @@
 #include <memory>
 #include <string>
 
+#include "agv/drivers/linux/modbus_plc_link.hpp"
 #include "vehicle_navigation.hpp"
 
 namespace agv::vehicle {
@@ -47,6 +48,8 @@ class VehicleRuntime {
     std::int64_t longestCycleNs = 0;  ///< longest pipeline cycle (wait excluded)
   };
   const LoopStats& loopStats() const noexcept;
+  /// The Modbus link's counters (connections, refusals, timeouts, evictions).
+  const drivers::PlcLinkCounters& plcCounters() const noexcept;
 
   /// One cycle at most: reads encoders and laser, corrects, publishes when due (no sleep).
   void cycle();

@@ -17,6 +17,7 @@ constexpr int kMaxRequestsPerCycle = 16;  // bound of the server loop in one cyc
 constexpr int kMaxAcceptsPerCycle = 8;    // connections accepted per ready listening socket
 constexpr int kMaxReadsPerVisit = 4;      // recv() calls per peer and round
 constexpr int kPeerSendBuffer = 8192;     // SO_SNDBUF of a server connection
+constexpr int kListenBacklog = 64;        // connections the kernel queues between two cycles
 
 modbus_mapping_t* asMapping(void* p) noexcept {
   return static_cast<modbus_mapping_t*>(p);
@@ -102,8 +103,9 @@ Status ModbusPlcLink::open() noexcept {
   if (mapping_ == nullptr) {
     return Status::CapacityExceeded;
   }
-  // Backlog: room for a burst of connections between two cycles (the policy sorts them out).
-  listenFd_ = modbus_tcp_listen(ctx_, 2 * kMaxClients);
+  // Backlog: room for a burst of connections between two cycles (the policy sorts them out); a
+  // full queue would drop the PLC's SYN, and its connect would wait for the retransmission (1 s).
+  listenFd_ = modbus_tcp_listen(ctx_, kListenBacklog);
   if (listenFd_ < 0) {
     return Status::Lost;
   }
