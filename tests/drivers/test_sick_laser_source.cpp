@@ -220,6 +220,47 @@ TEST_CASE("SICK laser source: a malformed scan telegram is reported", "[drivers]
   CHECK(p.allocs == 0U);
 }
 
+TEST_CASE("SICK laser source: implausible scan telegrams are refused and counted, not taken as sweeps",
+          "[drivers][laser]") {
+  agv::test::LoopbackServer server;
+  REQUIRE(server.ok());
+  // Well-formed telegrams with a scale factor of 3.4e38 and an offset of 1e30 mm.
+  agv::test::ColaScanFields hugeScale;
+  agv::test::ColaChannel c;
+  c.values.assign(10, 900);
+  c.scale = 3.4e38F;
+  hugeScale.channels16.push_back(c);
+  agv::test::ColaScanFields hugeOffset;
+  c.scale = 1.0F;
+  c.offset = 1e30F;
+  hugeOffset.channels16.push_back(c);
+  const auto bad1 = agv::test::stxEtx(agv::test::buildColaScan(hugeScale));
+  const auto bad2 = agv::test::stxEtx(agv::test::buildColaScan(hugeOffset));
+  const auto good = agv::test::colaScanTelegram(1, 900);
+  server.start([&](agv::test::LoopbackServer& s) {
+    const int fd = s.accept();
+    if (fd < 0)
+      return;
+    (void)receiveExactly(fd, kSubscribe);
+    s.send(fd, bad1);
+    sleepMs(100);
+    s.send(fd, bad2);
+    sleepMs(100);
+    s.send(fd, good);
+    agv::test::LoopbackServer::drainAndClose(fd, 300);
+  });
+  SickLaserSource src(loopbackConfig(SickLaserModel::Lms1xx, server.port()));
+  static LaserMeasurement m;
+  Poller p{src};
+  REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
+  CHECK(m.scan.size() == 10U);
+  AGV_CHECK_NEAR(m.scan.ranges[0], 0.9, 1e-6);
+  CHECK(src.counters().sweeps == 1U);
+  CHECK(src.counters().implausible == 2U);
+  CHECK(src.counters().malformed == 2U);
+  CHECK(p.allocs == 0U);
+}
+
 TEST_CASE("SICK laser source: NAV350 replies give scan and reflectors in the sensor frame", "[drivers][laser]") {
   agv::test::LoopbackServer server;
   REQUIRE(server.ok());

@@ -78,6 +78,7 @@ bool decodeFirst(sick::TelegramFramer& framer, LaserClientCounters& counters, Wa
       return true;
     }
     ++counters.decodeErrors;
+    counters.implausible += s == Status::OutOfRange ? 1U : 0U;
   }
   return false;
 }
@@ -290,6 +291,7 @@ Status Nav350Client::requestPose(bool waitForNextScan, sick::Nav350Mask mask, si
           return s;
         }
         ++counters_.decodeErrors;
+        counters_.implausible += s == Status::OutOfRange ? 1U : 0U;
       } else {
         ++counters_.otherTelegrams;  // stale replies from before the request, events
       }

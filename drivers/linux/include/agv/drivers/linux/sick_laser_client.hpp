@@ -17,6 +17,7 @@ namespace agv::drivers {
 struct LaserClientCounters {
   std::uint32_t decoded = 0;         ///< scans / replies delivered
   std::uint32_t decodeErrors = 0;    ///< telegrams of the expected kind that failed to decode
+  std::uint32_t implausible = 0;     ///< of those, refused for an implausible scan header (OutOfRange)
   std::uint32_t otherTelegrams = 0;  ///< telegrams of another kind (acknowledgements, events), ignored
 };
 
