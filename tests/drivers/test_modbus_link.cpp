@@ -658,7 +658,7 @@ TEST_CASE("Vehicle as Modbus server: a peer that never reads its replies is drop
     const int fd = rawConnectFrom(link.boundPort());
     int small = 4096;
     (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
-    // Pipelined reads of 125 registers (259-byte replies), never reading one.
+    // Pipelined reads of 110 registers (229-byte replies), never reading one.
     const std::uint8_t read[12] = {0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x03, 0x00, 0x00, 0x00, 110};
     while (!stop) {
       pollfd p{fd, POLLOUT, 0};
