@@ -576,6 +576,8 @@ class PollingPlc {
     });
   }
   ~PollingPlc() { stop(); }
+  /// Ends the polling after the poll in progress (keep cycling the link until then).
+  void requestStop() { stop_ = true; }
   void stop() {
     stop_ = true;
     if (thread_.joinable())
@@ -641,6 +643,8 @@ TEST_CASE("Vehicle as Modbus server: a trickling peer is dropped at the request 
   const long long worstCycle = cycleFor(link, 1500);
   stop = true;
   trickle.join();
+  plc.requestStop();  // the PLC ends its last poll while the link still answers
+  (void)cycleFor(link, 100);
   plc.stop();
   CHECK(worstCycle < 100000);
   CHECK(link.counters().requestTimeouts >= 2U);
@@ -676,6 +680,8 @@ TEST_CASE("Vehicle as Modbus server: a peer that never reads its replies is drop
   const long long worstCycle = cycleFor(link, 1500);
   stop = true;
   flood.join();
+  plc.requestStop();  // the PLC ends its last poll while the link still answers
+  (void)cycleFor(link, 100);
   plc.stop();
   CHECK(worstCycle < 100000);
   CHECK(sent.load() > 100);
@@ -703,11 +709,37 @@ TEST_CASE("Vehicle as Modbus server: idle slot holders make room for the PLC, th
   CHECK(link.counters().evictions == 3U);  // the PLC took the oldest holder's slot
   CHECK(plc.ok.load() >= 5);
   (void)cycleFor(link, 900);  // past the idle timeout: the holders are closed, the PLC stays
+  plc.requestStop();          // the PLC ends its last poll while the link still answers
+  (void)cycleFor(link, 100);
   plc.stop();
   CHECK(link.counters().idleTimeouts == 3U);
   CHECK(plc.failed.load() == 0);
   for (const int h : holders)
     ::close(h);
+}
+
+TEST_CASE("Vehicle as Modbus server: a peer sending only refused requests holds no slot against the PLC",
+          "[drivers][modbus][hostile]") {
+  ModbusPlcLinkConfig cfg = hostileConfig();
+  cfg.maxConnections = 1;
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  const int junk = rawConnectFrom(link.boundPort());
+  REQUIRE(junk >= 0);
+  const std::uint8_t fc17[8] = {0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0xFF, 0x11};
+  REQUIRE(::send(junk, fc17, sizeof fc17, MSG_NOSIGNAL) == 8);
+  (void)cycleFor(link, 50);
+  CHECK(link.counters().refusedRequests == 1U);  // answered with exception 01, still connected
+  CHECK(link.connected());
+  PollingPlc plc(link.boundPort(), 20);
+  (void)cycleFor(link, 300);
+  plc.requestStop();  // the PLC ends its last poll while the link still answers
+  (void)cycleFor(link, 100);
+  plc.stop();
+  CHECK(link.counters().evictions == 1U);  // the junk peer made room for the PLC
+  CHECK(plc.ok.load() >= 5);
+  CHECK(plc.failed.load() == 0);
+  ::close(junk);
 }
 
 TEST_CASE(
@@ -742,6 +774,8 @@ TEST_CASE(
   });
   (void)cycleFor(open, 600);
   storm.join();
+  plc.requestStop();  // the PLC ends its last poll while the link still answers
+  (void)cycleFor(open, 100);
   plc.stop();
   CHECK(open.counters().evictions >= 40U);  // storm connections evicted each other ...
   CHECK(plc.failed.load() == 0);            // ... never the PLC

@@ -263,7 +263,10 @@ void ModbusPlcLink::acceptPeers(Timestamp now) noexcept {
     // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
     const int fd = ::accept4(listenFd_, reinterpret_cast<sockaddr*>(&from), &len, SOCK_CLOEXEC | SOCK_NONBLOCK);
     if (fd < 0) {
-      return;  // EAGAIN: no more waiting connections (or an aborted one)
+      if (errno == ECONNABORTED || errno == EINTR) {
+        continue;  // that one went away before it was accepted; others may wait
+      }
+      return;  // EAGAIN: no more waiting connections (EMFILE ...: tried again next cycle)
     }
     if (from.sin_family != AF_INET || !peerAllowed(from.sin_addr.s_addr)) {
       ::close(fd);
@@ -378,8 +381,6 @@ Status ModbusPlcLink::serve(Timestamp now, Duration budget) noexcept {
         ++handled;
         const bool keep = handleRequest(p, now);
         p.framer.next();
-        p.lastRequest = now;
-        p.served = true;
         if (!keep) {
           closeClient(idx[k]);
         }
@@ -449,6 +450,10 @@ bool ModbusPlcLink::handleRequest(Peer& p, Timestamp now) noexcept {
       }
       return refuse(c.exception);
     case plc::RequestVerdict::Serve:
+      // A well-formed request of the map: the connection is a Modbus client doing its job (what
+      // keeps it from the idle timeout and from eviction as a peer that never asked anything).
+      p.served = true;
+      p.lastRequest = now;
       break;
   }
   modbus_mapping_t* m = asMapping(mapping_);

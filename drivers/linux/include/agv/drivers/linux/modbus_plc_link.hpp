@@ -10,7 +10,7 @@
 /// is assembled across cycles (agv/drivers/protocol/plc/modbus_request.hpp) and must be whole within
 /// `responseTimeout` of its first byte; a reply that does not fit in the peer's send buffer drops
 /// the peer; peers silent for `idleTimeout` are dropped; a new connection when every slot is taken
-/// evicts a peer that never completed a request, else the longest-silent peer silent for
+/// evicts a peer that never sent a well-formed request of the map, else the longest-silent peer silent for
 /// `evictSilentAfter`, else it is refused; `allowedPeers` restricts the addresses accepted
 /// (docs/plc-link.md, "Connection policy"). A lost PLC is retried at most once per
 /// `reconnectInterval`, with one connection attempt bounded by `responseTimeout`; in between, the
@@ -48,7 +48,8 @@ struct ModbusPlcLinkConfig {
   Duration plcHeartbeatTimeout =
       Duration::fromMilliseconds(1000);  ///< PLC heartbeat register unchanged this long = lost
   int maxConnections = 4;                ///< server: simultaneous PLC connections (see the policy above)
-  /// server: a connection with no complete request for this long is closed.
+  /// server: a connection with no well-formed request of the map (03, 06, 16, 23) for this long is
+  /// closed (refused and discarded requests do not count).
   Duration idleTimeout = Duration::fromSeconds(10.0);
   /// server, all slots taken: a peer that completed requests may be evicted for a new connection
   /// only after this long without one (a PLC polling faster keeps its slot).
@@ -73,7 +74,7 @@ struct PlcLinkCounters {
   /// function code the map does not serve (exception 01)
   std::uint32_t refusedRequests = 0;
   std::uint32_t requestTimeouts = 0;  ///< server: peers dropped with a request not whole within responseTimeout
-  std::uint32_t idleTimeouts = 0;     ///< server: peers dropped after idleTimeout without a request
+  std::uint32_t idleTimeouts = 0;     ///< server: peers dropped after idleTimeout without a request of the map
   std::uint32_t evictions = 0;        ///< server: peers closed to make room for a new connection
   std::uint32_t refusedPeers = 0;     ///< server: connections from an address not in allowedPeers
   std::uint32_t sendFailures = 0;     ///< server: peers dropped because a reply did not fit their send buffer
@@ -133,9 +134,9 @@ class ModbusPlcLink final : public hal::PlcLink {
     int fd = -1;
     plc::MbapRequestFramer framer;
     Timestamp accepted{};
-    Timestamp lastRequest{};  ///< last complete request (or the accept)
+    Timestamp lastRequest{};  ///< last well-formed request of the map (or the accept)
     Timestamp firstByte{};    ///< first byte of the request being assembled
-    bool served = false;      ///< completed at least one request
+    bool served = false;      ///< sent at least one well-formed request of the map (03, 06, 16, 23)
   };
   Status serve(Timestamp now, Duration budget) noexcept;
   Status exchange(Timestamp now) noexcept;
