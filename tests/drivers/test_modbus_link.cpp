@@ -314,6 +314,57 @@ TEST_CASE("Vehicle as Modbus client: an unreachable PLC costs one bounded attemp
   CHECK(link.counters().connectFailures == 1U);  // one attempt; the other 49 cycles did not wait
 }
 
+TEST_CASE("Vehicle as client: a PLC trickling its reply costs at most the response timeout", "[drivers][modbus]") {
+  // A PLC (raw socket server) that answers the status write with a correct FC 16 reply, one byte
+  // per 30 ms: under the 50 ms the byte timeout used to allow between bytes, so the 12-byte reply
+  // held the cycle ~360 ms. Now the response timeout bounds the whole reply.
+  const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  REQUIRE(::bind(listener, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  REQUIRE(::listen(listener, 1) == 0);
+  socklen_t len = sizeof a;
+  ::getsockname(listener, reinterpret_cast<sockaddr*>(&a), &len);
+  std::atomic<bool> stop{false};
+  std::thread plc([&] {
+    pollfd p{listener, POLLIN, 0};
+    if (::poll(&p, 1, 5000) != 1)
+      return;
+    const int fd = ::accept(listener, nullptr, nullptr);
+    std::uint8_t req[260];
+    const ssize_t n = ::recv(fd, req, sizeof req, 0);
+    if (n >= 12) {
+      const std::uint8_t reply[12] = {req[0], req[1], 0, 0, 0, 6, req[6], req[7], req[8], req[9], req[10], req[11]};
+      for (std::size_t i = 0; i < sizeof reply && !stop; ++i) {
+        if (::send(fd, reply + i, 1, MSG_NOSIGNAL) != 1)
+          break;
+        sleepMs(30);
+      }
+    }
+    ::close(fd);
+  });
+  ModbusPlcLinkConfig cfg;
+  cfg.role = PlcLinkRole::Client;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = ntohs(a.sin_port);
+  cfg.responseTimeout = Duration::fromMilliseconds(50);
+  cfg.reconnectInterval = Duration::fromMilliseconds(10000);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  const auto t0 = std::chrono::steady_clock::now();
+  const Status s = link.cycle(sampleStatus(1), monotonicNow(), Duration{});
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  stop = true;
+  plc.join();
+  ::close(listener);
+  CHECK(s == Status::Lost);
+  CHECK(link.counters().requestErrors == 1U);
+  // Connection + one request, each bounded by 50 ms; 200 ms leaves room for a noisy machine and is
+  // still well below the 360 ms the trickled reply took before.
+  CHECK(ms < 200.0);
+}
+
 TEST_CASE("Link used before open() says so", "[drivers][modbus]") {
   ModbusPlcLink link(ModbusPlcLinkConfig{});
   CHECK(link.cycle(sampleStatus(0), monotonicNow(), Duration::fromMilliseconds(1)) == Status::NotInitialized);

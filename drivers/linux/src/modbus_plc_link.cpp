@@ -93,8 +93,11 @@ Status ModbusPlcLink::open() noexcept {
     return Status::InvalidArgument;
   }
   setTimeout(ctx_, config_.responseTimeout, modbus_set_response_timeout);
-  setTimeout(ctx_, config_.responseTimeout, modbus_set_byte_timeout);
-  setTimeout(ctx_, config_.responseTimeout, modbus_set_indication_timeout);
+  // Client: no byte timeout, so the response timeout bounds the whole reply (libmodbus then keeps
+  // counting down the same select() time over every byte); with a byte timeout a PLC answering one
+  // byte per (byte timeout - 1 ms) held the cycle for the length of the reply times that.
+  (void)modbus_set_byte_timeout(ctx_, 0, 0);
+  (void)modbus_set_indication_timeout(ctx_, 0, 0);  // unused: the server reads requests itself
   sequenceSeen_ = server;  // the server's table starts at 0: the PLC's first sequence is new
   if (!server) {
     return Status::Ok;
