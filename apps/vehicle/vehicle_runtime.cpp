@@ -24,6 +24,15 @@ timespec toTimespec(Duration d) {
   return t;
 }
 
+/// The laser as the loop runs it: no wait in `read()`. A connection attempt is started and then
+/// completed by later cycles (non-blocking connect, given up after laser.connect_timeout, which the
+/// TCP stream keeps as its connect timeout); commands are sent without waiting for room.
+drivers::SickLaserSourceConfig laserSourceConfig(const VehicleConfig& c) {
+  drivers::SickLaserSourceConfig l = c.laser;
+  l.connectBudget = Duration{};
+  return l;
+}
+
 constexpr int kMaxWaitFds = 16;  // CAN + laser + Modbus listener and its 8 connections, with room
 
 }  // namespace
@@ -32,7 +41,7 @@ struct VehicleRuntime::Impl {
   Impl(const VehicleConfig& c, VehicleFiles&& f)
       : config(c),
         encoders(encoderSourceConfig(config)),
-        laser(config.laser),
+        laser(laserSourceConfig(config)),
         modbus(config.modbus),
         navigation(config, std::move(f), nav::PipelineDevices{encoders, laser, modbus, clock}) {}
 

@@ -30,7 +30,7 @@ Status connectBy(TcpStream& tcp, sick::TelegramFramer& framer, Timestamp deadlin
     return Status::Ok;
   }
   const Timestamp now = monotonicNow();
-  if (tcp.nextAttempt() > now) {
+  if (!tcp.connecting() && tcp.nextAttempt() > now) {
     if (tcp.nextAttempt() >= deadline) {
       sleepFor(deadline - now);
       return Status::Lost;
@@ -90,8 +90,8 @@ Status connectForPoll(TcpStream& tcp, sick::TelegramFramer& framer, Duration bud
   if (tcp.connected()) {
     return Status::Ok;
   }
-  if (monotonicNow() < tcp.nextAttempt() || tcp.ensureConnected(budget) != Status::Ok) {
-    return Status::Lost;
+  if ((!tcp.connecting() && monotonicNow() < tcp.nextAttempt()) || tcp.ensureConnected(budget) != Status::Ok) {
+    return Status::Lost;  // not due, still connecting (completed by a later call) or failed
   }
   framer.reset();
   fresh = true;

@@ -29,9 +29,16 @@ TcpStream::~TcpStream() {
   if (fd_ >= 0) {
     ::close(fd_);
   }
+  if (pending_ >= 0) {
+    ::close(pending_);
+  }
 }
 
 void TcpStream::close() noexcept {
+  if (pending_ >= 0) {  // an attempt in progress is abandoned, not counted
+    ::close(pending_);
+    pending_ = -1;
+  }
   if (fd_ >= 0) {
     ::close(fd_);
     fd_ = -1;
@@ -44,6 +51,9 @@ Status TcpStream::ensureConnected(Duration budget) noexcept {
     return Status::Ok;
   }
   const Timestamp now = monotonicNow();
+  if (pending_ >= 0) {
+    return finishConnect(now, budget);
+  }
   if (now < nextAttempt_) {
     return Status::Timeout;
   }
@@ -63,29 +73,48 @@ Status TcpStream::ensureConnected(Duration budget) noexcept {
   const int one = 1;
   (void)setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
   // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
-  int rc = ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr);
-  if (rc != 0 && errno == EINPROGRESS) {
-    pollfd p{fd, POLLOUT, 0};
-    const Duration wait = budget < config_.connectTimeout ? budget : config_.connectTimeout;
-    rc = ::poll(&p, 1, toPollMs(wait));
-    if (rc == 1) {
-      int err = 0;
-      socklen_t len = sizeof err;
-      rc = (getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len) == 0 && err == 0) ? 0 : -1;
-    } else {
-      ::close(fd);
-      ++counters_.connectFailures;
-      return Status::Timeout;
-    }
+  const int rc = ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr);
+  if (rc == 0) {
+    fd_ = fd;
+    ++counters_.connects;
+    return Status::Ok;
   }
-  if (rc != 0) {
+  if (errno != EINPROGRESS) {
     ::close(fd);
     ++counters_.connectFailures;
     return Status::Lost;
   }
-  fd_ = fd;
-  ++counters_.connects;
-  return Status::Ok;
+  pending_ = fd;
+  pendingDeadline_ = now + config_.connectTimeout;
+  return finishConnect(now, budget);
+}
+
+Status TcpStream::finishConnect(Timestamp now, Duration budget) noexcept {
+  const Duration left = pendingDeadline_ - now;
+  const Duration wait = budget < left ? budget : left;
+  pollfd p{pending_, POLLOUT, 0};
+  const int rc = ::poll(&p, 1, toPollMs(wait));
+  if (rc == 1) {
+    int err = 0;
+    socklen_t len = sizeof err;
+    const bool ok = getsockopt(pending_, SOL_SOCKET, SO_ERROR, &err, &len) == 0 && err == 0;
+    if (ok) {
+      fd_ = pending_;
+      pending_ = -1;
+      ++counters_.connects;
+      return Status::Ok;
+    }
+    ::close(pending_);
+    pending_ = -1;
+    ++counters_.connectFailures;
+    return Status::Lost;
+  }
+  if (monotonicNow() >= pendingDeadline_) {  // given up after connectTimeout
+    ::close(pending_);
+    pending_ = -1;
+    ++counters_.connectFailures;
+  }
+  return Status::Timeout;
 }
 
 Status TcpStream::read(Span<std::uint8_t> buf, Duration timeout, std::size_t& n) noexcept {
