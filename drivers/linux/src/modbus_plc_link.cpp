@@ -98,7 +98,7 @@ Status ModbusPlcLink::open() noexcept {
   // byte per (byte timeout - 1 ms) held the cycle for the length of the reply times that.
   (void)modbus_set_byte_timeout(ctx_, 0, 0);
   (void)modbus_set_indication_timeout(ctx_, 0, 0);  // unused: the server reads requests itself
-  sequenceSeen_ = server;  // the server's table starts at 0: the PLC's first sequence is new
+  sequenceSeen_ = server;                           // the server's table starts at 0: the PLC's first sequence is new
   if (!server) {
     return Status::Ok;
   }
