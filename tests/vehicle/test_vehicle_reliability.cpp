@@ -332,3 +332,18 @@ TEST_CASE("reliability: a storm of 50 connecting clients, again and again", "[re
   CHECK(f.counter("connects") >= 500);   // the storms reached the program (50 every ~100 ms) ...
   CHECK(f.counter("evictions") >= 500);  // ... and evicted each other, never the polling PLC
 }
+
+TEST_CASE("reliability: the PLC connects in the middle of a storm", "[reliability][stormfirst]") {
+  const Figures f = runScenario("storm-first", true, [](std::uint16_t port, std::atomic<bool>& stop) {
+    while (!stop) {
+      std::vector<int> fds;
+      for (int i = 0; i < 50 && !stop; ++i)
+        fds.push_back(rawConnect(port, 0, false));
+      sleepMs(100);
+      for (const int fd : fds)
+        if (fd >= 0)
+          ::close(fd);
+    }
+  });
+  checkFigures(f);
+}

@@ -350,8 +350,8 @@ Status ModbusPlcLink::serve(Timestamp now, Duration budget) noexcept {
     pollfd fds[kMaxClients + 1];
     int idx[kMaxClients + 1];
     nfds_t n = 0;
-    fds[n] = pollfd{listenFd_, POLLIN, 0};
-    idx[n++] = -1;
+    // Connections first, the listener last: a PLC whose first request is already in its socket is
+    // served (and so no longer evictable) before this round's newcomers can evict it.
     for (int i = 0; i < kMaxClients; ++i) {
       const Peer& p = clients_[static_cast<std::size_t>(i)];
       if (p.fd >= 0) {
@@ -359,6 +359,8 @@ Status ModbusPlcLink::serve(Timestamp now, Duration budget) noexcept {
         idx[n++] = i;
       }
     }
+    fds[n] = pollfd{listenFd_, POLLIN, 0};
+    idx[n++] = -1;
     const int rc = ::poll(fds, n, first ? pollMs(budget) : 0);
     first = false;
     if (rc <= 0) {
