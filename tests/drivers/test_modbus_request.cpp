@@ -202,3 +202,51 @@ TEST_CASE("Modbus exception response: transaction and unit id echoed, function |
   CHECK(buildExceptionResponse(Span<const std::uint8_t>(x83, 8), ModbusException::IllegalFunction, out) == 0U);
   CHECK(buildExceptionResponse(Span<const std::uint8_t>(req, 7), ModbusException::IllegalFunction, out) == 0U);
 }
+
+TEST_CASE("Modbus client frames: requests built byte by byte, responses checked against them", "[drivers][modbus]") {
+  std::uint8_t req[40] = {};
+  REQUIRE(buildReadHoldingRequest(0x1234, 0xFF, 100, 9, req) == 12U);
+  const std::uint8_t wantRead[12] = {0x12, 0x34, 0, 0, 0, 6, 0xFF, 0x03, 0, 100, 0, 9};
+  CHECK(std::memcmp(req, wantRead, 12) == 0);
+  CHECK(buildReadHoldingRequest(1, 1, 0, 0, req) == 0U);
+  CHECK(buildReadHoldingRequest(1, 1, 0, 126, req) == 0U);
+  std::uint8_t small[11];
+  CHECK(buildReadHoldingRequest(1, 1, 0, 1, small) == 0U);
+
+  // FC 03 response with two registers.
+  std::uint16_t two[2] = {};
+  ModbusException e = ModbusException::None;
+  std::uint8_t read2[12];
+  REQUIRE(buildReadHoldingRequest(7, 1, 100, 2, read2) == 12U);
+  const std::uint8_t rsp[13] = {0, 7, 0, 0, 0, 7, 1, 0x03, 4, 0x12, 0x34, 0xAB, 0xCD};
+  CHECK(checkModbusResponse(Span<const std::uint8_t>(rsp, 13), Span<const std::uint8_t>(read2, 12), two, e) ==
+        Status::Ok);
+  CHECK(two[0] == 0x1234U);
+  CHECK(two[1] == 0xABCDU);
+  std::uint8_t bad[13];
+  std::memcpy(bad, rsp, 13);
+  bad[1] = 8;  // another transaction
+  CHECK(checkModbusResponse(Span<const std::uint8_t>(bad, 13), Span<const std::uint8_t>(read2, 12), two, e) ==
+        Status::Malformed);
+  std::memcpy(bad, rsp, 13);
+  bad[8] = 2;  // byte count
+  CHECK(checkModbusResponse(Span<const std::uint8_t>(bad, 13), Span<const std::uint8_t>(read2, 12), two, e) ==
+        Status::Malformed);
+  const std::uint8_t exc[9] = {0, 7, 0, 0, 0, 3, 1, 0x83, 0x02};
+  CHECK(checkModbusResponse(Span<const std::uint8_t>(exc, 9), Span<const std::uint8_t>(read2, 12), two, e) ==
+        Status::Rejected);
+  CHECK(e == ModbusException::IllegalDataAddress);
+
+  // FC 16 of three values and its echo.
+  const std::uint16_t values[3] = {1, 0x0203, 0xFFFF};
+  const std::size_t n = buildWriteMultipleRequest(9, 0xFF, 0, Span<const std::uint16_t>(values, 3), req);
+  REQUIRE(n == 19U);
+  const std::uint8_t wantWrite[19] = {0, 9, 0, 0, 0, 13, 0xFF, 0x10, 0, 0, 0, 3, 6, 0, 1, 2, 3, 0xFF, 0xFF};
+  CHECK(std::memcmp(req, wantWrite, 19) == 0);
+  const std::uint8_t echo[12] = {0, 9, 0, 0, 0, 6, 0xFF, 0x10, 0, 0, 0, 3};
+  CHECK(checkModbusResponse(Span<const std::uint8_t>(echo, 12), Span<const std::uint8_t>(req, n), {}, e) == Status::Ok);
+  const std::uint8_t wrongEcho[12] = {0, 9, 0, 0, 0, 6, 0xFF, 0x10, 0, 0, 0, 2};
+  CHECK(checkModbusResponse(Span<const std::uint8_t>(wrongEcho, 12), Span<const std::uint8_t>(req, n), {}, e) ==
+        Status::Malformed);
+  CHECK(buildWriteMultipleRequest(1, 1, 0, Span<const std::uint16_t>(values, 0), req) == 0U);
+}

@@ -6,6 +6,8 @@
 // assembles (each request consumes exactly 6 + its MBAP length bytes), a complete request is 8..260
 // bytes; a served request's values lie inside it and its read range inside the table; a write the
 // map accepted leaves a command block that decodes; only the command block 100..108 ever changes.
+// The same bytes are then checked as PLC responses to the client's FC 03 and FC 16 requests
+// (checkModbusResponse): accepted only with the exact length of the reply.
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -96,6 +98,34 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   for (std::size_t i = 0; i < PlcRegisterMap::kCommandBase; ++i) {
     check(table[i] == static_cast<std::uint16_t>(0xA500U + i));
+  }
+  // The same bytes as the PLC's responses to the client's two requests (transaction 1 and 2).
+  static std::uint8_t readRequest[12];
+  static std::uint8_t writeRequest[13 + 2 * 44];
+  static const std::uint16_t status[44] = {};
+  check(buildReadHoldingRequest(1, 0xFF, 100, 9, readRequest) == 12U);
+  check(buildWriteMultipleRequest(2, 0xFF, 0, Span<const std::uint16_t>(status, 44), writeRequest) ==
+        sizeof writeRequest);
+  MbapRequestFramer responses;
+  pos = 0;
+  while (pos < size) {
+    const Span<std::uint8_t> space = responses.space();
+    const std::size_t k = size - pos < space.size() ? size - pos : space.size();
+    std::memcpy(space.data(), data + pos, k);
+    pos += k;
+    if (responses.commit(k) != Status::Ok) {
+      break;
+    }
+    if (responses.complete()) {
+      std::uint16_t block[9];
+      ModbusException e = ModbusException::None;
+      const Status r = checkModbusResponse(responses.adu(), readRequest, block, e);
+      check(r != Status::Ok || responses.adu().size() == 9U + 18U);
+      check(r == Status::Rejected || e == ModbusException::None);  // an exception code only with Rejected
+      const Status w = checkModbusResponse(responses.adu(), writeRequest, {}, e);
+      check(w != Status::Ok || responses.adu().size() == 12U);
+      responses.next();
+    }
   }
   return 0;
 }

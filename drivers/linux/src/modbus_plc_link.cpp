@@ -2,9 +2,11 @@
 
 #include "agv/drivers/linux/tcp_stream.hpp"
 
+#include <arpa/inet.h>
 #include <fcntl.h>
 #include <modbus.h>
 #include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -21,11 +23,6 @@ constexpr int kListenBacklog = 64;        // connections the kernel queues betwe
 
 modbus_mapping_t* asMapping(void* p) noexcept {
   return static_cast<modbus_mapping_t*>(p);
-}
-
-void setTimeout(modbus_t* ctx, Duration d, int (*setter)(modbus_t*, std::uint32_t, std::uint32_t)) noexcept {
-  const std::int64_t us = d.ns > 0 ? d.ns / 1000 : 1000;
-  (void)setter(ctx, static_cast<std::uint32_t>(us / 1000000), static_cast<std::uint32_t>(us % 1000000));
 }
 
 int pollMs(Duration d) noexcept {
@@ -60,10 +57,10 @@ ModbusPlcLink::~ModbusPlcLink() {
   if (listenFd_ >= 0) {
     ::close(listenFd_);
   }
+  if (clientFd_ >= 0) {
+    ::close(clientFd_);
+  }
   if (ctx_ != nullptr) {
-    if (config_.role == PlcLinkRole::Client) {
-      modbus_close(ctx_);
-    }
     modbus_free(ctx_);
   }
   if (mapping_ != nullptr) {
@@ -92,13 +89,10 @@ Status ModbusPlcLink::open() noexcept {
   if (ctx_ == nullptr) {
     return Status::InvalidArgument;
   }
-  setTimeout(ctx_, config_.responseTimeout, modbus_set_response_timeout);
-  // Client: no byte timeout, so the response timeout bounds the whole reply (libmodbus then keeps
-  // counting down the same select() time over every byte); with a byte timeout a PLC answering one
-  // byte per (byte timeout - 1 ms) held the cycle for the length of the reply times that.
-  (void)modbus_set_byte_timeout(ctx_, 0, 0);
-  (void)modbus_set_indication_timeout(ctx_, 0, 0);  // unused: the server reads requests itself
-  sequenceSeen_ = server;                           // the server's table starts at 0: the PLC's first sequence is new
+  // libmodbus builds the server's replies (modbus_reply) only: the server reads and checks requests
+  // itself (MbapRequestFramer, checkModbusRequest) and the client exchanges are the link's own
+  // non-blocking state machine (exchange()), so no libmodbus timeout is ever waited on.
+  sequenceSeen_ = server;  // the server's table starts at 0: the PLC's first sequence is new
   if (!server) {
     return Status::Ok;
   }
@@ -211,14 +205,17 @@ Status ModbusPlcLink::cycle(const plc::PlcStatus& status, Timestamp now, Duratio
     return serve(now, budget);
   }
   (void)map_.encodeStatus(published, Span<std::uint16_t>(table_.data(), table_.size()));
-  return exchange(now);
+  return exchange(now, budget, true);
 }
 
 Status ModbusPlcLink::service(Timestamp now) noexcept {
   if (ctx_ == nullptr || (config_.role == PlcLinkRole::Server && listenFd_ < 0)) {
     return Status::NotInitialized;
   }
-  return config_.role == PlcLinkRole::Server ? serve(now, Duration{}) : Status::Ok;
+  if (config_.role == PlcLinkRole::Server) {
+    return serve(now, Duration{});
+  }
+  return exchange(now, Duration{}, false);
 }
 
 void ModbusPlcLink::closeClient(int index) noexcept {
@@ -233,7 +230,13 @@ void ModbusPlcLink::closeClient(int index) noexcept {
 
 int ModbusPlcLink::inputDescriptors(int* out, int capacity) const noexcept {
   int n = 0;
-  if (config_.role != PlcLinkRole::Server || listenFd_ < 0) {
+  if (config_.role == PlcLinkRole::Client) {
+    if (clientFd_ >= 0 && capacity > 0 && (phase_ == ClientPhase::AwaitWrite || phase_ == ClientPhase::AwaitRead)) {
+      out[n++] = clientFd_;  // a reply is awaited
+    }
+    return n;
+  }
+  if (listenFd_ < 0) {
     return 0;
   }
   if (n < capacity) {
@@ -495,50 +498,176 @@ bool ModbusPlcLink::handleRequest(Peer& p, Timestamp now) noexcept {
   return true;
 }
 
-Status ModbusPlcLink::exchange(Timestamp now) noexcept {
-  if (!clientConnected_) {
-    if (now < nextAttempt_) {
-      return Status::Lost;
-    }
-    nextAttempt_ = now + config_.reconnectInterval;
-    if (modbus_connect(ctx_) != 0) {  // bounded by the response timeout
-      ++counters_.connectFailures;
-      return Status::Lost;
-    }
-    clientConnected_ = true;
-    ++counters_.connects;
+Status ModbusPlcLink::failClient() noexcept {
+  if (clientFd_ >= 0) {
+    ::close(clientFd_);
+    clientFd_ = -1;
   }
-  ++counters_.requests;
-  if (modbus_write_registers(ctx_, config_.remoteStatusBase, plc::PlcRegisterMap::kStatusCount,
-                             table_.data() + plc::PlcRegisterMap::kStatusBase) != plc::PlcRegisterMap::kStatusCount) {
-    ++counters_.requestErrors;
-    modbus_close(ctx_);
-    clientConnected_ = false;
+  if (clientConnected_) {
     ++counters_.disconnects;
+  }
+  clientConnected_ = false;
+  phase_ = ClientPhase::Idle;
+  return Status::Lost;
+}
+
+bool ModbusPlcLink::sendClientRequest(std::size_t length, Timestamp now) noexcept {
+  clientFramer_.next();
+  phaseDeadline_ = now + config_.responseTimeout;
+  ++counters_.requests;
+  return sendAll(clientFd_, clientRequest_.data(), length);
+}
+
+Status ModbusPlcLink::startConnect(Timestamp now) noexcept {
+  nextAttempt_ = now + config_.reconnectInterval;
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(config_.port);
+  if (inet_pton(AF_INET, config_.address, &a.sin_addr) != 1) {
+    ++counters_.connectFailures;
+    return Status::InvalidArgument;
+  }
+  clientFd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  if (clientFd_ < 0) {
+    ++counters_.connectFailures;
     return Status::Lost;
   }
-  if (!config_.clientReadsCommands) {
-    return Status::Ok;
+  const int one = 1;
+  (void)::setsockopt(clientFd_, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+  // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
+  if (::connect(clientFd_, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0 && errno != EINPROGRESS) {
+    ++counters_.connectFailures;
+    return failClient();
   }
-  ++counters_.requests;
-  std::uint16_t block[plc::PlcRegisterMap::kCommandCount];
-  if (modbus_read_registers(ctx_, config_.remoteCommandBase, plc::PlcRegisterMap::kCommandCount, block) !=
-      plc::PlcRegisterMap::kCommandCount) {
-    ++counters_.requestErrors;
-    modbus_close(ctx_);
-    clientConnected_ = false;
-    ++counters_.disconnects;
-    return Status::Lost;
-  }
-  const Result<plc::PlcCommand> c = map_.decodeCommandBlock(block);
-  if (!c.ok()) {
-    ++counters_.rejectedWrites;
-    lastRejected_ = true;
-    return Status::Ok;
-  }
-  lastRejected_ = false;
-  acceptCommand(c.value(), now);
+  phase_ = ClientPhase::Connecting;
+  phaseDeadline_ = now + config_.responseTimeout;
   return Status::Ok;
+}
+
+Status ModbusPlcLink::exchange(Timestamp now, Duration budget, bool startNew) noexcept {
+  // A state machine over the cycles: connect, write the status block (FC 16), read the command
+  // block (FC 03); every socket call is non-blocking, the only wait is the caller's `budget`
+  // (0 from agvnav-vehicle: never waits). A step not done by its deadline (responseTimeout from
+  // the connect or the request) drops the connection. One exchange per call; an exchange still in
+  // flight from an earlier call is carried on (the status it writes is then one cycle old).
+  if (clientFd_ < 0) {
+    if (!startNew || now < nextAttempt_) {
+      return Status::Lost;
+    }
+    const Status s = startConnect(now);
+    if (s != Status::Ok) {
+      return s == Status::InvalidArgument ? s : Status::Lost;
+    }
+  }
+  const Timestamp waitUntil = monotonicNow() + budget;
+  bool wrote = false;
+  for (int step = 0; step < 16; ++step) {
+    const Timestamp t = monotonicNow();
+    const Duration toDeadline = phaseDeadline_ - t;
+    const Duration toWaitEnd = waitUntil - t;
+    const Duration wait = toWaitEnd < toDeadline ? toWaitEnd : toDeadline;
+    if (phase_ == ClientPhase::Connecting) {
+      pollfd p{clientFd_, POLLOUT, 0};
+      if (::poll(&p, 1, pollMs(wait)) == 1) {
+        int err = 0;
+        socklen_t len = sizeof err;
+        if (getsockopt(clientFd_, SOL_SOCKET, SO_ERROR, &err, &len) != 0 || err != 0) {
+          ++counters_.connectFailures;
+          return failClient();
+        }
+        clientConnected_ = true;
+        ++counters_.connects;
+        phase_ = ClientPhase::Idle;
+        continue;
+      }
+      if (monotonicNow() >= phaseDeadline_) {
+        ++counters_.connectFailures;
+        return failClient();
+      }
+      return Status::Lost;  // still connecting: carried on by the next call
+    }
+    if (phase_ == ClientPhase::Idle) {
+      if (wrote || !startNew) {
+        return Status::Ok;
+      }
+      wrote = true;
+      const std::size_t n =
+          plc::buildWriteMultipleRequest(++transaction_, 0xFF, config_.remoteStatusBase,
+                                         Span<const std::uint16_t>(table_.data() + plc::PlcRegisterMap::kStatusBase,
+                                                                   plc::PlcRegisterMap::kStatusCount),
+                                         clientRequest_);
+      if (!sendClientRequest(n, t)) {
+        ++counters_.requestErrors;
+        return failClient();
+      }
+      phase_ = ClientPhase::AwaitWrite;
+      continue;
+    }
+    // AwaitWrite / AwaitRead: take what the socket holds, never more than the reply.
+    for (int reads = 0; reads < kMaxReadsPerVisit && !clientFramer_.complete(); ++reads) {
+      const Span<std::uint8_t> space = clientFramer_.space();
+      const ssize_t r = ::recv(clientFd_, space.data(), space.size(), MSG_DONTWAIT);
+      if (r == 0 || (r < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) {
+        ++counters_.requestErrors;  // the PLC closed or the link broke
+        return failClient();
+      }
+      if (r < 0) {
+        break;
+      }
+      if (clientFramer_.commit(static_cast<std::size_t>(r)) != Status::Ok) {
+        ++counters_.requestErrors;
+        return failClient();
+      }
+    }
+    if (!clientFramer_.complete()) {
+      if (monotonicNow() >= phaseDeadline_) {
+        ++counters_.requestErrors;  // no whole reply within responseTimeout of the request
+        return failClient();
+      }
+      pollfd p{clientFd_, POLLIN, 0};
+      if (wait.ns <= 0 || ::poll(&p, 1, pollMs(wait)) <= 0) {
+        return Status::Ok;  // connected, reply awaited by the next call
+      }
+      continue;
+    }
+    const bool isRead = phase_ == ClientPhase::AwaitRead;
+    const std::size_t requestLength = isRead ? 12U : 13U + 2U * plc::PlcRegisterMap::kStatusCount;
+    std::uint16_t block[plc::PlcRegisterMap::kCommandCount] = {};
+    plc::ModbusException exception = plc::ModbusException::None;
+    const Status s =
+        plc::checkModbusResponse(clientFramer_.adu(), Span<const std::uint8_t>(clientRequest_.data(), requestLength),
+                                 isRead ? Span<std::uint16_t>(block) : Span<std::uint16_t>{}, exception);
+    clientFramer_.next();
+    if (s == Status::Malformed) {
+      ++counters_.requestErrors;
+      return failClient();
+    }
+    if (s == Status::Rejected) {
+      ++counters_.requestErrors;  // the PLC answered with an exception: its map is not ours
+    }
+    if (!isRead && config_.clientReadsCommands) {
+      const std::size_t n = plc::buildReadHoldingRequest(++transaction_, 0xFF, config_.remoteCommandBase,
+                                                         plc::PlcRegisterMap::kCommandCount, clientRequest_);
+      if (!sendClientRequest(n, monotonicNow())) {
+        ++counters_.requestErrors;
+        return failClient();
+      }
+      phase_ = ClientPhase::AwaitRead;
+      continue;
+    }
+    phase_ = ClientPhase::Idle;
+    if (isRead && s == Status::Ok) {
+      const Result<plc::PlcCommand> c = map_.decodeCommandBlock(block);
+      if (!c.ok()) {
+        ++counters_.rejectedWrites;
+        lastRejected_ = true;
+      } else {
+        lastRejected_ = false;
+        acceptCommand(c.value(), now);
+      }
+    }
+  }
+  return clientConnected_ ? Status::Ok : Status::Lost;
 }
 
 }  // namespace agv::drivers

@@ -186,6 +186,91 @@ RequestCheck checkModbusRequest(Span<const std::uint8_t> adu, bool oversized, st
   return c;
 }
 
+namespace {
+void putBe16(std::uint8_t* p, std::uint16_t v) noexcept {
+  p[0] = static_cast<std::uint8_t>(v >> 8U);
+  p[1] = static_cast<std::uint8_t>(v & 0xFFU);
+}
+
+void putHeader(std::uint8_t* o, std::uint16_t transaction, std::uint16_t length, std::uint8_t unit) noexcept {
+  putBe16(o, transaction);
+  putBe16(o + 2, 0);
+  putBe16(o + 4, length);
+  o[6] = unit;
+}
+}  // namespace
+
+std::size_t buildReadHoldingRequest(std::uint16_t transaction, std::uint8_t unit, std::uint16_t address,
+                                    std::uint16_t count, Span<std::uint8_t> out) noexcept {
+  if (out.size() < 12U || count < 1U || count > kMaxReadQuantity) {
+    return 0;
+  }
+  std::uint8_t* o = out.data();
+  putHeader(o, transaction, 6, unit);
+  o[7] = kReadHolding;
+  putBe16(o + 8, address);
+  putBe16(o + 10, count);
+  return 12;
+}
+
+std::size_t buildWriteMultipleRequest(std::uint16_t transaction, std::uint8_t unit, std::uint16_t address,
+                                      Span<const std::uint16_t> values, Span<std::uint8_t> out) noexcept {
+  const std::size_t n = values.size();
+  if (n < 1U || n > kMaxWriteQuantity || out.size() < 13U + 2U * n) {
+    return 0;
+  }
+  std::uint8_t* o = out.data();
+  putHeader(o, transaction, static_cast<std::uint16_t>(7U + 2U * n), unit);
+  o[7] = kWriteMultiple;
+  putBe16(o + 8, address);
+  putBe16(o + 10, static_cast<std::uint16_t>(n));
+  o[12] = static_cast<std::uint8_t>(2U * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    putBe16(o + 13 + 2 * i, values.data()[i]);
+  }
+  return 13U + 2U * n;
+}
+
+Status checkModbusResponse(Span<const std::uint8_t> adu, Span<const std::uint8_t> request, Span<std::uint16_t> values,
+                           ModbusException& exception) noexcept {
+  exception = ModbusException::None;
+  if (adu.size() < kFunctionOffset + 2U || request.size() < 12U) {
+    return Status::Malformed;
+  }
+  const std::uint8_t* a = adu.data();
+  const std::uint8_t* q = request.data();
+  const std::uint8_t function = q[kFunctionOffset];
+  if (a[0] != q[0] || a[1] != q[1] || a[2] != 0U || a[3] != 0U ||
+      be16(a + kLengthOffset) + kMbapHeaderSize - 1U != adu.size()) {
+    return Status::Malformed;
+  }
+  if (a[kFunctionOffset] == static_cast<std::uint8_t>(function | 0x80U)) {
+    if (adu.size() != 9U) {
+      return Status::Malformed;
+    }
+    exception = static_cast<ModbusException>(a[8]);
+    return Status::Rejected;
+  }
+  if (a[kFunctionOffset] != function) {
+    return Status::Malformed;
+  }
+  if (function == kReadHolding) {
+    const std::size_t count = be16(q + 10);
+    if (values.size() != count || a[8] != 2U * count || adu.size() != 9U + 2U * count) {
+      return Status::Malformed;
+    }
+    for (std::size_t i = 0; i < count; ++i) {
+      values.data()[i] = be16(a + 9 + 2 * i);
+    }
+    return Status::Ok;
+  }
+  // FC 16: the reply echoes the address and the quantity.
+  if (adu.size() != 12U || be16(a + 8) != be16(q + 8) || be16(a + 10) != be16(q + 10)) {
+    return Status::Malformed;
+  }
+  return Status::Ok;
+}
+
 std::size_t buildExceptionResponse(Span<const std::uint8_t> request, ModbusException code,
                                    Span<std::uint8_t> out) noexcept {
   if (request.size() < kFunctionOffset + 1U || out.size() < 9U || (request.data()[kFunctionOffset] & 0x80U) != 0U) {

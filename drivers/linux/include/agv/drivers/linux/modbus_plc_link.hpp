@@ -5,8 +5,9 @@
 /// registers (role Client). Register map and checks: agv/drivers/protocol/plc/plc_register_map.hpp and
 /// docs/plc-link.md.
 ///
-/// Cycle budget: `cycle()` never blocks longer than the budget it is given (server) or than two
-/// requests bounded by `responseTimeout` (client). Server: every socket is non-blocking; a request
+/// Cycle budget: `cycle()` never blocks longer than the budget it is given, in both roles (the
+/// client's connect, write and read are a non-blocking state machine carried over cycles, each
+/// step bounded by `responseTimeout`). Server: every socket is non-blocking; a request
 /// is assembled across cycles (agv/drivers/protocol/plc/modbus_request.hpp) and must be whole within
 /// `responseTimeout` of its first byte; a reply that does not fit in the peer's send buffer drops
 /// the peer; peers silent for `idleTimeout` are dropped; a new connection when every slot is taken
@@ -101,7 +102,9 @@ class ModbusPlcLink final : public hal::PlcLink {
   Status cycle(const plc::PlcStatus& status, Timestamp now, Duration budget) noexcept;
   /// Server: answers the requests pending now (and accepts connections) without waiting and
   /// without a new status: the registers keep the last published one. Lets a loop answer the PLC
-  /// every cycle while it publishes less often. Client: nothing (Ok). NotInitialized before open().
+  /// every cycle while it publishes less often. Client: carries on an exchange in flight (takes a
+  /// reply that arrived, sends the command read), without starting a new one or reconnecting;
+  /// Lost when not connected. NotInitialized before open().
   Status service(Timestamp now) noexcept;
 
   /// hal::PlcLink: publishes `report` (heartbeat counted here; health bits `report.health.bits`
@@ -121,8 +124,8 @@ class ModbusPlcLink final : public hal::PlcLink {
   bool plcAlive() const noexcept { return plcAlive_; }
   bool connected() const noexcept;
   /// Server: the descriptors to wait on for input (the listening socket and the connections), at
-  /// most `capacity` of them into `out`; returns how many. Client: none (its exchange is bounded by
-  /// `responseTimeout`). Valid until the next cycle.
+  /// most `capacity` of them into `out`; returns how many. Client: the connection while a reply is
+  /// awaited. Valid until the next cycle.
   int inputDescriptors(int* out, int capacity) const noexcept;
 
   const PlcLinkCounters& counters() const noexcept { return counters_; }
@@ -139,7 +142,11 @@ class ModbusPlcLink final : public hal::PlcLink {
     bool served = false;      ///< sent at least one well-formed request of the map (03, 06, 16, 23)
   };
   Status serve(Timestamp now, Duration budget) noexcept;
-  Status exchange(Timestamp now) noexcept;
+  Status exchange(Timestamp now, Duration budget, bool startNew) noexcept;
+  Status startConnect(Timestamp now) noexcept;
+  bool sendClientRequest(std::size_t length, Timestamp now) noexcept;
+  /// Closes the client connection (counted as a disconnect when it was up); returns Lost.
+  Status failClient() noexcept;
   void acceptPeers(Timestamp now) noexcept;
   bool peerAllowed(std::uint32_t address) const noexcept;
   /// Reads what the socket holds for the current request; false when the peer must be dropped.
@@ -157,6 +164,14 @@ class ModbusPlcLink final : public hal::PlcLink {
   int listenFd_ = -1;
   std::array<Peer, kMaxClients> clients_{};
   bool clientConnected_ = false;
+  /// Client: where the exchange with the PLC stands (carried over cycles).
+  enum class ClientPhase : std::uint8_t { Idle, Connecting, AwaitWrite, AwaitRead };
+  ClientPhase phase_ = ClientPhase::Idle;
+  int clientFd_ = -1;
+  Timestamp phaseDeadline_{};  ///< connect or reply due by then (responseTimeout)
+  std::uint16_t transaction_ = 0;
+  plc::MbapRequestFramer clientFramer_;
+  std::array<std::uint8_t, plc::kMaxModbusAdu> clientRequest_{};
   std::uint16_t boundPort_ = 0;
   Timestamp nextAttempt_{};
   std::array<std::uint16_t, plc::PlcRegisterMap::kRegisterCount> table_{};  // client: last published + read

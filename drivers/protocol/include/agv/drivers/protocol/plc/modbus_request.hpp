@@ -105,4 +105,24 @@ RequestCheck checkModbusRequest(Span<const std::uint8_t> adu, bool oversized, st
 std::size_t buildExceptionResponse(Span<const std::uint8_t> request, ModbusException code,
                                    Span<std::uint8_t> out) noexcept;
 
+// --- Client side (the vehicle writing to and reading from a PLC that serves Modbus TCP) ---------
+// MbapRequestFramer cuts responses as well: the MBAP framing is the same in both directions.
+
+/// FC 03 request (read `count` holding registers at `address`) into `out` (at least 12 bytes).
+/// Returns its length (12), or 0 when `out` is too small or `count` is not in 1..125.
+std::size_t buildReadHoldingRequest(std::uint16_t transaction, std::uint8_t unit, std::uint16_t address,
+                                    std::uint16_t count, Span<std::uint8_t> out) noexcept;
+
+/// FC 16 request (write `values` from `address`) into `out` (at least 13 + 2 n bytes). Returns its
+/// length, or 0 when `out` is too small or there are not 1..123 values.
+std::size_t buildWriteMultipleRequest(std::uint16_t transaction, std::uint8_t unit, std::uint16_t address,
+                                      Span<const std::uint16_t> values, Span<std::uint8_t> out) noexcept;
+
+/// Checks a complete response `adu` to the request `request` (built above) and, for FC 03, copies
+/// the registers into `values` (its size = the count requested). Ok; Rejected (an exception
+/// response: `exception` set); Malformed (protocol id not 0, another transaction or function, a
+/// length, byte count, address or quantity that does not match the request).
+Status checkModbusResponse(Span<const std::uint8_t> adu, Span<const std::uint8_t> request, Span<std::uint16_t> values,
+                           ModbusException& exception) noexcept;
+
 }  // namespace agv::drivers::plc
