@@ -6,7 +6,6 @@
 #include <fcntl.h>
 #include <modbus.h>
 #include <netinet/in.h>
-#include <netinet/tcp.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -520,26 +519,13 @@ bool ModbusPlcLink::sendClientRequest(std::size_t length, Timestamp now) noexcep
 
 Status ModbusPlcLink::startConnect(Timestamp now) noexcept {
   nextAttempt_ = now + config_.reconnectInterval;
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_port = htons(config_.port);
-  if (inet_pton(AF_INET, config_.address, &a.sin_addr) != 1) {
-    ++counters_.connectFailures;
-    return Status::InvalidArgument;
-  }
-  clientFd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  Status s = Status::Ok;
+  clientFd_ = startTcpConnect(config_.address, config_.port, s);
   if (clientFd_ < 0) {
     ++counters_.connectFailures;
-    return Status::Lost;
+    return s;
   }
-  const int one = 1;
-  (void)::setsockopt(clientFd_, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-  // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
-  if (::connect(clientFd_, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0 && errno != EINPROGRESS) {
-    ++counters_.connectFailures;
-    return failClient();
-  }
-  phase_ = ClientPhase::Connecting;
+  phase_ = ClientPhase::Connecting;  // also when connected at once: the next step sees POLLOUT
   phaseDeadline_ = now + config_.responseTimeout;
   return Status::Ok;
 }

@@ -21,6 +21,35 @@ int toPollMs(Duration d) noexcept {
 }
 }  // namespace
 
+int startTcpConnect(const char* host, std::uint16_t port, Status& status) noexcept {
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  if (inet_pton(AF_INET, host, &addr.sin_addr) != 1) {
+    status = Status::InvalidArgument;
+    return -1;
+  }
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  if (fd < 0) {
+    status = Status::Lost;
+    return -1;
+  }
+  const int one = 1;
+  (void)setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+  // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) == 0) {
+    status = Status::Ok;
+    return fd;
+  }
+  if (errno != EINPROGRESS) {
+    ::close(fd);
+    status = Status::Lost;
+    return -1;
+  }
+  status = Status::Timeout;
+  return fd;
+}
+
 TcpStream::TcpStream(const TcpStreamConfig& config) noexcept : config_(config) {
   config_.host[sizeof(config_.host) - 1] = '\0';
 }
@@ -58,31 +87,16 @@ Status TcpStream::ensureConnected(Duration budget) noexcept {
     return Status::Timeout;
   }
   nextAttempt_ = now + config_.reconnectInterval;
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(config_.port);
-  if (inet_pton(AF_INET, config_.host, &addr.sin_addr) != 1) {
-    ++counters_.connectFailures;
-    return Status::InvalidArgument;
-  }
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  Status s = Status::Ok;
+  const int fd = startTcpConnect(config_.host, config_.port, s);
   if (fd < 0) {
     ++counters_.connectFailures;
-    return Status::Lost;
+    return s;
   }
-  const int one = 1;
-  (void)setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-  // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
-  const int rc = ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr);
-  if (rc == 0) {
+  if (s == Status::Ok) {
     fd_ = fd;
     ++counters_.connects;
     return Status::Ok;
-  }
-  if (errno != EINPROGRESS) {
-    ::close(fd);
-    ++counters_.connectFailures;
-    return Status::Lost;
   }
   pending_ = fd;
   pendingDeadline_ = now + config_.connectTimeout;

@@ -31,6 +31,12 @@ struct TcpStreamCounters {
   std::uint32_t disconnects = 0;      ///< connections lost (peer closed, error) or closed by us
 };
 
+/// Starts a non-blocking TCP connection to `host` (numeric IPv4) : `port`, with TCP_NODELAY.
+/// Returns the socket with `status` Ok (connected at once) or Timeout (in progress: wait for
+/// POLLOUT, then read SO_ERROR); or -1 with InvalidArgument (bad address) or Lost (refused,
+/// unreachable, no socket).
+int startTcpConnect(const char* host, std::uint16_t port, Status& status) noexcept;
+
 class TcpStream {
  public:
   explicit TcpStream(const TcpStreamConfig& config) noexcept;
