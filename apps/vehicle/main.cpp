@@ -23,10 +23,17 @@ void installHandlers() {
   struct sigaction sa {};
   sa.sa_handler = onSignal;
   sigemptyset(&sa.sa_mask);
-  sa.sa_flags = 0;  // no SA_RESTART: the loop's sleep ends at once
+  sa.sa_flags = 0;  // no SA_RESTART: the loop's wait ends at once
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
   std::signal(SIGPIPE, SIG_IGN);
+  // Blocked except inside the loop's one wait (ppoll unblocks them): a signal either arrives
+  // before the wait and ends it at once, or during it; never lost between the flag test and the wait.
+  sigset_t block;
+  sigemptyset(&block);
+  sigaddset(&block, SIGINT);
+  sigaddset(&block, SIGTERM);
+  sigprocmask(SIG_BLOCK, &block, nullptr);
 }
 
 }  // namespace
@@ -74,6 +81,17 @@ int main(int argc, char** argv) {
                config.modbus.role == agv::drivers::PlcLinkRole::Server ? "server" : "client", config.modbus.address,
                static_cast<unsigned>(config.modbus.port));
   runtime.run(gStop);
+  const agv::vehicle::VehicleRuntime::LoopStats& loop = runtime.loopStats();
+  std::fprintf(stderr, "agvnav-vehicle: loop: %llu cycles, %llu input wakes, %llu overruns, longest cycle %.3f ms\n",
+               static_cast<unsigned long long>(loop.cycles), static_cast<unsigned long long>(loop.inputWakes),
+               static_cast<unsigned long long>(loop.overruns), static_cast<double>(loop.longestCycleNs) * 1e-6);
+  const agv::drivers::PlcLinkCounters& p = runtime.plcCounters();
+  std::fprintf(stderr,
+               "agvnav-vehicle: modbus: %u requests, %u connects, %u refused connections, %u refused peers, %u "
+               "evictions, %u request timeouts, %u idle timeouts, %u send failures, %u refused requests, %u refused "
+               "writes\n",
+               p.requests, p.connects, p.connectFailures, p.refusedPeers, p.evictions, p.requestTimeouts,
+               p.idleTimeouts, p.sendFailures, p.refusedRequests, p.rejectedWrites);
   const agv::nav::PipelineCounters& c = runtime.counters();
   std::fprintf(stderr,
                "agvnav-vehicle: stopped after %llu cycles (%llu encoder samples, %llu sweeps, %llu corrections, "

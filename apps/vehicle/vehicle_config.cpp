@@ -291,6 +291,24 @@ void addModbusKeys(Specs& specs, VehicleConfig& c) {
   specs["modbus.plc_heartbeat_timeout"] = seconds(false, 0.01, 60.0, c.modbus.plcHeartbeatTimeout);
   specs["modbus.max_connections"] =
       integer(false, 1, 8, [&c](long long x) { c.modbus.maxConnections = static_cast<int>(x); });
+  specs["modbus.idle_timeout"] = seconds(false, 0.1, 3600.0, c.modbus.idleTimeout);
+  specs["modbus.allowed_peers"] = KeySpec{false, [&c](const std::string& v, std::string& why) {
+                                            const std::vector<std::string> list = words(v);
+                                            if (list.empty() || list.size() > c.modbus.allowedPeers.size()) {
+                                              why = "expected 1 to 4 numeric IPv4 addresses, got '" + v + "'";
+                                              return false;
+                                            }
+                                            for (std::size_t i = 0; i < list.size(); ++i) {
+                                              in_addr a{};
+                                              if (inet_pton(AF_INET, list[i].c_str(), &a) != 1) {
+                                                why = "expected numeric IPv4 addresses, got '" + list[i] + "'";
+                                                return false;
+                                              }
+                                              c.modbus.allowedPeers[i] = a.s_addr;
+                                            }
+                                            c.modbus.allowedPeerCount = static_cast<int>(list.size());
+                                            return true;
+                                          }};
 }
 
 /// calibration.file, map.file and map.mode.

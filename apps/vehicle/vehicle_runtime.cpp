@@ -1,5 +1,9 @@
 #include "vehicle_runtime.hpp"
 
+#include <poll.h>
+#include <pthread.h>
+#include <signal.h>
+
 #include <cstdio>
 #include <ctime>
 
@@ -9,15 +13,27 @@
 namespace agv::vehicle {
 namespace {
 
-void sleepFor(Duration d) {
-  if (d.ns <= 0) {
-    return;
-  }
+using drivers::monotonicNow;
+
+timespec toTimespec(Duration d) {
   timespec t{};
-  t.tv_sec = static_cast<time_t>(d.ns / 1000000000LL);
-  t.tv_nsec = static_cast<long>(d.ns % 1000000000LL);
-  (void)nanosleep(&t, nullptr);  // a signal ends it early: the loop then sees the stop flag
+  if (d.ns > 0) {
+    t.tv_sec = static_cast<time_t>(d.ns / 1000000000LL);
+    t.tv_nsec = static_cast<long>(d.ns % 1000000000LL);
+  }
+  return t;
 }
+
+/// The laser as the loop runs it: no wait in `read()`. A connection attempt is started and then
+/// completed by later cycles (non-blocking connect, given up after laser.connect_timeout, which the
+/// TCP stream keeps as its connect timeout); commands are sent without waiting for room.
+drivers::SickLaserSourceConfig laserSourceConfig(const VehicleConfig& c) {
+  drivers::SickLaserSourceConfig l = c.laser;
+  l.connectBudget = Duration{};
+  return l;
+}
+
+constexpr int kMaxWaitFds = 16;  // CAN + laser + Modbus listener and its 8 connections, with room
 
 }  // namespace
 
@@ -25,7 +41,7 @@ struct VehicleRuntime::Impl {
   Impl(const VehicleConfig& c, VehicleFiles&& f)
       : config(c),
         encoders(encoderSourceConfig(config)),
-        laser(config.laser),
+        laser(laserSourceConfig(config)),
         modbus(config.modbus),
         navigation(config, std::move(f), nav::PipelineDevices{encoders, laser, modbus, clock}) {}
 
@@ -35,6 +51,26 @@ struct VehicleRuntime::Impl {
   drivers::ModbusPlcLink modbus;
   drivers::MonotonicClock clock;
   VehicleNavigation navigation;
+  VehicleRuntime::LoopStats stats;
+
+  /// The descriptors to wait on for input now.
+  nfds_t collectFds(pollfd* fds) const noexcept {
+    nfds_t n = 0;
+    const int can = encoders.fileDescriptor();
+    if (can >= 0) {
+      fds[n++] = pollfd{can, POLLIN, 0};
+    }
+    const int las = laser.fileDescriptor();
+    if (las >= 0) {
+      fds[n++] = pollfd{las, POLLIN, 0};
+    }
+    int plc[kMaxWaitFds];
+    const int k = modbus.inputDescriptors(plc, kMaxWaitFds - static_cast<int>(n));
+    for (int i = 0; i < k; ++i) {
+      fds[n++] = pollfd{plc[i], POLLIN, 0};
+    }
+    return n;
+  }
 };
 
 VehicleRuntime::VehicleRuntime(const VehicleConfig& config, VehicleFiles&& files)
@@ -83,11 +119,50 @@ std::uint16_t VehicleRuntime::healthBits() const noexcept {
   return impl_->navigation.pipeline().healthBits();
 }
 
+const VehicleRuntime::LoopStats& VehicleRuntime::loopStats() const noexcept {
+  return impl_->stats;
+}
+
+const drivers::PlcLinkCounters& VehicleRuntime::plcCounters() const noexcept {
+  return impl_->modbus.counters();
+}
+
 void VehicleRuntime::run(const volatile std::sig_atomic_t& stop) {
-  const Duration period = impl_->config.cyclePeriod;
+  Impl& m = *impl_;
+  const Duration period = m.config.cyclePeriod;
+  // The wait's signal mask: the caller's, with SIGINT and SIGTERM deliverable.
+  sigset_t waitMask;
+  (void)pthread_sigmask(SIG_SETMASK, nullptr, &waitMask);
+  (void)sigdelset(&waitMask, SIGINT);
+  (void)sigdelset(&waitMask, SIGTERM);
+  Timestamp deadline = monotonicNow() + period;
+  bool wokeThisPeriod = false;
   while (stop == 0) {
-    (void)impl_->navigation.pipeline().cycle();
-    sleepFor(period);
+    const Timestamp start = monotonicNow();
+    (void)m.navigation.pipeline().cycle();
+    // The PLC is answered every cycle, not only when a status is published (loop.publish_period).
+    (void)m.modbus.service(monotonicNow());
+    Timestamp now = monotonicNow();
+    ++m.stats.cycles;
+    if ((now - start).ns > m.stats.longestCycleNs) {
+      m.stats.longestCycleNs = (now - start).ns;
+    }
+    if (now >= deadline) {  // this was the period's cycle: on to the next deadline
+      deadline = deadline + period;
+      if (deadline <= now) {  // the cycle overran a whole period: resynchronize, do not catch up
+        ++m.stats.overruns;
+        deadline = now + period;
+      }
+      wokeThisPeriod = false;
+    }
+    pollfd fds[kMaxWaitFds];
+    const nfds_t n = wokeThisPeriod ? 0 : m.collectFds(fds);
+    const timespec timeout = toTimespec(deadline - now);
+    const int rc = ::ppoll(fds, n, &timeout, &waitMask);
+    if (rc > 0) {
+      wokeThisPeriod = true;
+      ++m.stats.inputWakes;
+    }
   }
   (void)impl_->navigation.pipeline().deactivate();  // one last report: idle
   impl_->encoders.close();

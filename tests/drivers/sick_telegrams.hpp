@@ -131,6 +131,8 @@ struct NavReplyFields {
   std::vector<NavReflectorFields> reflectors;
   bool scan = false;
   bool angleChannel = false;  // also send ANGL1 before DIST1
+  float scale = 1.0F;         // DIST1 scale factor
+  float offset = 0.0F;        // DIST1 offset [mm]
   std::int32_t startMdeg = 0;
   std::uint16_t stepMdeg = 250;
   std::uint32_t scanTimestampMs = 123400;  // device clock
@@ -189,8 +191,8 @@ inline std::vector<std::uint8_t> buildNavReply(const NavReplyFields& f) {
   w.u16(channels);
   auto head = [&](const char* name, std::size_t n) {
     w.text(name);
-    w.f32(1.0F);
-    w.f32(0.0F);
+    w.f32(f.scale);
+    w.f32(f.offset);
     w.i32(f.startMdeg);
     w.u16(f.stepMdeg);
     w.u32(f.scanTimestampMs);

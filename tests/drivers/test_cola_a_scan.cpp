@@ -212,3 +212,39 @@ TEST_CASE("Simulator encoding: encodeColaAScan round-trips through the framer an
     CHECK(agv::drivers::sick::encodeColaAScan(truth, p, Span<std::uint8_t>(small)) == 0U);
   }
 }
+
+TEST_CASE("Implausible channel headers are refused as OutOfRange and leave no data", "[drivers][laser]") {
+  static LaserScan scan;
+  struct Bad {
+    const char* what;
+    std::int32_t start;
+    std::uint16_t step;
+    int beams;
+    float scale;
+    float offset;
+  };
+  const Bad bad[] = {
+      {"scale 3.4e38", -450000, 5000, 541, 3.4e38F, 0.0F},
+      {"scale 1e-6", -450000, 5000, 541, 1e-6F, 0.0F},
+      {"offset 1e30 mm", -450000, 5000, 541, 1.0F, 1e30F},
+      {"offset -20 m", -450000, 5000, 541, 1.0F, -20000.0F},
+      {"step 65535 (6.5535 deg)", -450000, 65535, 541, 1.0F, 0.0F},
+      {"0.5 deg x 1000 beams: 499.5 deg", -450000, 5000, 1000, 1.0F, 0.0F},
+      {"start 214748 deg", 0x7FFFFFFF, 5000, 541, 1.0F, 0.0F},
+  };
+  for (const Bad& b : bad) {
+    INFO(b.what);
+    agv::test::ColaScanFields f;
+    agv::test::ColaChannel c = roomChannel(b.start, b.step, b.beams, 1.0F, 0.0F);
+    c.scale = b.scale;
+    c.offset = b.offset;
+    f.channels16.push_back(c);
+    CHECK(parse(agv::test::buildColaScan(f), scan) == Status::OutOfRange);
+    CHECK(scan.size() == 0U);
+  }
+  // The edges of what devices send stay accepted: scale 2, one full turn in 1 deg steps.
+  agv::test::ColaScanFields f;
+  f.channels16.push_back(roomChannel(-1800000, 10000, 361, 2.0F, 0.0F));
+  CHECK(parse(agv::test::buildColaScan(f), scan) == Status::Ok);
+  CHECK(scan.size() == 361U);
+}

@@ -1,12 +1,14 @@
 // The PLC link against real libmodbus peers on 127.0.0.1: the vehicle as server polled by a
 // libmodbus client (the PLC), and as client writing to a libmodbus server (the PLC) that goes away
 // and comes back. Loops are bounded by iteration counts.
+#include <arpa/inet.h>
 #include <modbus.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -313,6 +315,104 @@ TEST_CASE("Vehicle as Modbus client: an unreachable PLC costs one bounded attemp
   CHECK(link.counters().connectFailures == 1U);  // one attempt; the other 49 cycles did not wait
 }
 
+TEST_CASE("Vehicle as client: a PLC trickling its reply never holds a cycle; a budget of 0 never waits",
+          "[drivers][modbus]") {
+  // A PLC (raw socket server) that answers the status write with a correct FC 16 reply, one byte
+  // per 30 ms: with libmodbus' blocking client and its byte timeout of 50 ms, the 12-byte reply held
+  // the cycle ~360 ms. Now the link is cycled with a budget of 0 (as agvnav-vehicle does): no call
+  // waits, and the reply not whole within responseTimeout (50 ms) of the request drops the link.
+  const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  REQUIRE(::bind(listener, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  REQUIRE(::listen(listener, 1) == 0);
+  socklen_t len = sizeof a;
+  ::getsockname(listener, reinterpret_cast<sockaddr*>(&a), &len);
+  std::atomic<bool> stop{false};
+  std::thread plc([&] {
+    pollfd p{listener, POLLIN, 0};
+    if (::poll(&p, 1, 5000) != 1)
+      return;
+    const int fd = ::accept(listener, nullptr, nullptr);
+    std::uint8_t req[260];
+    const ssize_t n = ::recv(fd, req, sizeof req, 0);
+    if (n >= 12) {
+      const std::uint8_t reply[12] = {req[0], req[1], 0, 0, 0, 6, req[6], req[7], req[8], req[9], req[10], req[11]};
+      for (std::size_t i = 0; i < sizeof reply && !stop; ++i) {
+        if (::send(fd, reply + i, 1, MSG_NOSIGNAL) != 1)
+          break;
+        sleepMs(30);
+      }
+    }
+    ::close(fd);
+  });
+  ModbusPlcLinkConfig cfg;
+  cfg.role = PlcLinkRole::Client;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = ntohs(a.sin_port);
+  cfg.responseTimeout = Duration::fromMilliseconds(50);
+  cfg.reconnectInterval = Duration::fromMilliseconds(10000);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  double worstMs = 0.0;
+  for (int i = 0; i < 150; ++i) {  // ~300 ms of 2 ms cycles
+    const auto t0 = std::chrono::steady_clock::now();
+    (void)link.cycle(sampleStatus(1), monotonicNow(), Duration{});
+    (void)link.service(monotonicNow());
+    worstMs =
+        std::max(worstMs, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    sleepMs(2);
+  }
+  stop = true;
+  plc.join();
+  ::close(listener);
+  CHECK(link.counters().connects == 1U);
+  CHECK(link.counters().requestErrors == 1U);  // the trickled reply, dropped at 50 ms
+  CHECK_FALSE(link.connected());
+  // A call does no waiting; 20 ms leaves room for a descheduled thread on this noisy machine and is
+  // still far below the 50 ms a single wait for the reply would have taken.
+  CHECK(worstMs < 20.0);
+}
+
+TEST_CASE("Vehicle as client with a budget of 0: the exchange runs over cycles and service() calls",
+          "[drivers][modbus]") {
+  auto plc = std::make_unique<PlcServer>(0);
+  REQUIRE(plc->ok());
+  plc->setReg(101, 5);  // baseline sequence
+  ModbusPlcLinkConfig cfg;
+  cfg.role = PlcLinkRole::Client;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = plc->port();
+  cfg.responseTimeout = Duration::fromMilliseconds(500);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  int fds[4];
+  bool sawReplyFd = false;
+  PlcCommand c;
+  bool gotCommand = false;
+  std::uint16_t hb = 0;
+  for (int i = 0; i < 500 && !gotCommand; ++i) {
+    if (i % 10 == 0) {  // a publication every 10 cycles, as the pipeline's publish period
+      (void)link.cycle(sampleStatus(hb++), monotonicNow(), Duration{});
+    }
+    sawReplyFd = sawReplyFd || link.inputDescriptors(fds, 4) == 1;
+    (void)link.service(monotonicNow());
+    if (hb == 3) {
+      plc->setReg(100, 3);  // Stop, new sequence
+      plc->setReg(101, 6);
+    }
+    gotCommand = link.takeCommand(c);
+    sleepMs(2);
+  }
+  REQUIRE(gotCommand);
+  CHECK(c.code == PlcCommandCode::Stop);
+  CHECK(sawReplyFd);         // while a reply is awaited, the loop can wait on the connection
+  CHECK(plc->reg(0) >= 1U);  // status blocks written
+  CHECK(link.counters().requestErrors == 0U);
+  CHECK(link.counters().connects == 1U);
+}
+
 TEST_CASE("Link used before open() says so", "[drivers][modbus]") {
   ModbusPlcLink link(ModbusPlcLinkConfig{});
   CHECK(link.cycle(sampleStatus(0), monotonicNow(), Duration::fromMilliseconds(1)) == Status::NotInitialized);
@@ -357,10 +457,15 @@ TEST_CASE("Vehicle as Modbus server: a stalled half request and surplus connecti
     modbus_set_response_timeout(a, 2, 0);
     modbus_set_response_timeout(b, 2, 0);
     if (modbus_connect(a) == 0 && modbus_connect(b) == 0) {
-      sleepMs(200);                    // both accepted before the surplus one arrives
-      const int extra = rawConnect();  // over maxConnections
       std::uint16_t r[4];
-      for (int i = 0; i < 5; ++i) {
+      // Both served once (a peer that never completed a request would be evicted for the
+      // newcomer), so the surplus connection finds no peer to evict and is refused.
+      if (modbus_read_registers(a, 0, 4, r) == 4)
+        ++reads;
+      if (modbus_read_registers(b, 4, 4, r) == 4)
+        ++reads;
+      const int extra = rawConnect();  // over maxConnections
+      for (int i = 0; i < 4; ++i) {
         if (modbus_read_registers(a, 0, 4, r) == 4)
           ++reads;
         if (modbus_read_registers(b, 4, 4, r) == 4)
@@ -485,9 +590,11 @@ TEST_CASE("Vehicle as Modbus server: non-Modbus frames are discarded, unserved f
   CHECK(value[7] == 0x03);
   CHECK((value[9] == 0x00 && value[10] == 0x00));
   // Function codes the map does not serve, well-formed: exception 01 (function | 0x80); report
-  // server id (17) no longer tells the library and its version. (Codes libmodbus does not know,
-  // 00 and 07 among them, are refused by its receive before the link sees them.)
+  // server id (17) no longer tells the library and its version; 00 and 07 (which libmodbus' own
+  // receive refused by closing the connection) too.
   const std::vector<std::vector<std::uint8_t>> unserved = {
+      {0x00, 0x06, 0x00, 0x00, 0x00, 0x02, 0xFF, 0x00},                          // 00
+      {0x00, 0x07, 0x00, 0x00, 0x00, 0x02, 0xFF, 0x07},                          // read exception status
       {0x00, 0x03, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x01, 0x00, 0x00, 0x00, 0x08},  // read coils
       {0x00, 0x04, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x04, 0x00, 0x00, 0x00, 0x02},  // read input registers
       {0x00, 0x05, 0x00, 0x00, 0x00, 0x02, 0xFF, 0x11}};                         // report server id
@@ -499,7 +606,315 @@ TEST_CASE("Vehicle as Modbus server: non-Modbus frames are discarded, unserved f
     CHECK(reply[7] == static_cast<std::uint8_t>(function | 0x80U));
     CHECK(reply[8] == 0x01);
   }
-  CHECK(link.counters().refusedRequests == 4U);
+  CHECK(link.counters().refusedRequests == 6U);
+  // An exception-flagged code (0x83) is not a request: libmodbus answered it as a normal FC 03
+  // reply (0x83 | 0x80 truncated to 0x03); now it is discarded unanswered, and the stream stays in step.
+  CHECK(exchange({0x00, 0x08, 0x00, 0x00, 0x00, 0x03, 0xFF, 0x83, 0x02}).empty());
+  CHECK(link.counters().refusedRequests == 7U);
+  // FC 16 of 124 registers (261 bytes, over the 260-byte frame; libmodbus reset the connection):
+  // read to its end and answered with exception 03; the next request is served.
+  std::vector<std::uint8_t> oversized = {0x00, 0x09, 0x00, 0x00, 0x00, 255, 0xFF, 0x10, 0x00, 100, 0x00, 124, 248};
+  oversized.resize(261, 0x00);
+  const std::vector<std::uint8_t> reply = exchange(oversized);
+  REQUIRE(reply.size() == 9U);
+  CHECK((reply[0] == 0x00 && reply[1] == 0x09));
+  CHECK(reply[7] == 0x90);
+  CHECK(reply[8] == 0x03);
+  CHECK(exchange(read108).size() == 11U);
   CHECK(link.connected());  // refused, not dropped
   ::close(fd);
+}
+
+namespace {
+/// A raw TCP connection to the link's port on 127.0.0.1 from `source` (an address of 127/8).
+int rawConnectFrom(std::uint16_t port, const char* source = "127.0.0.1") {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in s{};
+  s.sin_family = AF_INET;
+  inet_pton(AF_INET, source, &s.sin_addr);
+  (void)::bind(fd, reinterpret_cast<sockaddr*>(&s), sizeof s);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = htons(port);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+/// A PLC on its own thread: a libmodbus client reading the status block as fast as it is answered
+/// (pause `periodMs` between polls) until stopped; counts polls, failures and the slowest reply.
+class PollingPlc {
+ public:
+  PollingPlc(std::uint16_t port, int periodMs) {
+    thread_ = std::thread([this, port, periodMs] {
+      modbus_t* plc = modbus_new_tcp("127.0.0.1", port);
+      modbus_set_response_timeout(plc, 2, 0);
+      if (modbus_connect(plc) == 0) {
+        std::uint16_t r[40];
+        while (!stop_) {
+          const auto t0 = std::chrono::steady_clock::now();
+          if (modbus_read_registers(plc, 0, 40, r) == 40) {
+            ++ok;
+          } else {
+            ++failed;
+          }
+          const auto us =
+              std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0).count();
+          if (us > worstUs)
+            worstUs = us;
+          sleepMs(periodMs);
+        }
+        modbus_close(plc);
+      } else {
+        failed = 1000;
+      }
+      modbus_free(plc);
+    });
+  }
+  ~PollingPlc() { stop(); }
+  /// Ends the polling after the poll in progress (keep cycling the link until then).
+  void requestStop() { stop_ = true; }
+  void stop() {
+    stop_ = true;
+    if (thread_.joinable())
+      thread_.join();
+  }
+  std::atomic<int> ok{0};
+  std::atomic<int> failed{0};
+  std::atomic<long long> worstUs{0};
+
+ private:
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+/// Cycles `link` with budget 0 every ~2 ms for `ms` milliseconds (as agvnav-vehicle does); returns
+/// the longest cycle() call [us].
+long long cycleFor(ModbusPlcLink& link, int ms) {
+  long long worst = 0;
+  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
+  std::uint16_t hb = 0;
+  while (std::chrono::steady_clock::now() < end) {
+    const auto t0 = std::chrono::steady_clock::now();
+    REQUIRE(link.cycle(sampleStatus(hb++), monotonicNow(), Duration{}) == Status::Ok);
+    const long long us =
+        std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0).count();
+    worst = us > worst ? us : worst;
+    sleepMs(2);
+  }
+  return worst;
+}
+
+ModbusPlcLinkConfig hostileConfig() {
+  ModbusPlcLinkConfig cfg;
+  std::strcpy(cfg.address, "127.0.0.1");
+  cfg.port = 0;
+  cfg.responseTimeout = Duration::fromMilliseconds(50);
+  return cfg;
+}
+}  // namespace
+
+// Bounds of these tests: a cycle() with budget 0 does no waiting, so on this noisy 2-core machine
+// its longest call is a few ms; the assertions use 100 ms, far below what each fault cost before
+// (a trickled request held one call for 12 x 40 ms = 480 ms, a full send buffer until the peer read)
+// and far above scheduling noise. The PLC's polls must all be answered (none failed).
+TEST_CASE("Vehicle as Modbus server: a trickling peer is dropped at the request bound, the PLC is served",
+          "[drivers][modbus][hostile]") {
+  ModbusPlcLink link(hostileConfig());
+  REQUIRE(link.open() == Status::Ok);
+  std::atomic<bool> stop{false};
+  std::thread trickle([&] {
+    const std::uint8_t read[12] = {0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x03, 0x00, 0x00, 0x00, 0x28};
+    for (int k = 0; k < 3 && !stop; ++k) {  // three connections, each trickling one byte per 40 ms
+      const int fd = rawConnectFrom(link.boundPort());
+      for (std::size_t i = 0; i < sizeof read && !stop; ++i) {
+        if (::send(fd, read + i, 1, MSG_NOSIGNAL) != 1)
+          break;  // dropped by the vehicle
+        sleepMs(40);
+      }
+      ::close(fd);
+    }
+  });
+  PollingPlc plc(link.boundPort(), 20);
+  const long long worstCycle = cycleFor(link, 1500);
+  stop = true;
+  trickle.join();
+  plc.requestStop();  // the PLC ends its last poll while the link still answers
+  (void)cycleFor(link, 100);
+  plc.stop();
+  CHECK(worstCycle < 100000);
+  CHECK(link.counters().requestTimeouts >= 2U);
+  CHECK(plc.ok.load() >= 20);
+  CHECK(plc.failed.load() == 0);
+}
+
+TEST_CASE("Vehicle as Modbus server: a peer that never reads its replies is dropped, never waited for",
+          "[drivers][modbus][hostile]") {
+  ModbusPlcLink link(hostileConfig());
+  REQUIRE(link.open() == Status::Ok);
+  std::atomic<bool> stop{false};
+  std::atomic<int> sent{0};
+  std::thread flood([&] {
+    const int fd = rawConnectFrom(link.boundPort());
+    int small = 4096;
+    (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+    // Pipelined reads of 110 registers (229-byte replies), never reading one.
+    const std::uint8_t read[12] = {0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0xFF, 0x03, 0x00, 0x00, 0x00, 110};
+    while (!stop) {
+      pollfd p{fd, POLLOUT, 0};
+      if (::poll(&p, 1, 10) == 1 && (p.revents & POLLOUT) != 0) {
+        if (::send(fd, read, sizeof read, MSG_NOSIGNAL | MSG_DONTWAIT) != static_cast<ssize_t>(sizeof read))
+          break;
+        ++sent;
+      }
+      if ((p.revents & (POLLERR | POLLHUP)) != 0)
+        break;
+    }
+    ::close(fd);
+  });
+  PollingPlc plc(link.boundPort(), 20);
+  const long long worstCycle = cycleFor(link, 1500);
+  stop = true;
+  flood.join();
+  plc.requestStop();  // the PLC ends its last poll while the link still answers
+  (void)cycleFor(link, 100);
+  plc.stop();
+  CHECK(worstCycle < 100000);
+  CHECK(sent.load() > 100);
+  CHECK(link.counters().sendFailures >= 1U);
+  CHECK(plc.ok.load() >= 20);
+  CHECK(plc.failed.load() == 0);
+}
+
+TEST_CASE("Vehicle as Modbus server: idle slot holders make room for the PLC, then time out",
+          "[drivers][modbus][hostile]") {
+  ModbusPlcLinkConfig cfg = hostileConfig();
+  cfg.idleTimeout = Duration::fromMilliseconds(600);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  int holders[6];
+  for (int& h : holders) {
+    h = rawConnectFrom(link.boundPort());
+    REQUIRE(h >= 0);
+  }
+  (void)cycleFor(link, 100);  // 4 slots taken: the two late holders evicted the two first ones
+  CHECK(link.counters().connects == 6U);
+  CHECK(link.counters().evictions == 2U);
+  PollingPlc plc(link.boundPort(), 20);
+  (void)cycleFor(link, 300);
+  CHECK(link.counters().evictions == 3U);  // the PLC took the oldest holder's slot
+  CHECK(plc.ok.load() >= 5);
+  (void)cycleFor(link, 900);  // past the idle timeout: the holders are closed, the PLC stays
+  plc.requestStop();          // the PLC ends its last poll while the link still answers
+  (void)cycleFor(link, 100);
+  plc.stop();
+  CHECK(link.counters().idleTimeouts == 3U);
+  CHECK(plc.failed.load() == 0);
+  for (const int h : holders)
+    ::close(h);
+}
+
+TEST_CASE("Vehicle as Modbus server: a peer sending only refused requests holds no slot against the PLC",
+          "[drivers][modbus][hostile]") {
+  ModbusPlcLinkConfig cfg = hostileConfig();
+  cfg.maxConnections = 1;
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  const int junk = rawConnectFrom(link.boundPort());
+  REQUIRE(junk >= 0);
+  const std::uint8_t fc17[8] = {0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0xFF, 0x11};
+  REQUIRE(::send(junk, fc17, sizeof fc17, MSG_NOSIGNAL) == 8);
+  (void)cycleFor(link, 50);
+  CHECK(link.counters().refusedRequests == 1U);  // answered with exception 01, still connected
+  CHECK(link.connected());
+  PollingPlc plc(link.boundPort(), 20);
+  (void)cycleFor(link, 300);
+  plc.requestStop();  // the PLC ends its last poll while the link still answers
+  (void)cycleFor(link, 100);
+  plc.stop();
+  CHECK(link.counters().evictions == 1U);  // the junk peer made room for the PLC
+  CHECK(plc.ok.load() >= 5);
+  CHECK(plc.failed.load() == 0);
+  ::close(junk);
+}
+
+TEST_CASE(
+    "Vehicle as Modbus server: the allow-list refuses other addresses; a storm of clients cannot evict a "
+    "polling PLC",
+    "[drivers][modbus][hostile]") {
+  ModbusPlcLinkConfig cfg = hostileConfig();
+  cfg.allowedPeerCount = 1;
+  inet_pton(AF_INET, "127.0.0.1", &cfg.allowedPeers[0]);
+  ModbusPlcLink link(cfg);
+  REQUIRE(link.open() == Status::Ok);
+  const int stranger = rawConnectFrom(link.boundPort(), "127.0.0.2");
+  REQUIRE(stranger >= 0);
+  (void)cycleFor(link, 50);
+  CHECK(link.counters().refusedPeers == 1U);
+  CHECK(link.counters().connects == 0U);
+  ::close(stranger);
+
+  ModbusPlcLink open(hostileConfig());  // no allow-list
+  REQUIRE(open.open() == Status::Ok);
+  PollingPlc plc(open.boundPort(), 20);
+  (void)cycleFor(open, 100);
+  std::thread storm([&] {
+    std::vector<int> fds;
+    for (int i = 0; i < 50; ++i) {
+      fds.push_back(rawConnectFrom(open.boundPort()));
+      sleepMs(2);
+    }
+    sleepMs(200);
+    for (const int fd : fds)
+      ::close(fd);
+  });
+  (void)cycleFor(open, 600);
+  storm.join();
+  plc.requestStop();  // the PLC ends its last poll while the link still answers
+  (void)cycleFor(open, 100);
+  plc.stop();
+  CHECK(open.counters().evictions >= 40U);  // storm connections evicted each other ...
+  CHECK(plc.failed.load() == 0);            // ... never the PLC
+  CHECK(plc.ok.load() >= 15);
+}
+
+TEST_CASE("Vehicle as Modbus server: health bit 8 is cleared only by a write actually applied", "[drivers][modbus]") {
+  ModbusPlcLink link(hostileConfig());
+  REQUIRE(link.open() == Status::Ok);
+  std::atomic<bool> done{false};
+  std::uint16_t afterReject = 0, afterReadPast = 0, afterGood = 0;
+  int readPastErrno = 0;
+  std::thread plcThread([&] {
+    modbus_t* plc = modbus_new_tcp("127.0.0.1", link.boundPort());
+    modbus_set_response_timeout(plc, 2, 0);
+    if (modbus_connect(plc) == 0) {
+      (void)modbus_write_register(plc, 100, 9);  // code 9: refused, bit 8
+      sleepMs(30);
+      modbus_read_registers(plc, 2, 1, &afterReject);
+      // FC 23: a valid write of the PLC heartbeat, a read past the map: exception 02 (nothing written).
+      std::uint16_t w = 5, r[4];
+      if (modbus_write_and_read_registers(plc, 108, 1, &w, 200, 4, r) == -1)
+        readPastErrno = errno;
+      sleepMs(30);
+      modbus_read_registers(plc, 2, 1, &afterReadPast);
+      (void)modbus_write_register(plc, 108, 6);
+      sleepMs(30);
+      modbus_read_registers(plc, 2, 1, &afterGood);
+      modbus_close(plc);
+    }
+    modbus_free(plc);
+    done = true;
+  });
+  for (int i = 0; i < 1000 && !done; ++i) {
+    REQUIRE(link.cycle(sampleStatus(0), monotonicNow(), Duration::fromMilliseconds(5)) == Status::Ok);
+  }
+  plcThread.join();
+  const auto bit8 = static_cast<std::uint16_t>(PlcHealthBit::CommandRejected);
+  CHECK((afterReject & bit8) != 0);
+  CHECK(readPastErrno == EMBXILADD);
+  CHECK((afterReadPast & bit8) != 0);  // libmodbus' refusal used to clear it
+  CHECK((afterGood & bit8) == 0);
 }

@@ -318,3 +318,36 @@ TEST_CASE("Simulator encoding: encodeNav350PoseReply round-trips through CoLa B 
   static std::uint8_t small[64];
   CHECK(encodeNav350PoseReply(truth, cfg, Span<std::uint8_t>(small)) == 0U);
 }
+
+TEST_CASE("NAV350: implausible scan channel headers are refused as OutOfRange and leave nothing valid",
+          "[drivers][laser]") {
+  static Nav350PoseReply r;
+  for (int k = 0; k < 4; ++k) {
+    agv::test::NavReplyFields f;
+    f.scan = true;
+    f.distMm.assign(1440, 5000);  // 0.25 deg x 1440: one turn
+    const char* what = "scale 3.4e38";
+    if (k == 0) {
+      f.scale = 3.4e38F;
+    } else if (k == 1) {
+      f.offset = 1e30F;
+      what = "offset 1e30 mm";
+    } else if (k == 2) {
+      f.stepMdeg = 65535;
+      what = "step 65.535 deg";
+    } else {
+      f.stepMdeg = 500;
+      what = "0.5 deg x 1440 beams: two turns";
+    }
+    INFO(what);
+    CHECK(parse(agv::test::buildNavReply(f), r) == Status::OutOfRange);
+    CHECK_FALSE(r.scanValid);
+    CHECK_FALSE(r.poseValid);
+    CHECK(r.scan.size() == 0U);
+  }
+  agv::test::NavReplyFields f;
+  f.scan = true;
+  f.distMm.assign(1440, 5000);
+  CHECK(parse(agv::test::buildNavReply(f), r) == Status::Ok);
+  CHECK(r.scan.size() == 1440U);
+}

@@ -195,21 +195,31 @@ TEST_CASE("SICK laser source: an unreachable laser is a timeout, retried at the 
   CHECK(p.allocs == 0U);
 }
 
+namespace {
+/// A CoLa A laser on `server`: accepts one connection, waits for the subscription, then sends
+/// `telegrams` 100 ms apart (each read on its own by the source), and closes after 300 ms.
+void serveOneByOne(agv::test::LoopbackServer& server, std::vector<std::vector<std::uint8_t>> telegrams) {
+  server.start([telegrams](agv::test::LoopbackServer& s) {
+    const int fd = s.accept();
+    if (fd < 0)
+      return;
+    (void)receiveExactly(fd, kSubscribe);
+    for (std::size_t i = 0; i < telegrams.size(); ++i) {
+      if (i > 0)
+        sleepMs(100);
+      s.send(fd, telegrams[i]);
+    }
+    agv::test::LoopbackServer::drainAndClose(fd, 300);
+  });
+}
+}  // namespace
+
 TEST_CASE("SICK laser source: a malformed scan telegram is reported", "[drivers][laser]") {
   agv::test::LoopbackServer server;
   REQUIRE(server.ok());
   const auto bad = agv::test::stxEtx("sSN LMDscandata 1 zz");
   const auto good = agv::test::colaScanTelegram(1, 900);
-  server.start([&](agv::test::LoopbackServer& s) {
-    const int fd = s.accept();
-    if (fd < 0)
-      return;
-    (void)receiveExactly(fd, kSubscribe);
-    s.send(fd, bad);
-    sleepMs(100);  // read on its own, not in the same call as the good one
-    s.send(fd, good);
-    agv::test::LoopbackServer::drainAndClose(fd, 300);
-  });
+  serveOneByOne(server, {bad, good});
   SickLaserSource src(loopbackConfig(SickLaserModel::Lms1xx, server.port()));
   static LaserMeasurement m;
   Poller p{src};
@@ -217,6 +227,36 @@ TEST_CASE("SICK laser source: a malformed scan telegram is reported", "[drivers]
   REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
   CHECK(m.scan.size() == 10U);
   CHECK(src.counters().malformed == 1U);
+  CHECK(p.allocs == 0U);
+}
+
+TEST_CASE("SICK laser source: implausible scan telegrams are refused and counted, not taken as sweeps",
+          "[drivers][laser]") {
+  agv::test::LoopbackServer server;
+  REQUIRE(server.ok());
+  // Well-formed telegrams with a scale factor of 3.4e38 and an offset of 1e30 mm.
+  agv::test::ColaScanFields hugeScale;
+  agv::test::ColaChannel c;
+  c.values.assign(10, 900);
+  c.scale = 3.4e38F;
+  hugeScale.channels16.push_back(c);
+  agv::test::ColaScanFields hugeOffset;
+  c.scale = 1.0F;
+  c.offset = 1e30F;
+  hugeOffset.channels16.push_back(c);
+  const auto bad1 = agv::test::stxEtx(agv::test::buildColaScan(hugeScale));
+  const auto bad2 = agv::test::stxEtx(agv::test::buildColaScan(hugeOffset));
+  const auto good = agv::test::colaScanTelegram(1, 900);
+  serveOneByOne(server, {bad1, bad2, good});
+  SickLaserSource src(loopbackConfig(SickLaserModel::Lms1xx, server.port()));
+  static LaserMeasurement m;
+  Poller p{src};
+  REQUIRE(p.poll(m, Status::Ok, 3000) == Status::Ok);
+  CHECK(m.scan.size() == 10U);
+  AGV_CHECK_NEAR(m.scan.ranges[0], 0.9, 1e-6);
+  CHECK(src.counters().sweeps == 1U);
+  CHECK(src.counters().implausible == 2U);
+  CHECK(src.counters().malformed == 2U);
   CHECK(p.allocs == 0U);
 }
 

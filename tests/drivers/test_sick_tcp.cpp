@@ -1,6 +1,13 @@
 // SICK drivers over real TCP against a loopback peer speaking CoLa A / binary CoLa: subscription,
 // split telegrams, garbage, a connection dropped mid-telegram, reconnection, unreachable device.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -190,4 +197,73 @@ TEST_CASE("NAV350 client: request, event in between, split reply, peer drop and 
   }
   server.join();
   CHECK(requests.load() == 3);
+}
+
+TEST_CASE("TCP stream: with budget 0 a slow connection attempt never waits and completes in later calls",
+          "[drivers][laser]") {
+  // A listener whose accept queue is full (backlog 0, one connection queued and not accepted): the
+  // kernel drops our SYN, so the connection stays in progress until the SYN is retransmitted (~1 s).
+  const int listener = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  REQUIRE(::bind(listener, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  REQUIRE(::listen(listener, 0) == 0);
+  socklen_t len = sizeof a;
+  ::getsockname(listener, reinterpret_cast<sockaddr*>(&a), &len);
+  std::vector<int> fillers;
+  for (int i = 0; i < 2; ++i) {
+    const int f = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK, 0);
+    (void)::connect(f, reinterpret_cast<sockaddr*>(&a), sizeof a);
+    fillers.push_back(f);
+  }
+  ::usleep(50000);
+  auto worstCallMs = [](TcpStream& s, int calls, Status& last) {
+    double worst = 0.0;
+    for (int i = 0; i < calls && last != Status::Ok; ++i) {
+      const auto t0 = std::chrono::steady_clock::now();
+      last = s.ensureConnected(Duration{});
+      worst = std::max(worst, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      ::usleep(10000);
+    }
+    return worst;
+  };
+
+  // Given up after connectTimeout (200 ms), counted once; no call waited.
+  TcpStreamConfig cfg;
+  setLoopback(cfg, ntohs(a.sin_port));
+  cfg.connectTimeout = Duration::fromMilliseconds(200);
+  cfg.reconnectInterval = Duration::fromSeconds(10.0);
+  {
+    TcpStream s(cfg);
+    Status last = Status::Timeout;
+    const double worst = worstCallMs(s, 40, last);
+    CHECK(last == Status::Timeout);
+    CHECK_FALSE(s.connecting());
+    CHECK(s.counters().connectFailures == 1U);
+    CHECK(s.counters().connects == 0U);
+    CHECK(worst < 50.0);  // each call: a poll of 0 ms (the old stream waited the whole budget)
+  }
+  // With a 3 s timeout: pending while the queue is full; once the queue is drained the
+  // retransmitted SYN gets through and a later call completes the connection.
+  cfg.connectTimeout = Duration::fromMilliseconds(3000);
+  TcpStream s(cfg);
+  Status last = Status::Timeout;
+  (void)worstCallMs(s, 5, last);
+  CHECK(s.connecting());
+  CHECK(last == Status::Timeout);
+  for (int i = 0; i < 2; ++i) {
+    const int c = ::accept(listener, nullptr, nullptr);
+    if (c >= 0)
+      ::close(c);
+  }
+  const double worst = worstCallMs(s, 300, last);
+  CHECK(last == Status::Ok);
+  CHECK(s.connected());
+  CHECK(s.counters().connects == 1U);
+  CHECK(s.counters().connectFailures == 0U);
+  CHECK(worst < 50.0);
+  for (const int f : fillers)
+    ::close(f);
+  ::close(listener);
 }

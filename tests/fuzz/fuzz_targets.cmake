@@ -8,6 +8,7 @@ add_library(agv_fuzz_protocol STATIC
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/cola_a_scan.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/nav350.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/plc_register_map.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/modbus_request.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/canopen_encoders.cpp)
 target_include_directories(agv_fuzz_protocol PUBLIC ${AGV_FUZZ_ROOT}/core/include ${AGV_FUZZ_ROOT}/hal/include
                                                     ${AGV_FUZZ_ROOT}/drivers/protocol/include)
@@ -15,9 +16,29 @@ target_link_libraries(agv_fuzz_protocol PUBLIC Eigen3::Eigen)
 target_compile_features(agv_fuzz_protocol PUBLIC cxx_std_17)
 target_compile_options(agv_fuzz_protocol PRIVATE -fsanitize=fuzzer-no-link,address -fno-omit-frame-pointer -g)
 target_link_options(agv_fuzz_protocol INTERFACE -fsanitize=address)
-foreach(_t cola_a nav350 canopen)
+foreach(_t cola_a nav350 canopen modbus)
   add_executable(fuzz_${_t} ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_${_t}.cpp)
   target_link_libraries(fuzz_${_t} PRIVATE agv_fuzz_protocol)
   target_compile_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
   target_link_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
 endforeach()
+
+# agvnav-vehicle's configuration parser, with what it calls: the report library's number parser and
+# file reader, and the Linux drivers (laser model defaults). Exceptions on: it is application code.
+add_executable(fuzz_vehicle_config
+  ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_vehicle_config.cpp
+  ${AGV_FUZZ_ROOT}/apps/vehicle/vehicle_config.cpp
+  ${AGV_FUZZ_ROOT}/apps/lib/report/src/number.cpp
+  ${AGV_FUZZ_ROOT}/apps/lib/report/src/text_file.cpp
+  ${AGV_FUZZ_ROOT}/drivers/linux/src/can_error.cpp
+  ${AGV_FUZZ_ROOT}/drivers/linux/src/monotonic_clock.cpp
+  ${AGV_FUZZ_ROOT}/drivers/linux/src/socketcan_bus.cpp
+  ${AGV_FUZZ_ROOT}/drivers/linux/src/tcp_stream.cpp
+  ${AGV_FUZZ_ROOT}/drivers/linux/src/sick_laser_client.cpp
+  ${AGV_FUZZ_ROOT}/drivers/linux/src/canopen_encoder_source.cpp
+  ${AGV_FUZZ_ROOT}/drivers/linux/src/sick_laser_source.cpp)
+target_include_directories(fuzz_vehicle_config PRIVATE ${AGV_FUZZ_ROOT}/apps/vehicle ${AGV_FUZZ_ROOT}/apps/lib/report/include
+                                                       ${AGV_FUZZ_ROOT}/drivers/linux/include ${AGV_FUZZ_ROOT}/tests/fuzz)
+target_link_libraries(fuzz_vehicle_config PRIVATE agv_fuzz_protocol)
+target_compile_options(fuzz_vehicle_config PRIVATE ${_agv_fuzz_flags})
+target_link_options(fuzz_vehicle_config PRIVATE ${_agv_fuzz_flags})

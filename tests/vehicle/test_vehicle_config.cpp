@@ -1,6 +1,7 @@
 // The agvnav-vehicle configuration file: a good file and what it sets, every key with a bad value
 // (refused with the file, line and key named), unknown, repeated and missing keys, checks across
 // keys, a missing file, and the calibration and map files it names.
+#include <arpa/inet.h>
 #include <sys/stat.h>
 
 #include <cmath>
@@ -105,6 +106,8 @@ TEST_CASE("defaults follow the laser model and the node ids", "[vehicle]") {
   std::string text = withoutKey(agv::test::goodVehicleConfig(), "laser.port");
   text = withValue(text, "laser.model", "nav350", line);
   text = withValue(text, "can.drive.node", "0x10", line);
+  text = withValue(text, "modbus.allowed_peers", "192.168.1.10  10.0.0.2", line);
+  text = withValue(text, "modbus.idle_timeout", "2.5", line);
   VehicleConfig c;
   ConfigError e;
   REQUIRE(parseVehicleConfig(text, "vehicle.conf", c, e));
@@ -112,6 +115,10 @@ TEST_CASE("defaults follow the laser model and the node ids", "[vehicle]") {
   CHECK(c.laser.nav.rangeMax == Approx(250.0));
   CHECK(c.can.canopen.drive.pdo.cobId == 0x190);
   CHECK(c.calibrationFile == "calibration.txt");  // no folder in the configuration's path
+  REQUIRE(c.modbus.allowedPeerCount == 2);
+  CHECK(c.modbus.allowedPeers[0] == htonl(0xC0A8010AU));  // 192.168.1.10
+  CHECK(c.modbus.allowedPeers[1] == htonl(0x0A000002U));
+  CHECK(c.modbus.idleTimeout.ns == 2500000000LL);
 }
 
 TEST_CASE("numbers are decimal: a leading zero is not octal, 0x is hexadecimal", "[vehicle]") {
@@ -209,6 +216,9 @@ TEST_CASE("every key with a bad value is refused, naming the file, line and key"
       {"modbus.reconnect_interval", "1e9"},
       {"modbus.plc_heartbeat_timeout", "inf"},
       {"modbus.max_connections", "9"},
+      {"modbus.idle_timeout", "0.01"},
+      {"modbus.allowed_peers", "plc.local"},
+      {"modbus.allowed_peers", "10.0.0.1 10.0.0.2 10.0.0.3 10.0.0.4 10.0.0.5"},
       {"calibration.file", ""},
       {"map.file", ""},
       {"map.mode", "frozen"},

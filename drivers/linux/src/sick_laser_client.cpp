@@ -30,7 +30,7 @@ Status connectBy(TcpStream& tcp, sick::TelegramFramer& framer, Timestamp deadlin
     return Status::Ok;
   }
   const Timestamp now = monotonicNow();
-  if (tcp.nextAttempt() > now) {
+  if (!tcp.connecting() && tcp.nextAttempt() > now) {
     if (tcp.nextAttempt() >= deadline) {
       sleepFor(deadline - now);
       return Status::Lost;
@@ -78,6 +78,7 @@ bool decodeFirst(sick::TelegramFramer& framer, LaserClientCounters& counters, Wa
       return true;
     }
     ++counters.decodeErrors;
+    counters.implausible += s == Status::OutOfRange ? 1U : 0U;
   }
   return false;
 }
@@ -89,8 +90,8 @@ Status connectForPoll(TcpStream& tcp, sick::TelegramFramer& framer, Duration bud
   if (tcp.connected()) {
     return Status::Ok;
   }
-  if (monotonicNow() < tcp.nextAttempt() || tcp.ensureConnected(budget) != Status::Ok) {
-    return Status::Lost;
+  if ((!tcp.connecting() && monotonicNow() < tcp.nextAttempt()) || tcp.ensureConnected(budget) != Status::Ok) {
+    return Status::Lost;  // not due, still connecting (completed by a later call) or failed
   }
   framer.reset();
   fresh = true;
@@ -290,6 +291,7 @@ Status Nav350Client::requestPose(bool waitForNextScan, sick::Nav350Mask mask, si
           return s;
         }
         ++counters_.decodeErrors;
+        counters_.implausible += s == Status::OutOfRange ? 1U : 0U;
       } else {
         ++counters_.otherTelegrams;  // stale replies from before the request, events
       }

@@ -83,6 +83,10 @@ bool SickLaserSource::connected() const noexcept {
   return config_.model == SickLaserModel::Nav350 ? nav_.connected() : cola_.connected();
 }
 
+int SickLaserSource::fileDescriptor() const noexcept {
+  return config_.model == SickLaserModel::Nav350 ? nav_.fileDescriptor() : cola_.fileDescriptor();
+}
+
 const TcpStreamCounters& SickLaserSource::tcpCounters() const noexcept {
   return config_.model == SickLaserModel::Nav350 ? nav_.tcpCounters() : cola_.tcpCounters();
 }
@@ -140,8 +144,10 @@ Status SickLaserSource::silence(Timestamp now) noexcept {
 
 Status SickLaserSource::readNav(hal::LaserMeasurement& out, Timestamp now) noexcept {
   const std::uint32_t errorsBefore = nav_.counters().decodeErrors;
+  const std::uint32_t implausibleBefore = nav_.counters().implausible;
   const Status s = nav_.poll(true, config_.navMask, reply_, config_.connectBudget);
   counters_.malformed += nav_.counters().decodeErrors - errorsBefore;
+  counters_.implausible += nav_.counters().implausible - implausibleBefore;
   if (s != Status::Ok && s != Status::CapacityExceeded) {
     if (nav_.counters().decodeErrors != errorsBefore) {
       return Status::Malformed;
@@ -192,8 +198,10 @@ Status SickLaserSource::read(hal::LaserMeasurement& out) noexcept {
     s = readNav(out, now);
   } else {
     const std::uint32_t errorsBefore = cola_.counters().decodeErrors;
+    const std::uint32_t implausibleBefore = cola_.counters().implausible;
     s = cola_.poll(out.scan, config_.connectBudget);
     counters_.malformed += cola_.counters().decodeErrors - errorsBefore;
+    counters_.implausible += cola_.counters().implausible - implausibleBefore;
     if (s == Status::Ok || s == Status::CapacityExceeded) {
       counters_.truncatedSweeps += s == Status::CapacityExceeded ? 1U : 0U;
       out.reflectors.clear();

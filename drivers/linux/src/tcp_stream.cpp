@@ -21,6 +21,35 @@ int toPollMs(Duration d) noexcept {
 }
 }  // namespace
 
+int startTcpConnect(const char* host, std::uint16_t port, Status& status) noexcept {
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(port);
+  if (inet_pton(AF_INET, host, &addr.sin_addr) != 1) {
+    status = Status::InvalidArgument;
+    return -1;
+  }
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  if (fd < 0) {
+    status = Status::Lost;
+    return -1;
+  }
+  const int one = 1;
+  (void)setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+  // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) == 0) {
+    status = Status::Ok;
+    return fd;
+  }
+  if (errno != EINPROGRESS) {
+    ::close(fd);
+    status = Status::Lost;
+    return -1;
+  }
+  status = Status::Timeout;
+  return fd;
+}
+
 TcpStream::TcpStream(const TcpStreamConfig& config) noexcept : config_(config) {
   config_.host[sizeof(config_.host) - 1] = '\0';
 }
@@ -29,9 +58,16 @@ TcpStream::~TcpStream() {
   if (fd_ >= 0) {
     ::close(fd_);
   }
+  if (pending_ >= 0) {
+    ::close(pending_);
+  }
 }
 
 void TcpStream::close() noexcept {
+  if (pending_ >= 0) {  // an attempt in progress is abandoned, not counted
+    ::close(pending_);
+    pending_ = -1;
+  }
   if (fd_ >= 0) {
     ::close(fd_);
     fd_ = -1;
@@ -44,48 +80,55 @@ Status TcpStream::ensureConnected(Duration budget) noexcept {
     return Status::Ok;
   }
   const Timestamp now = monotonicNow();
+  if (pending_ >= 0) {
+    return finishConnect(now, budget);
+  }
   if (now < nextAttempt_) {
     return Status::Timeout;
   }
   nextAttempt_ = now + config_.reconnectInterval;
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(config_.port);
-  if (inet_pton(AF_INET, config_.host, &addr.sin_addr) != 1) {
-    ++counters_.connectFailures;
-    return Status::InvalidArgument;
-  }
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  Status s = Status::Ok;
+  const int fd = startTcpConnect(config_.host, config_.port, s);
   if (fd < 0) {
     ++counters_.connectFailures;
-    return Status::Lost;
+    return s;
   }
-  const int one = 1;
-  (void)setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-  // NOLINTNEXTLINE(cppcoreguidelines-pro-type-reinterpret-cast): the sockets API
-  int rc = ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr);
-  if (rc != 0 && errno == EINPROGRESS) {
-    pollfd p{fd, POLLOUT, 0};
-    const Duration wait = budget < config_.connectTimeout ? budget : config_.connectTimeout;
-    rc = ::poll(&p, 1, toPollMs(wait));
-    if (rc == 1) {
-      int err = 0;
-      socklen_t len = sizeof err;
-      rc = (getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len) == 0 && err == 0) ? 0 : -1;
-    } else {
-      ::close(fd);
-      ++counters_.connectFailures;
-      return Status::Timeout;
+  if (s == Status::Ok) {
+    fd_ = fd;
+    ++counters_.connects;
+    return Status::Ok;
+  }
+  pending_ = fd;
+  pendingDeadline_ = now + config_.connectTimeout;
+  return finishConnect(now, budget);
+}
+
+Status TcpStream::finishConnect(Timestamp now, Duration budget) noexcept {
+  const Duration left = pendingDeadline_ - now;
+  const Duration wait = budget < left ? budget : left;
+  pollfd p{pending_, POLLOUT, 0};
+  const int rc = ::poll(&p, 1, toPollMs(wait));
+  if (rc == 1) {
+    int err = 0;
+    socklen_t len = sizeof err;
+    const bool ok = getsockopt(pending_, SOL_SOCKET, SO_ERROR, &err, &len) == 0 && err == 0;
+    if (ok) {
+      fd_ = pending_;
+      pending_ = -1;
+      ++counters_.connects;
+      return Status::Ok;
     }
-  }
-  if (rc != 0) {
-    ::close(fd);
+    ::close(pending_);
+    pending_ = -1;
     ++counters_.connectFailures;
     return Status::Lost;
   }
-  fd_ = fd;
-  ++counters_.connects;
-  return Status::Ok;
+  if (monotonicNow() >= pendingDeadline_) {  // given up after connectTimeout
+    ::close(pending_);
+    pending_ = -1;
+    ++counters_.connectFailures;
+  }
+  return Status::Timeout;
 }
 
 Status TcpStream::read(Span<std::uint8_t> buf, Duration timeout, std::size_t& n) noexcept {

@@ -171,6 +171,11 @@ Status decodeDist1(Tokens& tk, const ChannelHead& ch, const ColaAScanConfig& con
   if (!std::isfinite(ch.scale) || !(ch.scale > 0.0F) || !std::isfinite(ch.offset) || ch.step == 0U) {
     return Status::Malformed;
   }
+  if (!detail::plausibleScanChannel(static_cast<double>(ch.scale), static_cast<double>(ch.offset),
+                                    static_cast<double>(ch.start) * 1e-4, static_cast<double>(ch.step) * 1e-4,
+                                    ch.count)) {
+    return Status::OutOfRange;
+  }
   info.scaleFactor = static_cast<double>(ch.scale);
   info.scaleOffset = static_cast<double>(ch.offset);
   info.beamCount = static_cast<std::uint16_t>(ch.count);

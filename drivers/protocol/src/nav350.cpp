@@ -179,6 +179,11 @@ Status parseScan(BeReader& r, const Nav350Config& config, Timestamp receivedAt, 
     if (!std::isfinite(ch.scale) || !(ch.scale > 0.0F) || !std::isfinite(ch.offset) || ch.stepMdeg == 0U) {
       return Status::Malformed;
     }
+    if (!detail::plausibleScanChannel(static_cast<double>(ch.scale), static_cast<double>(ch.offset),
+                                      static_cast<double>(ch.startMdeg) * 1e-3, static_cast<double>(ch.stepMdeg) * 1e-3,
+                                      ch.count)) {
+      return Status::OutOfRange;
+    }
     LaserScan& scan = reply.scan;
     scan.angleMin =
         static_cast<float>(normalizeAngle(mdegToRad(static_cast<double>(ch.startMdeg)) + config.angleOffset));

@@ -91,4 +91,20 @@ class BeReader {
   std::size_t pos_ = 0;
 };
 
+/// Plausibility of a scan channel's header (SICK CoLa A and NAV350 alike): a scale factor in
+/// [1e-3, 100] (devices send 1 or 2), a range offset within +-10 m (devices send 0), an angular
+/// step in (0, 5] deg, a start angle within +-360 deg, and the beams spanning at most one turn.
+/// Values outside are not a scan of any SICK device (a scale of 3.4e38, an offset of 1e30, a
+/// 6.5535 deg step over 541 beams) and the telegram is refused (`OutOfRange`).
+inline bool plausibleScanChannel(double scale, double offsetMm, double startDeg, double stepDeg,
+                                 std::uint32_t count) noexcept {
+  constexpr double kMaxSpanDeg = 360.0 + 1e-6;
+  const bool scaleOk = scale >= 1e-3 && scale <= 100.0;
+  const bool offsetOk = offsetMm >= -1e4 && offsetMm <= 1e4;
+  const bool stepOk = stepDeg > 0.0 && stepDeg <= 5.0;
+  const bool startOk = startDeg >= -360.0 && startDeg <= 360.0;
+  const bool spanOk = count < 2U || static_cast<double>(count - 1U) * stepDeg <= kMaxSpanDeg;
+  return scaleOk && offsetOk && stepOk && startOk && spanOk;
+}
+
 }  // namespace agv::drivers::detail

@@ -86,6 +86,9 @@ class CanopenEncoderSource final : public hal::EncoderSource {
 
   const canopen::CanopenEncoders& decoder() const noexcept { return decoder_; }
   const SocketCanHealth& busHealth() const noexcept { return bus_.health(); }
+  /// The CAN socket (-1 while the bus is not open), for a loop that waits for frames on it
+  /// (apps/vehicle); valid until the next `read()`.
+  int fileDescriptor() const noexcept { return bus_.fileDescriptor(); }
   const CanopenEncoderSourceCounters& counters() const noexcept { return counters_; }
   /// The status of the last attempt to open the bus (`Ok` once open).
   Status openStatus() const noexcept { return openStatus_; }

@@ -17,6 +17,7 @@ namespace agv::drivers {
 struct LaserClientCounters {
   std::uint32_t decoded = 0;         ///< scans / replies delivered
   std::uint32_t decodeErrors = 0;    ///< telegrams of the expected kind that failed to decode
+  std::uint32_t implausible = 0;     ///< of those, refused for an implausible scan header (OutOfRange)
   std::uint32_t otherTelegrams = 0;  ///< telegrams of another kind (acknowledgements, events), ignored
 };
 
@@ -52,6 +53,8 @@ class ColaAScanClient {
   const LaserClientCounters& counters() const noexcept { return counters_; }
   const sick::FramerCounters& framerCounters() const noexcept { return framer_.counters(); }
   const TcpStreamCounters& tcpCounters() const noexcept { return tcp_.counters(); }
+  /// The connection's socket (-1 when not connected), to wait on; valid until the next call.
+  int fileDescriptor() const noexcept { return tcp_.fileDescriptor(); }
   const sick::ColaAScanInfo& lastInfo() const noexcept { return info_; }
 
  private:
@@ -96,6 +99,8 @@ class Nav350Client {
   const LaserClientCounters& counters() const noexcept { return counters_; }
   const sick::FramerCounters& framerCounters() const noexcept { return framer_.counters(); }
   const TcpStreamCounters& tcpCounters() const noexcept { return tcp_.counters(); }
+  /// The connection's socket (-1 when not connected), to wait on; valid until the next call.
+  int fileDescriptor() const noexcept { return tcp_.fileDescriptor(); }
 
  private:
   bool decodeBuffered(sick::Nav350PoseReply& reply, Status& result) noexcept;

@@ -58,6 +58,7 @@ struct SickLaserSourceCounters {
   std::uint32_t sweeps = 0;             ///< sweeps returned by `read()`
   std::uint32_t truncatedSweeps = 0;    ///< of those, with more beams than kMaxScanBeams (first ones kept)
   std::uint32_t malformed = 0;          ///< telegrams of the expected kind that did not decode
+  std::uint32_t implausible = 0;        ///< of those, refused for an implausible scan header (scale, offset, step)
   std::uint32_t deviceErrors = 0;       ///< NAV350 replies with a non-zero error code
   std::uint32_t silenceReconnects = 0;  ///< connections closed because the laser stayed silent
 };
@@ -83,6 +84,9 @@ class SickLaserSource final : public hal::LaserSource {
   Status health() const noexcept override;
 
   bool connected() const noexcept;
+  /// The laser connection's socket (-1 when not connected), for a loop that waits for input on it
+  /// (apps/vehicle); valid until the next `read()`.
+  int fileDescriptor() const noexcept;
   const SickLaserSourceCounters& counters() const noexcept { return counters_; }
   /// Connection counters of the TCP stream in use.
   const TcpStreamCounters& tcpCounters() const noexcept;

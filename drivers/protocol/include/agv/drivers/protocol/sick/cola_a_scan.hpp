@@ -56,7 +56,9 @@ struct ColaAScanInfo {
 /// angular span. Readings: metres, raw 0 (no echo) becomes +inf (invalid).
 ///
 /// Returns Ok; Malformed (not an LMDscandata telegram, bad number, bad float, no DIST1 channel,
-/// zero or non-finite scale factor, zero angular step); Truncated (fields missing);
+/// zero or non-finite scale factor, zero angular step); OutOfRange (an implausible channel header:
+/// scale outside [1e-3, 100], offset beyond +-10 m, step beyond 5 deg, start beyond +-360 deg, beams
+/// spanning more than a turn); Truncated (fields missing);
 /// CapacityExceeded (more than kMaxScanBeams values: the first ones are kept, the rest counted as
 /// refused in `scan.ranges`). On error other than CapacityExceeded `scan` is left empty.
 Status parseColaAScan(Span<const std::uint8_t> telegram, const ColaAScanConfig& config, Timestamp receivedAt,

@@ -114,9 +114,10 @@ struct Nav350Config {
 
 /// Decodes a reply payload (as `TelegramFramer` in CoLa B mode delivers it). `receivedAt` stamps
 /// the scan. Returns Ok; Malformed (other telegram, more than 2 scan channels, unknown channel
-/// name, bad scale); Truncated (the payload ends before its declared content); CapacityExceeded
-/// (more reflectors than kMaxReflectors or beams than kMaxScanBeams: the first are kept, the rest
-/// counted as refused). A device error code is not a decoding error: check `errorCode`.
+/// name, bad scale); OutOfRange (an implausible scan channel header: scale outside [1e-3, 100],
+/// offset beyond +-10 m, step beyond 5 deg, start beyond +-360 deg, more than a turn); Truncated (the payload ends
+/// before its declared content); CapacityExceeded (more reflectors than kMaxReflectors or beams than kMaxScanBeams: the
+/// first are kept, the rest counted as refused). A device error code is not a decoding error: check `errorCode`.
 Status parseNav350PoseReply(Span<const std::uint8_t> payload, const Nav350Config& config, Timestamp receivedAt,
                             Nav350PoseReply& reply) noexcept;
 
