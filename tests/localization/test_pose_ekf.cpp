@@ -149,3 +149,39 @@ TEST_CASE("polar to Cartesian covariance", "[localization][ekf]") {
   AGV_CHECK_NEAR(d(1, 1), 0.005 * 0.005, 1e-15);
   AGV_CHECK_NEAR(d(0, 0), 1e-4, 1e-15);
 }
+
+TEST_CASE("direct pose update: the information-weighted mean, across the heading seam, gated and refused",
+          "[localization][ekf]") {
+  PoseEkf ekf;
+  const Eigen::Matrix3d P = Eigen::Vector3d(0.04, 0.01, 0.0004).asDiagonal();
+  // The state just below +pi, the measurement just above -pi: 0.02 rad apart, not 2 pi.
+  REQUIRE(ekf.reset(Pose2d{1.0, 2.0, 3.13159265358979}, P) == Status::Ok);
+  const Pose2d z{1.2, 1.9, -3.13159265358979};
+  // Equal covariances: the posterior is halfway and its covariance halved (a scalar Kalman gain of
+  // 1/2 per axis, the axes uncorrelated).
+  const double d2 = ekf.poseMahalanobis2(z, P);
+  // nu = (0.2, -0.1, 0.02); S = 2 P.
+  AGV_CHECK_NEAR(d2, 0.04 / 0.08 + 0.01 / 0.02 + 0.0004 / 0.0008, 1e-9);
+  REQUIRE(ekf.updatePose(z, P, kChiSquare3Dof99) == Status::Ok);
+  AGV_CHECK_NEAR(ekf.pose().x, 1.1, 1e-12);
+  AGV_CHECK_NEAR(ekf.pose().y, 1.95, 1e-12);
+  AGV_CHECK_NEAR(std::fabs(ekf.pose().theta), 3.14159265358979, 1e-9);  // on the seam
+  AGV_CHECK_NEAR(ekf.covariance()(0, 0), 0.02, 1e-12);
+  AGV_CHECK_NEAR(ekf.covariance()(2, 2), 0.0002, 1e-12);
+  AGV_CHECK_NEAR(ekf.covariance()(0, 1), 0.0, 1e-15);
+  // A measurement far outside the gate leaves the state alone.
+  const Pose2d before = ekf.pose();
+  const Eigen::Matrix3d Pbefore = ekf.covariance();
+  CHECK(ekf.updatePose(Pose2d{before.x + 5.0, before.y, before.theta}, P, kChiSquare3Dof99) == Status::Rejected);
+  CHECK(ekf.pose().x == before.x);
+  CHECK(ekf.covariance() == Pbefore);
+  // Non-finite input, and a covariance that makes P + R indefinite.
+  CHECK(ekf.updatePose(Pose2d{std::nan(""), 0.0, 0.0}, P, 1e9) == Status::NonFiniteInput);
+  Eigen::Matrix3d bad = P;
+  bad(1, 1) = std::numeric_limits<double>::infinity();
+  CHECK(ekf.updatePose(before, bad, 1e9) == Status::NonFiniteInput);
+  const Eigen::Matrix3d indefinite = -10.0 * Eigen::Matrix3d::Identity();
+  CHECK(std::isinf(ekf.poseMahalanobis2(before, indefinite)));
+  CHECK(ekf.updatePose(before, indefinite, 1e9) == Status::Rejected);
+  CHECK(ekf.covariance() == Pbefore);
+}
