@@ -391,3 +391,98 @@ TEST_CASE("pipeline: a late cycle publishes once, without a burst", "[nav]") {
   (void)rig.pipeline.cycle();
   CHECK(rig.plc.count == before + 2U);
 }
+
+TEST_CASE("pipeline: activated without a set-pose, it finds its pose on the map, confirms it and localizes",
+          "[nav][reloc]") {
+  Rig rig;
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  CHECK(rig.pipeline.searching());
+  // Standing: the first sweep finds a candidate, the next `scansToConfirm` confirm it.
+  bool sawSearching = false;
+  for (int i = 0; i < 200 && !rig.pipeline.localizing(); ++i) {
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    (void)rig.pipeline.cycle();
+    sawSearching = sawSearching || agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Searching);
+    if (!rig.pipeline.localizing()) {
+      CHECK(rig.plc.last.health.mode == NavMode::Idle);  // nothing published as a pose meanwhile
+    }
+  }
+  REQUIRE(rig.pipeline.localizing());
+  CHECK(sawSearching);
+  CHECK_FALSE(rig.pipeline.searching());
+  const agv::nav::PipelineCounters& c = rig.pipeline.counters();
+  CHECK(c.relocalizations == 1U);
+  CHECK(c.candidates >= 1U);
+  CHECK(c.setPoses == 0U);
+  // One search plus three confirming sweeps at 125 ms.
+  CHECK(rig.clock.now() - kStart <= Duration::fromMilliseconds(4 * 125 + 10));
+  rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(40));
+  CHECK(rig.plc.last.health.mode == NavMode::Localizing);
+  CHECK(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Relocalized));
+  CHECK_FALSE(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Searching));
+  // The found pose is within the restart sigma (5 cm, 0.02 rad); the next sweeps' reflectors pull
+  // it in as after a set-pose.
+  CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.05);
+  CHECK(std::fabs(agv::angleDiff(rig.plc.last.pose.theta, truthAt(rig.plc.last.stamp).theta)) < 0.02);
+  rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(300));
+  CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.005);
+  // It tracks the vehicle as after a set-pose, and the Relocalized bit clears after its hold.
+  rig.runUntil(kRollFrom + Duration::fromSeconds(2.5));
+  CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.005);
+  CHECK_FALSE(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Relocalized));
+}
+
+TEST_CASE("pipeline: a map that cannot tell two poses apart is refused as ambiguous, never guessed", "[nav][reloc]") {
+  Rig rig;
+  // Every reflector also mirrored through a point: the observations fit the mirrored pose as well.
+  std::uint32_t id = 100;
+  for (const Pose2d& r : kReflectors) {
+    REQUIRE(rig.map.addSurveyed(agv::LandmarkKind::Reflector, 40.0 - r.x, 40.0 - r.y, 0.001, id++).ok());
+  }
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  rig.runUntil(kStart + Duration::fromSeconds(1.5));
+  CHECK_FALSE(rig.pipeline.localizing());
+  CHECK(rig.pipeline.searching());
+  const agv::nav::PipelineCounters& c = rig.pipeline.counters();
+  CHECK(c.searches >= 10U);
+  CHECK(c.ambiguous == c.searches);
+  CHECK(c.relocalizations == 0U);
+  CHECK(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Ambiguous));
+  CHECK(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Searching));
+  CHECK(rig.plc.last.health.mode == NavMode::Idle);
+  // A set-pose from the PLC ends the search and wins.
+  rig.plc.send(agv::hal::PlcCommandKind::Localize, kStartPose);
+  rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(50));
+  CHECK(rig.pipeline.localizing());
+  CHECK_FALSE(rig.pipeline.searching());
+  CHECK_FALSE(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Searching));
+  CHECK_FALSE(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Ambiguous));
+}
+
+TEST_CASE("pipeline: relocalization switched off, or stopped by the PLC, does not search", "[nav][reloc]") {
+  PipelineParams p = rigParams();
+  p.relocalization.enabled = false;
+  Rig off(p);
+  REQUIRE(off.pipeline.configure() == Status::Ok);
+  REQUIRE(off.pipeline.activate() == Status::Ok);
+  off.runUntil(kStart + Duration::fromSeconds(1.0));
+  CHECK_FALSE(off.pipeline.localizing());
+  CHECK(off.pipeline.counters().searches == 0U);
+  CHECK_FALSE(agv::hal::hasBit(off.plc.last.health.bits, HealthBit::Searching));
+
+  Rig stopped;
+  REQUIRE(stopped.pipeline.configure() == Status::Ok);
+  REQUIRE(stopped.pipeline.activate() == Status::Ok);
+  stopped.plc.send(agv::hal::PlcCommandKind::Stop);
+  stopped.runUntil(kStart + Duration::fromSeconds(1.0));
+  CHECK_FALSE(stopped.pipeline.localizing());
+  CHECK_FALSE(stopped.pipeline.searching());
+  CHECK(stopped.pipeline.counters().relocalizations == 0U);
+
+  PipelineParams bad = rigParams();
+  bad.relocalization.positionStdDev = 0.0;
+  Rig refused(bad);
+  CHECK(refused.pipeline.configure() == Status::InvalidArgument);
+}

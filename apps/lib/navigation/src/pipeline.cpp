@@ -7,6 +7,7 @@
 #include "agv/core/fixed_vector.hpp"
 #include "agv/falko/falko_detector.hpp"
 #include "agv/localization/sweep_motion.hpp"
+#include "agv/loop/global_localizer.hpp"
 
 namespace agv::nav {
 Status PipelineParams::validate() const noexcept {
@@ -20,6 +21,16 @@ Status PipelineParams::validate() const noexcept {
   }
   if (setPosePositionStdDev < 0.0 || setPoseHeadingStdDev < 0.0 || publishPeriod.ns < 0 || maxSamplesPerCycle == 0 ||
       maxCommandsPerCycle == 0) {
+    return Status::InvalidArgument;
+  }
+  const RelocalizationParams& r = relocalization;
+  if (!std::isfinite(r.positionStdDev) || !std::isfinite(r.headingStdDev)) {
+    return Status::NonFiniteInput;
+  }
+  GlobalLocalizerParams search = r.search;
+  search.laserMount = localizer.laser.mounting;
+  if (!isValid(search) || !(r.positionStdDev > 0.0) || !(r.headingStdDev > 0.0) || r.relocalizedHold.ns < 0 ||
+      r.confirm.scansToConfirm == 0) {
     return Status::InvalidArgument;
   }
   return Status::Ok;
@@ -53,7 +64,12 @@ struct Pipeline::Impl {
         keypoints(std::make_unique<FalkoKeypoints>()),
         observations(std::make_unique<ScanObservations>()),
         measurement(std::make_unique<hal::LaserMeasurement>()),
-        corners(std::make_unique<FixedVector<Pose2d::Vector2, kMaxCorners>>()) {}
+        corners(std::make_unique<FixedVector<Pose2d::Vector2, kMaxCorners>>()) {
+    GlobalLocalizerParams search = p.relocalization.search;
+    search.laserMount = p.localizer.laser.mounting;
+    globalLocalizer = std::make_unique<GlobalLocalizer>(search);
+    confirmer = std::make_unique<RelocConfirmer>(p.relocalization.confirm);
+  }
 
   // Stages of one cycle, in order.
   void readEncoders() noexcept;
@@ -61,6 +77,10 @@ struct Pipeline::Impl {
   void applySetPose() noexcept;
   void readSweep() noexcept;
   void observe(const SweepCompensation& sweep) noexcept;
+  /// Relocalization on this sweep's observations (while searching): confirm the candidate, or
+  /// search for one; restart the localizer when confirmed.
+  void relocalize() noexcept;
+  void startSearch() noexcept;
   void watchDevices() noexcept;
   void publishIfDue() noexcept;
 
@@ -103,6 +123,14 @@ struct Pipeline::Impl {
   std::unique_ptr<FixedVector<Pose2d::Vector2, kMaxCorners>> corners;
   const LikelihoodFieldBase* field = nullptr;
   std::unique_ptr<MatchPoints> matchPoints = std::make_unique<MatchPoints>();
+  std::unique_ptr<GlobalLocalizer> globalLocalizer;
+  std::unique_ptr<RelocConfirmer> confirmer;
+  bool searching = false;
+  bool lastSearchAmbiguous = false;
+  bool haveSearchPose = false;
+  Pose2d searchDeadReckoning{};  // dead reckoning at the previous searched sweep
+  bool everRelocalized = false;
+  Timestamp relocalizedAt{};
 
   PipelineState state = PipelineState::Unconfigured;
   Status faultReason = Status::Ok;
@@ -165,6 +193,7 @@ void Pipeline::Impl::readCommands() noexcept {
       case hal::PlcCommandKind::Stop:
         pendingSetPose = false;
         localizing = false;  // idle until the next Localize
+        searching = false;
         commandRefused = false;
         break;
       case hal::PlcCommandKind::Calibrate:
@@ -193,6 +222,8 @@ void Pipeline::Impl::applySetPose() noexcept {
     return;
   }
   localizing = true;
+  searching = false;
+  everRelocalized = false;
   ++counters.setPoses;
   // The odometry restarts at the newest sample: the set-pose holds at its instant.
   odometry.reset();
@@ -237,6 +268,74 @@ void Pipeline::Impl::readSweep() noexcept {
     }
     ++counters.corrections;
     report.corrected = true;
+    if (localizer->lost() && params.relocalization.enabled && !searching) {
+      log("localizer lost: relocalization searches the map");
+      startSearch();
+    }
+  }
+  if (searching) {
+    relocalize();
+  }
+}
+
+void Pipeline::Impl::startSearch() noexcept {
+  searching = true;
+  haveSearchPose = false;
+  lastSearchAmbiguous = false;
+  *confirmer = RelocConfirmer(params.relocalization.confirm);  // Idle: no candidate
+}
+
+void Pipeline::Impl::relocalize() noexcept {
+  report.searching = true;
+  // The vehicle's motion since the previous searched sweep, by dead reckoning at the sweeps'
+  // reference instants.
+  const Timestamp ref = observations->stamp;
+  const Result<Pose2d> dr = motion->at(ref);
+  if (!dr.ok()) {
+    return;  // no odometry yet: nothing to carry a candidate with
+  }
+  const Pose2d moved = haveSearchPose ? between(searchDeadReckoning, dr.value()) : Pose2d{};
+  searchDeadReckoning = dr.value();
+  haveSearchPose = true;
+  const Span<const PointObservation> obs(observations->points.data(), observations->points.size());
+  const Pose2d& mount = params.localizer.laser.mounting;
+  if (confirmer->state() == RelocConfirmState::Pending) {
+    const RelocConfirmState st = confirmer->step(moved, map, obs, mount);
+    if (st == RelocConfirmState::Confirmed) {
+      // Restart at the newest sample: the confirmed pose carried there by dead reckoning.
+      const Timestamp t = haveSample ? lastSample.stamp : ref;
+      const Result<Pose2d> drNow = motion->at(t);
+      const Pose2d pose = drNow.ok() ? confirmer->pose() * between(dr.value(), drNow.value()) : confirmer->pose();
+      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+      cov(0, 0) = cov(1, 1) = params.relocalization.positionStdDev * params.relocalization.positionStdDev;
+      cov(2, 2) = params.relocalization.headingStdDev * params.relocalization.headingStdDev;
+      if (localizer->reset(t, pose, cov) == Status::Ok) {
+        localizing = true;
+        searching = false;
+        everRelocalized = true;
+        relocalizedAt = t;
+        report.relocalized = true;
+        report.searching = false;
+        ++counters.relocalizations;
+        log("relocalized: the pose found on the map held over the confirmation sweeps");
+      }
+      return;
+    }
+    if (st == RelocConfirmState::Pending) {
+      return;
+    }
+    ++counters.unconfirmed;  // Rejected: search again on this sweep
+  }
+  RelocReport rr;
+  (void)globalLocalizer->localize(map, obs, rr);
+  ++counters.searches;
+  report.searched = true;
+  report.searchOutcome = rr.outcome;
+  lastSearchAmbiguous = rr.outcome == RelocOutcome::Ambiguous;
+  counters.ambiguous += lastSearchAmbiguous ? 1U : 0U;
+  if (rr.outcome == RelocOutcome::Found) {
+    ++counters.candidates;
+    confirmer->start(rr.pose);
   }
 }
 
@@ -313,6 +412,11 @@ std::uint16_t Pipeline::Impl::healthBits() const noexcept {
   b = hal::withBit(b, HealthBit::MapLoaded, map.size() > 0U);
   b = hal::withBit(b, HealthBit::CalibrationValid, params.calibrationValid);
   b = hal::withBit(b, HealthBit::CommandRejected, commandRefused);
+  b = hal::withBit(b, HealthBit::Searching, searching);
+  b = hal::withBit(b, HealthBit::Ambiguous, searching && lastSearchAmbiguous);
+  const Timestamp now = haveSample ? lastSample.stamp : Timestamp{};
+  b = hal::withBit(b, HealthBit::Relocalized,
+                   everRelocalized && localizing && !(relocalizedAt + params.relocalization.relocalizedHold < now));
   return b;
 }
 
@@ -394,6 +498,9 @@ void Pipeline::Impl::resetTracking() noexcept {
   corners->clear();
   matchPoints->clear();
   visibleReflectors = 0;
+  searching = false;
+  lastSearchAmbiguous = false;
+  everRelocalized = false;
   havePublished = false;
   counters = PipelineCounters{};
   report = CycleReport{};
@@ -426,6 +533,9 @@ Status Pipeline::activate() noexcept {
     return Status::NotInitialized;
   }
   m.state = PipelineState::Active;
+  if (m.params.relocalization.enabled && m.params.relocalization.atStart && !m.localizing) {
+    m.startSearch();
+  }
   return Status::Ok;
 }
 
@@ -436,6 +546,7 @@ Status Pipeline::deactivate() noexcept {
   }
   m.localizing = false;
   m.pendingSetPose = false;
+  m.searching = false;
   m.state = PipelineState::Inactive;
   m.publish(m.clock.now());
   return Status::Ok;
@@ -447,6 +558,7 @@ void Pipeline::fault(Status why) noexcept {
   m.state = PipelineState::Fault;
   m.localizing = false;
   m.pendingSetPose = false;
+  m.searching = false;
   char line[96];
   (void)std::snprintf(line, sizeof line, "fault: %s; publishing lost until reconfigured", toString(m.faultReason));
   m.log(line);
@@ -494,6 +606,10 @@ Status Pipeline::cycle() noexcept {
   }
   m.publishIfDue();
   return m.state == PipelineState::Active ? Status::Ok : m.faultReason;
+}
+
+bool Pipeline::searching() const noexcept {
+  return impl_->searching;
 }
 
 bool Pipeline::localizing() const noexcept {

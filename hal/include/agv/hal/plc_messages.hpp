@@ -33,6 +33,9 @@ enum class HealthBit : std::uint16_t {
   DeviceFault = 1U << 6U,       ///< a device reported a fault (EMCY, bus-off, error replies)
   PlcHeartbeatLost = 1U << 7U,  ///< the PLC's heartbeat register stopped changing (set by the link)
   CommandRejected = 1U << 8U,   ///< the last PLC command or write was refused
+  Searching = 1U << 9U,         ///< relocalizing: searching the map for the pose (no set-pose, or lost)
+  Relocalized = 1U << 10U,      ///< the pose was found by relocalization (held for a while after it)
+  Ambiguous = 1U << 11U,        ///< the last search found several poses the map cannot tell apart
 };
 
 /// `bits` with `bit` set when `on`.

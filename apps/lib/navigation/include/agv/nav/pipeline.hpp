@@ -48,6 +48,7 @@
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/odometry.hpp"
+#include "agv/loop/global_localizer.hpp"
 
 namespace agv::nav {
 
@@ -65,6 +66,21 @@ struct ObservationParams {
   bool collectScanPoints = false;
 };
 
+/// Relocalization: finding the pose on the map with no prior (`GlobalLocalizer`), confirming it over
+/// the next sweeps (`RelocConfirmer`), and only then (re-)initialising the localizer.
+struct RelocalizationParams {
+  /// Search when the localizer is lost, and (with `atStart`) when activated without a set-pose.
+  /// A PLC Stop ends the search until the next Localize; a set-pose always wins.
+  bool enabled = true;
+  bool atStart = true;
+  GlobalLocalizerParams search{};  ///< `laserMount` is taken from the localizer's laser model
+  RelocConfirmParams confirm{};
+  double positionStdDev = 0.05;  ///< [m] 1-sigma of the pose the localizer restarts with
+  double headingStdDev = 0.02;   ///< [rad]
+  /// `HealthBit::Relocalized` stays set this long after a relocalization.
+  Duration relocalizedHold = Duration::fromSeconds(2.0);
+};
+
 /// Everything the pipeline needs besides the devices and the map. Defaults are those of a vehicle.
 struct PipelineParams {
   TricycleParams kinematics{};          ///< the calibrated vehicle (wheelbase, s_w, alpha_F/B)
@@ -72,6 +88,7 @@ struct PipelineParams {
   LocalizerParams localizer{};          ///< EKF, association, map lifecycle; `laser.mounting` = calibrated l
   ObservationParams observations{};     ///< what corrects the pose
   FalkoParams falko{};                  ///< corner detector (thesis defaults)
+  RelocalizationParams relocalization{};
   /// One report per period on the `hal::Clock` (a late cycle publishes once and the schedule
   /// restarts from it: no burst). Zero: every cycle publishes.
   Duration publishPeriod = Duration::fromMilliseconds(20);
@@ -107,6 +124,11 @@ struct PipelineCounters {
   std::uint64_t commands = 0;         ///< PLC commands read
   std::uint64_t refusedCommands = 0;  ///< of which not carried out (Calibrate)
   std::uint64_t setPoses = 0;         ///< set-poses applied
+  std::uint64_t searches = 0;         ///< global localization calls (one per sweep while searching)
+  std::uint64_t candidates = 0;       ///< of which found a unique, supported pose (then confirmed or not)
+  std::uint64_t ambiguous = 0;        ///< of which refused as ambiguous
+  std::uint64_t unconfirmed = 0;      ///< candidates a later sweep did not support
+  std::uint64_t relocalizations = 0;  ///< confirmed: the localizer restarted at the found pose
 };
 
 /// What the last cycle did: enough for a caller to collect figures without touching the devices.
@@ -120,6 +142,10 @@ struct CycleReport {
   std::uint16_t reflectors = 0;                 ///< reflectors the laser reported in that sweep
   std::uint16_t corners = 0;                    ///< refined FALKO corners detected in that sweep
   bool published = false;                       ///< a report went to the PLC link
+  bool searching = false;                       ///< relocalizing (see `RelocalizationParams`)
+  bool relocalized = false;                     ///< this cycle restarted the localizer at a found pose
+  RelocOutcome searchOutcome = RelocOutcome::EmptyInput;  ///< of this cycle's search (when one ran)
+  bool searched = false;                                  ///< a search ran in this cycle
 };
 
 /// Receives one line per noteworthy event (device state changes, refused commands, lifecycle
@@ -172,8 +198,11 @@ class Pipeline {
   /// (`NotInitialized`, or the fault reason in Fault, where only the report is published).
   Status cycle() noexcept;
 
-  /// True while the pose is tracked (from a set-pose until Stop / deactivate / fault).
+  /// True while the pose is tracked (from a set-pose or a relocalization until Stop / deactivate /
+  /// fault).
   bool localizing() const noexcept;
+  /// True while relocalizing (searching the map, or confirming a candidate).
+  bool searching() const noexcept;
   const Localizer& localizer() const noexcept;
   const LandmarkMap& map() const noexcept;
   const PipelineCounters& counters() const noexcept;
