@@ -131,6 +131,24 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
       appendDeadReckoning(r, runs);
     }
   }
+  Json trials = Json::array();
+  std::size_t found = 0;
+  std::size_t wrong = 0;
+  for (const RelocTrial& tr : s.reloc) {
+    found += tr.found ? 1U : 0U;
+    wrong += tr.wrong ? 1U : 0U;
+    trials.push_back(Json{{"kind", tr.kidnapped ? "kidnapped" : "cold_start"},
+                          {"x_m", tr.truth.x},
+                          {"y_m", tr.truth.y},
+                          {"heading_deg", rad2deg(tr.truth.theta)},
+                          {"lost_detected", tr.lostDetected},
+                          {"found", tr.found},
+                          {"sweeps", tr.sweeps},
+                          {"position_error_m", tr.positionError},
+                          {"heading_error_deg", rad2deg(tr.headingError)},
+                          {"wrong", tr.wrong},
+                          {"ambiguous_searches", tr.ambiguous}});
+  }
   Json mappingRuns = Json::array();
   for (const RunResult& r : s.mappingRuns) {
     mappingRuns.push_back(localizerRunJson(r));
@@ -144,6 +162,8 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                {{"frozen_corners", s.mapCorners},
                 {"field_surface_cells", s.fieldSurfacePoints},
                 {"runs", std::move(mappingRuns)}}},
+              {"relocalization",
+               {{"trials", std::move(trials)}, {"found", found}, {"wrong", wrong}, {"count", s.reloc.size()}}},
               {"requirement_met", requirementMet}};
 }
 

@@ -39,6 +39,7 @@ struct SessionResults {
   std::size_t mapCorners = 0;          ///< corners frozen into the static FALKO map
   std::size_t fieldSurfacePoints = 0;  ///< surface points of the natural mode's likelihood field
   std::string naturalError;            ///< why the natural mode could not run (empty: it ran)
+  std::vector<RelocTrial> reloc;       ///< the relocalization stage's trials
 };
 
 /// Within 2 cm / 0.1 deg of the truth (dead reckoning and localizer poses).

@@ -100,6 +100,10 @@ ScenarioConfig scenarioConfig(const Options& o) {
   if (o.shortScenario) {
     cfg.laser.angularResolution = agv::deg2rad(1.0);
   }
+  if (o.shortScenario) {
+    cfg.relocColdStarts = 4;
+    cfg.relocKidnaps = 2;
+  }
   if (o.idealFloor) {
     cfg.vehicle = agv::sim::SimVehicleParams{};
     cfg.floor = agv::hil::FloorEffects{0.0, 0.0};
@@ -342,10 +346,38 @@ bool runDynamicMode(const agv::sim::World& world, const ScenarioConfig& cfg, Ses
   return runMode(world, cfg, LocalizationMode::Dynamic, *dynamicMap, {}, {dynamicPath}, cfg.runsPerPath, 0, s.runs);
 }
 
+/// Relocalization: cold starts at random poses on the paths (random headings) and kidnappings, the
+/// pipeline finding its pose on the surveyed reflector map with no set-pose.
+void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& reflectorMap,
+                            SessionResults& s) {
+  std::printf("relocalization: %d cold starts and %d kidnappings at random poses on the paths, reflector map\n",
+              cfg.relocColdStarts, cfg.relocKidnaps);
+  s.reloc =
+      agv::hil::runRelocalization(world, cfg, reflectorMap, cfg.relocColdStarts, cfg.relocKidnaps, cfg.relocSeconds);
+  int index = 0;
+  for (const agv::hil::RelocTrial& tr : s.reloc) {
+    ++index;
+    std::printf("[%2d/%2zu] %-10s at (%5.2f, %5.2f, %7.2f deg): %s", index, s.reloc.size(),
+                tr.kidnapped ? "kidnapped" : "cold start", tr.truth.x, tr.truth.y, agv::rad2deg(tr.truth.theta),
+                tr.found ? "found" : "not found");
+    if (tr.found) {
+      std::printf(" after %zu sweeps, %.1f mm %.3f deg%s", tr.sweeps, 1000.0 * tr.positionError,
+                  agv::rad2deg(tr.headingError), tr.wrong ? " WRONG" : "");
+    }
+    if (tr.kidnapped) {
+      std::printf(" (lost %s)", tr.lostDetected ? "detected" : "NOT detected");
+    }
+    std::printf("%s\n", tr.ambiguous > 0 ? " (ambiguous searches refused)" : "");
+  }
+}
+
 bool runLocalizationStages(const agv::sim::World& world, const ScenarioConfig& cfg, SessionResults& s) {
   auto reflectorMap = std::make_unique<agv::LandmarkMap>();
-  return runReflectorMode(world, cfg, *reflectorMap, s) && runStaticMapModes(world, cfg, *reflectorMap, s) &&
-         runDynamicMode(world, cfg, s);
+  if (!runReflectorMode(world, cfg, *reflectorMap, s)) {
+    return false;
+  }
+  runRelocalizationStage(world, cfg, *reflectorMap, s);
+  return runStaticMapModes(world, cfg, *reflectorMap, s) && runDynamicMode(world, cfg, s);
 }
 
 // ---- summary -----------------------------------------------------------------------------------
@@ -444,7 +476,17 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
       estimateMeetCount += agv::hil::meetsRequirement(r.finalWithEstimate, r.finalTruth) ? 1 : 0;
     }
   }
-  v.requirementMet = v.allFinished && localizerMeets && s.naturalError.empty();
+  std::size_t relocFound = 0;
+  std::size_t relocWrong = 0;
+  std::size_t coldFound = 0;
+  std::size_t cold = 0;
+  for (const agv::hil::RelocTrial& tr : s.reloc) {
+    relocFound += tr.found ? 1U : 0U;
+    relocWrong += tr.wrong ? 1U : 0U;
+    cold += tr.kidnapped ? 0U : 1U;
+    coldFound += !tr.kidnapped && tr.found ? 1U : 0U;
+  }
+  v.requirementMet = v.allFinished && localizerMeets && s.naturalError.empty() && relocWrong == 0;
   std::printf(
       "%.0f cm / %.1f deg met by dead reckoning with the true parameters in %d of %d runs, with the "
       "estimated parameters in %d\n",
@@ -457,6 +499,8 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
               unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
               cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", can.framesDecoded(), can.drivePositions,
               can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
+  std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
+              relocFound, s.reloc.size(), coldFound, cold, relocWrong);
   std::printf(
       "FALKO corners alone (static_falko, dynamic; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
       falkoMeetCount, falkoRuns, kPositionRequirement * 100.0, kHeadingRequirementDeg);
@@ -523,6 +567,7 @@ int main(int argc, char** argv) {
       {"reflector_ekf", "EKF localization with reflectors only", true},
       {"static_falko_map", "EKF localization with a static FALKO map", true},
       {"natural", "EKF localization with the static FALKO map and scan matching (natural navigation)", true},
+      {"relocalization", "relocalization: cold starts and kidnappings on the reflector map", true},
       {"dynamic_map", "EKF localization with the dynamic landmark map", true},
   };
 

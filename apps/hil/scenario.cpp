@@ -387,7 +387,108 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   return r;
 }
 
+/// One relocalization trial (see `RelocTrial`): standing vehicle, reflectors on the surveyed map.
+RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, LandmarkMap& map, const Pose2d& start,
+                      const Pose2d* kidnapFrom, double maxSeconds, std::uint64_t seed) {
+  RelocTrial trial;
+  trial.kidnapped = kidnapFrom != nullptr;
+  trial.truth = start;
+  sim::SimVehicleParams truth = cfg.vehicle;
+  sim::SimVehicle vehicle(truth, seed ^ 0x9E3779B97F4A7C15ULL);
+  sim::SimLaser laser(caster, cfg.laser, seed ^ 0xC2B2AE3D27D4EB4FULL);
+  sim::SimPlcPeer plc;
+  sim::SimClock clock;
+  sim::CanEncoderSource canEncoders(vehicle, cfg.can);
+  nav::Pipeline pipeline(pipelineParams(cfg, LocalizationMode::Reflectors), map,
+                         nav::PipelineDevices{canEncoders, laser, plc, clock});
+  Timestamp t{};
+  vehicle.reset(kidnapFrom != nullptr ? *kidnapFrom : start, t);
+  clock.set(t);
+  if (pipeline.configure() != Status::Ok || pipeline.activate() != Status::Ok) {
+    return trial;
+  }
+  const Duration period = laser.period();
+  Timestamp nextSweep = t;
+  const auto runFor = [&](double seconds, const std::function<bool()>& done) {
+    const Timestamp end = t + Duration::fromSeconds(seconds);
+    while (t < end && !done()) {
+      static_cast<void>(vehicle.command(hal::DriveCommand{}));
+      t = t + cfg.controlPeriod;
+      vehicle.advanceTo(t);
+      clock.set(t);
+      if (t >= nextSweep + period) {
+        const Pose2d here = vehicle.trueLaserPose();
+        static_cast<void>(laser.capture(here, here, nextSweep));
+        nextSweep = t;
+      }
+      static_cast<void>(pipeline.cycle());
+    }
+  };
+  if (kidnapFrom != nullptr) {
+    // Localized where it stands by the PLC's set-pose, then carried away with the wheels still.
+    hal::PlcCommand localize;
+    localize.stamp = t;
+    localize.kind = hal::PlcCommandKind::Localize;
+    localize.initialPose = *kidnapFrom;
+    plc.send(localize);
+    runFor(1.0, [] { return false; });
+    vehicle.reset(start, t);
+  }
+  const std::uint64_t sweepsBefore = pipeline.counters().sweeps;
+  std::uint64_t searchStart = 0;
+  bool searchSeen = !trial.kidnapped;
+  runFor(maxSeconds, [&] {
+    if (trial.kidnapped && !searchSeen && pipeline.searching()) {
+      searchSeen = true;
+      searchStart = pipeline.counters().sweeps;
+    }
+    trial.lostDetected = trial.lostDetected || pipeline.localizer().lost();
+    return pipeline.counters().relocalizations > 0;
+  });
+  trial.found = pipeline.counters().relocalizations > 0;
+  trial.ambiguous = pipeline.counters().ambiguous;
+  if (trial.found) {
+    trial.sweeps =
+        static_cast<std::size_t>(pipeline.counters().sweeps - (trial.kidnapped ? searchStart : sweepsBefore));
+    // The pose published after the restart (one more report).
+    runFor(0.1, [] { return false; });
+    const Pose2d published = plc.reports().empty() ? pipeline.localizer().pose() : plc.reports().back().pose;
+    trial.positionError = positionError(published, vehicle.truePose());
+    trial.headingError = headingError(published, vehicle.truePose());
+    trial.wrong = trial.positionError > 0.1 || trial.headingError > deg2rad(1.0);
+  }
+  return trial;
+}
+
 }  // namespace
+
+std::vector<RelocTrial> runRelocalization(const sim::World& world, const ScenarioConfig& config,
+                                          LandmarkMap& reflectorMap, int count, int kidnaps, double maxSeconds) {
+  std::vector<RelocTrial> trials;
+  if (world.paths.empty()) {
+    return trials;
+  }
+  const sim::RayCaster caster(world, 1.0);
+  std::mt19937_64 rng(config.seed * 7919U + 17U);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const auto draw = [&]() {
+    const sim::Path& p =
+        world.paths[static_cast<std::size_t>(unit(rng) * static_cast<double>(world.paths.size())) % world.paths.size()];
+    const Pose2d& q =
+        p.points[static_cast<std::size_t>(unit(rng) * static_cast<double>(p.points.size())) % p.points.size()];
+    return Pose2d{q.x, q.y, normalizeAngle((2.0 * unit(rng) - 1.0) * 3.14159265358979323846)};
+  };
+  for (int i = 0; i < count + kidnaps; ++i) {
+    const Pose2d at = draw();
+    Pose2d from = draw();
+    for (int k = 0; k < 20 && std::hypot(from.x - at.x, from.y - at.y) < 3.0; ++k) {
+      from = draw();
+    }
+    const std::uint64_t seed = config.seed * 1000003U + 900000U + static_cast<std::uint64_t>(i);
+    trials.push_back(relocTrial(caster, config, reflectorMap, at, i >= count ? &from : nullptr, maxSeconds, seed));
+  }
+  return trials;
+}
 
 bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
                  const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,

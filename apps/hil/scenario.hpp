@@ -102,6 +102,10 @@ struct ScenarioConfig {
   double startHeadingStdDev = 0.002;  ///< [rad]
   Duration controlPeriod = Duration::fromMilliseconds(20);
   double maxRunSeconds = 120.0;  ///< a run not finished by then is an error
+  /// Relocalization stage: cold starts and kidnappings (see `runRelocalization`).
+  int relocColdStarts = 20;
+  int relocKidnaps = 8;
+  double relocSeconds = 4.0;  ///< [s] of simulated time per trial at most
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
   std::int16_t dynamicMinHitsToCorrect = 10;
 };
@@ -152,6 +156,27 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
                  const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,
                  std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
                  std::vector<RunResult>* results, std::string* error);
+
+/// One relocalization trial: the vehicle standing at `truth`, the pipeline on the surveyed
+/// reflector map with no set-pose (a cold start), or localized by a set-pose elsewhere and then
+/// carried to `truth` without odometry (kidnapped).
+struct RelocTrial {
+  bool kidnapped = false;
+  Pose2d truth;                 ///< where the vehicle stands (after the kidnapping)
+  bool lostDetected = false;    ///< kidnapped: the localizer declared itself lost
+  bool found = false;           ///< the pipeline localized by relocalization
+  std::size_t sweeps = 0;       ///< sweeps from the start of the search to the restart
+  double positionError = 0.0;   ///< [m] of the pose published after the restart
+  double headingError = 0.0;    ///< [rad]
+  bool wrong = false;           ///< found, but more than 0.1 m or 1 deg from the truth
+  std::uint64_t ambiguous = 0;  ///< searches refused as ambiguous
+};
+
+/// `count` cold starts and `kidnaps` kidnappings at poses drawn on the world's paths (free space)
+/// with random headings; each trial runs up to `maxSeconds` of simulated time. `reflectorMap` is a
+/// static map (only read).
+std::vector<RelocTrial> runRelocalization(const sim::World& world, const ScenarioConfig& config,
+                                          LandmarkMap& reflectorMap, int count, int kidnaps, double maxSeconds);
 
 /// The surveyed reflector map: every reflector pole centre of `world` with Gaussian survey noise
 /// `sigma` [m] per coordinate (seeded), as static surveyed landmarks with that sigma.

@@ -497,3 +497,33 @@ TEST_CASE(
     CHECK(badCycle == (mode == MapMode::Static));
   }
 }
+
+TEST_CASE("localizer: carried to where its old pose expected nothing, unmatched reflectors make it lost",
+          "[localization][localizer]") {
+  // The vehicle's pose is believed 40 m away from the surveyed reflectors (nothing in view from
+  // there, so the matched/expected check has nothing to check), while the laser sees the
+  // reflectors from where it really is: observed, none matched.
+  for (const double fraction : {0.3, 0.0}) {
+    Scene s;
+    s.params.health.minObservedMatchedFraction[0] = fraction;
+    s.loc = std::make_unique<Localizer>(s.params);
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0(0, 0) = P0(1, 1) = 1e-4;
+    P0(2, 2) = 1e-5;
+    REQUIRE(s.loc->reset(s.t, Pose2d{s.truth.x + 40.0, s.truth.y, s.truth.theta}, P0) == Status::Ok);
+    bool lost = false;
+    for (int c = 0; c < 5; ++c) {
+      s.stand(10);
+      s.observe(s.world);
+      const LocalizerHealth& h = s.cycle();
+      CHECK(h.expectedInView == 0U);
+      CHECK(h.used == 0U);
+      lost = lost || h.lost;
+    }
+    INFO("minObservedMatchedFraction " << fraction);
+    CHECK(lost == (fraction > 0.0));
+  }
+  LocalizerParams bad;
+  bad.health.minObservedMatchedFraction[0] = 1.5;
+  CHECK(bad.validate() == Status::InvalidArgument);
+}

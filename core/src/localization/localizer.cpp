@@ -647,6 +647,17 @@ bool Localizer::judgeCycle(MapMode mode) noexcept {
       bad = true;
     }
   }
+  if (mode == MapMode::Static && !health_.scanMatch.fused) {
+    for (std::size_t k = 0; k < kLandmarkKindCount; ++k) {
+      const SourceHealth& src = health_.sources[k];
+      const double fraction = hp.minObservedMatchedFraction[k];
+      if (fraction > 0.0 && src.observed >= hp.minExpectedForCheck &&
+          static_cast<double>(src.fused) + static_cast<double>(src.tentative) <
+              std::ceil(fraction * static_cast<double>(src.observed))) {
+        bad = true;
+      }
+    }
+  }
   const Eigen::Matrix3d& P = ekf_.covariance();
   const double ps = std::sqrt(largestEigen2(P(0, 0), P(0, 1), P(1, 1)));
   if (!(ps <= hp.maxPositionSigma) || !(std::sqrt(P(2, 2)) <= hp.maxHeadingSigma)) {

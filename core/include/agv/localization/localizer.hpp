@@ -152,6 +152,14 @@ struct LocalizerHealthParams {
   /// A checked cycle is bad when fewer than max(minMatchesForFix, this fraction of the expected
   /// detections) landmarks were used.
   double minMatchedFraction = 0.3;
+  /// The other side of the check, against a static map: of the observations of a kind, at least
+  /// this fraction must be used (or tentative) when at least `minExpectedForCheck` of that kind were
+  /// observed, else the cycle is bad. A surveyed reflector map holds every reflector, so reflectors
+  /// seen and not matched mean the pose is wrong: it catches a vehicle carried away (kidnapped) to a
+  /// place from where its old pose expected nothing, which the matched/expected check cannot see.
+  /// Per kind: reflectors 0.3 (a stray reflective surface or two is tolerated), corners 0 (off:
+  /// most FALKO corners are not in a map).
+  double minObservedMatchedFraction[kLandmarkKindCount] = {0.3, 0.0};
   /// Consecutive bad cycles that make the localizer lost (latched until `reset`).
   std::uint8_t lostAfterBadCycles = 3;
   /// Position (largest axis) and heading standard deviations beyond which a cycle is bad against
