@@ -334,16 +334,11 @@ bool runStaticMapModes(const agv::sim::World& world, const ScenarioConfig& cfg, 
 /// Dynamic map: FALKO corners only, no prior map, on the path into the block storage (P4 in the
 /// built-in warehouse; the last path of a custom world).
 bool runDynamicMode(const agv::sim::World& world, const ScenarioConfig& cfg, SessionResults& s) {
-  std::size_t dynamicPath = world.paths.size() - 1;
-  for (std::size_t p = 0; p < world.paths.size(); ++p) {
-    if (world.paths[p].name == "P4") {
-      dynamicPath = p;
-    }
-  }
+  // Every path: the thesis met 2 cm / 0.1 deg with its dynamic map only on the 7 m path (P4); the
+  // 12 m paths are the open problem, measured here (not required, see docs/hil.md).
   auto dynamicMap = std::make_unique<agv::LandmarkMap>();
-  std::printf("mode dynamic: FALKO corners only, empty map at the start, path %s\n",
-              world.paths[dynamicPath].name.c_str());
-  return runMode(world, cfg, LocalizationMode::Dynamic, *dynamicMap, {}, {dynamicPath}, cfg.runsPerPath, 0, s.runs);
+  std::printf("mode dynamic: FALKO corners only, empty map at the start of each run, every path\n");
+  return runMode(world, cfg, LocalizationMode::Dynamic, *dynamicMap, {}, {}, cfg.runsPerPath, 0, s.runs);
 }
 
 /// Relocalization: cold starts at random poses on the paths (random headings) and kidnappings, the

@@ -27,6 +27,7 @@ struct VehicleConfig {
   std::string mapFile;          ///< map.file (same)
   MapMode mapMode = MapMode::Static;
   bool useCorners = false;  ///< localization.corners: FALKO corners as observations too
+  bool relocalize = true;   ///< localization.relocalize: search the map when lost or without a set-pose
   bool haveInitialPose = false;
   Pose2d initialPose{};                                     ///< localization.initial_pose
   Duration cyclePeriod = Duration::fromMilliseconds(2);     ///< loop.period

@@ -111,6 +111,10 @@ TEST_CASE("defaults follow the laser model and the node ids", "[vehicle]") {
   VehicleConfig c;
   ConfigError e;
   REQUIRE(parseVehicleConfig(text, "vehicle.conf", c, e));
+  CHECK(c.relocalize);  // the default
+  VehicleConfig noReloc;
+  REQUIRE(parseVehicleConfig(withValue(text, "localization.relocalize", "false", line), "vehicle.conf", noReloc, e));
+  CHECK_FALSE(noReloc.relocalize);
   CHECK(c.laser.tcp.port == 2112);
   CHECK(c.laser.nav.rangeMax == Approx(250.0));
   CHECK(c.can.canopen.drive.pdo.cobId == 0x190);
@@ -223,6 +227,7 @@ TEST_CASE("every key with a bad value is refused, naming the file, line and key"
       {"map.file", ""},
       {"map.mode", "frozen"},
       {"localization.corners", "yes"},
+      {"localization.relocalize", "on"},
       {"localization.initial_pose", "1 2"},
       {"localization.initial_pose", "1 2 3 4"},
       {"localization.initial_pose", "1 2 x"},
