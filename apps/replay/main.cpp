@@ -58,6 +58,10 @@ void addLocalizerOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--odo-rot-var-rad", options.odometryNoise.rotationVariancePerRadian, "[rad^2/rad]");
   app.add_option("--update-rate", options.map.updateRate, "map update rate");
   app.add_option("--gate", options.localizer.association.gate, "squared Mahalanobis gate");
+  app.add_option("--min-support", options.localizer.association.minSupport,
+                 "observations a cycle needs to correct an uncertain prior (1: off)");
+  app.add_option("--support-sigma", options.localizer.association.supportSigma,
+                 "[m] prior position sigma above which --min-support applies");
   app.add_option("--ambiguity", options.localizer.association.ambiguityMargin, "ambiguity margin (0: off)");
   app.add_option("--max-position-sigma", options.localizer.health.maxPositionSigma,
                  "[m] covariance limit of a good cycle");

@@ -395,7 +395,7 @@ class ScanReplay {
     if (trace_ != nullptr) {
       std::fputs(
           "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
-          "map,match,match_inliers,match_rms,match_d2\n",
+          "map,match,match_inliers,match_rms,match_d2,correction,heading_correction\n",
           trace_);
     }
     return true;
@@ -541,12 +541,12 @@ class ScanReplay {
     }
     const Pose2d& e = r_.localizer.back();
     const Pose2d& t = log_.scans[i].robotPose;
-    std::fprintf(trace_, "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f\n", i,
+    std::fprintf(trace_, "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f,%.4f,%.5f\n", i,
                  obs_->points.size(), unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched},
                  unsigned{h.rejectedGate}, unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma,
                  h.headingSigma, std::hypot(e.x - t.x, e.y - t.y), normalizeAngle(e.theta - t.theta), map_->size(),
                  h.scanMatch.attempted ? toString(h.scanMatch.status) : "-", unsigned{h.scanMatch.inliers},
-                 h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2);
+                 h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2, h.correction, h.headingCorrection);
   }
 
   const datasets::CarmenLog& log_;

@@ -527,3 +527,34 @@ TEST_CASE("localizer: carried to where its old pose expected nothing, unmatched 
   bad.health.minObservedMatchedFraction[0] = 1.5;
   CHECK(bad.validate() == Status::InvalidArgument);
 }
+
+TEST_CASE("localizer: an uncertain prior is not corrected by one observation alone (minimum support)",
+          "[localization][localizer]") {
+  const auto run = [](double priorSigma, std::size_t observed, std::uint16_t minSupport) {
+    Scene s;
+    s.params.association.minSupport = minSupport;
+    s.loc = std::make_unique<Localizer>(s.params);
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0(0, 0) = P0(1, 1) = priorSigma * priorSigma;
+    P0(2, 2) = 1e-4;
+    REQUIRE(s.loc->reset(s.t, s.truth, P0) == Status::Ok);
+    s.stand(1);
+    s.observe(std::vector<Eigen::Vector2d>(s.world.begin(), s.world.begin() + static_cast<std::ptrdiff_t>(observed)));
+    return s.cycle();
+  };
+  // Uncertain (0.3 m > supportSigma 0.2 m): one reflector is held back, two correct.
+  const LocalizerHealth one = run(0.3, 1, 2);
+  CHECK(one.used == 0U);
+  CHECK(one.rejectedSupport == 1U);
+  CHECK(hasFlag(one.flags, LocalizerFlag::SupportRejected));
+  CHECK(one.sources[0].rejected == 1U);
+  const LocalizerHealth two = run(0.3, 2, 2);
+  CHECK(two.used == 2U);
+  CHECK(two.rejectedSupport == 0U);
+  // Certain (5 cm): one is enough. Off (minSupport 1): one corrects the uncertain prior too.
+  CHECK(run(0.05, 1, 2).used == 1U);
+  CHECK(run(0.3, 1, 1).used == 1U);
+  LocalizerParams bad;
+  bad.association.minSupport = 0;
+  CHECK(bad.validate() == Status::InvalidArgument);
+}

@@ -445,6 +445,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
     finishHealth();
     return health_;
   }
+  const Pose2d prior = ekf_.pose();
   // The scan match first: it moves the prior the landmarks are associated against.
   if (field != nullptr && beams != nullptr) {
     matchScan(*beams, points, *field);
@@ -465,6 +466,8 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   health_.unsupported = sat16(view.unsupported);
 
   fuseMatches(scan, map);
+  health_.correction = std::hypot(ekf_.pose().x - prior.x, ekf_.pose().y - prior.y);
+  health_.headingCorrection = std::fabs(normalizeAngle(ekf_.pose().theta - prior.theta));
   tallyObservations(scan);
   const bool bad = judgeCycle(map.mode());
   // Map lifecycle, on good cycles only (a suspect pose must not write the map).
@@ -528,8 +531,30 @@ void Localizer::fuseMatches(const ScanObservations& scan, const LandmarkMap& map
     }
   }
   const LaserModel& L = params_.laser;
+  // Minimum support while uncertain: count the matches that may correct.
+  const AssociationParams& ap = params_.association;
+  const Eigen::Matrix3d& P0 = ekf_.covariance();
+  if (ap.minSupport > 1U && !health_.scanMatch.fused &&
+      std::sqrt(largestEigen2(P0(0, 0), P0(0, 1), P0(1, 1))) > ap.supportSigma) {
+    std::size_t correctable = 0;
+    for (std::size_t q = 0; q < matched; ++q) {
+      const Landmark* lm = map.at(scratch_[order_[q]].landmark);
+      correctable += lm != nullptr && (lm->surveyed || lm->hits >= params_.map.minHitsToCorrect) ? 1U : 0U;
+    }
+    if (correctable > 0U && correctable < ap.minSupport) {
+      for (std::size_t q = 0; q < matched; ++q) {
+        const Landmark* lm = map.at(scratch_[order_[q]].landmark);
+        if (lm != nullptr && (lm->surveyed || lm->hits >= params_.map.minHitsToCorrect)) {
+          scratch_[order_[q]].state = Assoc::Unsupported;
+        }
+      }
+    }
+  }
   for (std::size_t q = 0; q < matched; ++q) {
     Scratch& s = scratch_[order_[q]];
+    if (s.state != Assoc::Matched) {
+      continue;
+    }
     const Landmark* lm = map.at(s.landmark);
     if (lm == nullptr) {
       s.state = Assoc::UpdateRejected;
@@ -602,6 +627,10 @@ void Localizer::tallyObservations(const ScanObservations& scan) noexcept {
         ++health_.rejectedAmbiguous;
         ++src.rejected;
         break;
+      case Assoc::Unsupported:
+        ++health_.rejectedSupport;
+        ++src.rejected;
+        break;
       case Assoc::None:
         ++health_.unmatched;
         ++src.unmatched;
@@ -631,6 +660,7 @@ void Localizer::tallyObservations(const ScanObservations& scan) noexcept {
   flagIf(health_.rejectedDuplicate > 0, LocalizerFlag::DuplicateRejected);
   flagIf(health_.rejectedUpdate > 0, LocalizerFlag::UpdateRejected);
   flagIf(health_.rejectedAmbiguous > 0, LocalizerFlag::AmbiguityRejected);
+  flagIf(health_.rejectedSupport > 0, LocalizerFlag::SupportRejected);
   flagIf(health_.used < params_.health.minMatchesForFix && !health_.scanMatch.fused, LocalizerFlag::NoFix);
 }
 

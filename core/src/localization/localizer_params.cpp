@@ -59,8 +59,9 @@ Status LaserModel::validate() const noexcept {
 }
 
 Status AssociationParams::validate() const noexcept {
-  return verdict(allFinite({gate, maxSearchRadius, searchLandmarkVariance, ambiguityMargin}),
-                 gate > 0.0 && maxSearchRadius > 0.0 && searchLandmarkVariance >= 0.0 && ambiguityMargin >= 0.0);
+  return verdict(allFinite({gate, maxSearchRadius, searchLandmarkVariance, ambiguityMargin, supportSigma}),
+                 gate > 0.0 && maxSearchRadius > 0.0 && searchLandmarkVariance >= 0.0 && ambiguityMargin >= 0.0 &&
+                     supportSigma >= 0.0 && minSupport > 0U);
 }
 
 Status OcclusionParams::validate() const noexcept {

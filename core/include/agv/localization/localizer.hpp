@@ -73,8 +73,18 @@ struct AssociationParams {
   /// squared Mahalanobis distance of the best (a likelihood ratio below exp(margin/2) = 7.4) is
   /// ambiguous and not used. 0 disables the test.
   double ambiguityMargin = 4.0;
+  /// Minimum support while uncertain: when the prior's position sigma (largest axis) exceeds
+  /// `supportSigma` [m], the landmarks correct only when at least `minSupport` observations of the
+  /// cycle can correct (matched to landmarks that may correct); otherwise they are held back
+  /// (`SupportRejected`). A single observation cannot cross-check its own association, and with
+  /// the gate as wide as an uncertain prior makes it, a wrong one moves the pose by up to 3 sigma
+  /// (0.9 m from one corner on intel, docs/localization.md). A fused scan match is support enough.
+  /// minSupport 1: off. 0.2 m: measured on the four corrected logs (docs/localization.md,
+  /// "Minimum support").
+  double supportSigma = 0.2;
+  std::uint16_t minSupport = 2;
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (gate, search radius or variance not positive,
-  /// negative margin).
+  /// negative margin or support sigma, minSupport zero).
   Status validate() const noexcept;
 };
 
@@ -216,6 +226,7 @@ enum class LocalizerFlag : std::uint32_t {
   OcclusionUnchecked = 1U << 16,   ///< ranges were given but unusable (`checkBeamGeometry`): no occlusion test
   ScanMatchRejected = 1U << 17,    ///< a likelihood field was given and its match not fused (see `ScanMatchHealth`)
   ScanMatchResync = 1U << 18,      ///< consistent refused matches reset the pose to the map (`resyncAfter`)
+  SupportRejected = 1U << 19,      ///< uncertain prior, too few observations to correct: held back (`minSupport`)
 };
 
 /// True when `flag` is set in `flags`.
@@ -266,19 +277,24 @@ struct LocalizerHealth {
   std::uint16_t rejectedDuplicate = 0;
   std::uint16_t rejectedUpdate = 0;
   std::uint16_t rejectedAmbiguous = 0;
-  std::uint16_t unmatched = 0;       ///< no map candidate at all (new landmark candidates)
-  std::uint16_t expectedInView = 0;  ///< landmarks the check expects (see "Occlusion" in the docs)
-  double expectedDetections = 0.0;   ///< their detectionRate summed: what the check compares with
-  std::uint16_t occluded = 0;        ///< inside the limits, a nearer return blocks the line of sight
-  std::uint16_t noReturn = 0;        ///< inside the limits, no valid beam at the bearing
-  std::uint16_t unsupported = 0;     ///< in the line of sight, a corner not seen on both sides
-  std::uint16_t inserted = 0;        ///< landmarks added to the map this cycle
-  std::uint16_t insertRefused = 0;   ///< inserts the full map refused this cycle
-  std::uint16_t deleted = 0;         ///< landmarks that died this cycle
-  double maxTestRatio = 0.0;         ///< max d^2/gate over used observations (< 1)
-  double meanTestRatio = 0.0;        ///< mean d^2/gate over used observations (~2/gate if consistent)
-  double positionSigma = 0.0;        ///< [m] largest axis of the position covariance
-  double headingSigma = 0.0;         ///< [rad]
+  std::uint16_t rejectedSupport = 0;  ///< held back: too few to correct an uncertain prior (`minSupport`)
+  std::uint16_t unmatched = 0;        ///< no map candidate at all (new landmark candidates)
+  std::uint16_t expectedInView = 0;   ///< landmarks the check expects (see "Occlusion" in the docs)
+  double expectedDetections = 0.0;    ///< their detectionRate summed: what the check compares with
+  std::uint16_t occluded = 0;         ///< inside the limits, a nearer return blocks the line of sight
+  std::uint16_t noReturn = 0;         ///< inside the limits, no valid beam at the bearing
+  std::uint16_t unsupported = 0;      ///< in the line of sight, a corner not seen on both sides
+  std::uint16_t inserted = 0;         ///< landmarks added to the map this cycle
+  std::uint16_t insertRefused = 0;    ///< inserts the full map refused this cycle
+  std::uint16_t deleted = 0;          ///< landmarks that died this cycle
+  double maxTestRatio = 0.0;          ///< max d^2/gate over used observations (< 1)
+  double meanTestRatio = 0.0;         ///< mean d^2/gate over used observations (~2/gate if consistent)
+  /// How far this cycle's updates (scan match and landmarks) moved the pose at the scan's time:
+  /// [m] and [rad]. What a PLC sees as a jump of the published pose.
+  double correction = 0.0;
+  double headingCorrection = 0.0;
+  double positionSigma = 0.0;  ///< [m] largest axis of the position covariance
+  double headingSigma = 0.0;   ///< [rad]
   std::uint8_t consecutiveBadCycles = 0;
   bool lost = false;
   /// Per observation kind, indexed by `LandmarkKind`.
@@ -354,7 +370,8 @@ class Localizer {
     Ambiguous,
     Used,
     Tentative,
-    UpdateRejected
+    UpdateRejected,
+    Unsupported
   };
   struct Scratch {
     Eigen::Matrix2d R = Eigen::Matrix2d::Zero();  // sensor noise, laser frame
