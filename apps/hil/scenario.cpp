@@ -190,41 +190,44 @@ nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode m
   return p;
 }
 
-/// Mapping runs: the corners of the sweep just corrected with, in the world frame at the corrected
-/// pose (at the end of the sweep), into `cornerMap`; nothing while the localizer is lost or the
-/// sweep gave no fix.
-void collectCorners(const nav::Pipeline& pipeline, CornerMapper& cornerMap) {
+/// The laser's world pose at the reference instant of the sweep just corrected with (mapping
+/// runs): `NotFound` while the localizer is lost, the sweep gave no fix or corrected nothing.
+Result<Pose2d> correctedLaserPose(const nav::Pipeline& pipeline) {
   const Localizer& loc = pipeline.localizer();
   if (!pipeline.lastCycle().corrected || loc.lost() || hasFlag(loc.health().flags, LocalizerFlag::NoFix)) {
-    return;
+    return Status::NotFound;
   }
   const Result<Pose2d> pose = pipeline.poseAt(pipeline.lastCycle().sweepReference);
   if (!pose.ok()) {
+    return pose.status();
+  }
+  return pose.value() * loc.params().laser.mounting;
+}
+
+/// Mapping runs: the corners of the sweep just corrected with, in the world frame at the corrected
+/// pose (at the end of the sweep), into `cornerMap`.
+void collectCorners(const nav::Pipeline& pipeline, CornerMapper& cornerMap) {
+  const Result<Pose2d> laserWorld = correctedLaserPose(pipeline);
+  if (!laserWorld.ok()) {
     return;
   }
-  const Pose2d laserWorld = pose.value() * loc.params().laser.mounting;
   for (const Pose2d::Vector2& p : pipeline.sweepCorners()) {
-    const Pose2d::Vector2 w = laserWorld.transformPoint(p);
+    const Pose2d::Vector2 w = laserWorld.value().transformPoint(p);
     cornerMap.add(w.x(), w.y());
   }
 }
 
 /// Mapping runs: the points of the sweep just corrected with, in the world frame at the corrected
-/// pose, into `surfaces` (the same conditions as the corners).
+/// pose, into `surfaces`.
 void collectSurfaces(const nav::Pipeline& pipeline, mapping::SurfaceMapper& surfaces) {
-  const Localizer& loc = pipeline.localizer();
-  if (!pipeline.lastCycle().corrected || loc.lost() || hasFlag(loc.health().flags, LocalizerFlag::NoFix)) {
+  const Result<Pose2d> laserWorld = correctedLaserPose(pipeline);
+  if (!laserWorld.ok()) {
     return;
   }
-  const Result<Pose2d> pose = pipeline.poseAt(pipeline.lastCycle().sweepReference);
-  if (!pose.ok()) {
-    return;
-  }
-  const Pose2d laserWorld = pose.value() * loc.params().laser.mounting;
   surfaces.beginScan();
   for (const MatchPoint& p : pipeline.sweepPoints()) {
-    surfaces.add(laserWorld.transformPoint(Pose2d::Vector2(static_cast<double>(p.x), static_cast<double>(p.y))),
-                 laserWorld.translation());
+    surfaces.add(laserWorld.value().transformPoint(Pose2d::Vector2(static_cast<double>(p.x), static_cast<double>(p.y))),
+                 laserWorld.value().translation());
   }
 }
 

@@ -147,29 +147,28 @@ Status PoseEkf::update(const PointInnovation& in, double gate) noexcept {
   return Status::Ok;
 }
 
-double PoseEkf::poseMahalanobis2(const Pose2d& z, const Eigen::Matrix3d& R) const noexcept {
+bool PoseEkf::poseInnovation(const Pose2d& z, const Eigen::Matrix3d& R, Eigen::Vector3d& nu,
+                             Eigen::Matrix3d& Sinv) const noexcept {
   if (!z.isFinite() || !R.allFinite()) {
-    return std::numeric_limits<double>::infinity();
+    return false;
   }
-  const Eigen::Vector3d nu(z.x - pose_.x, z.y - pose_.y, normalizeAngle(z.theta - pose_.theta));
+  nu = Eigen::Vector3d(z.x - pose_.x, z.y - pose_.y, normalizeAngle(z.theta - pose_.theta));
+  return detail::invertSpd3(P_ + R, 1e-15, Sinv);
+}
+
+double PoseEkf::poseMahalanobis2(const Pose2d& z, const Eigen::Matrix3d& R) const noexcept {
+  Eigen::Vector3d nu;
   Eigen::Matrix3d Sinv;
-  if (!detail::invertSpd3(P_ + R, 1e-15, Sinv)) {
-    return std::numeric_limits<double>::infinity();
-  }
-  return nu.dot(Sinv * nu);
+  return poseInnovation(z, R, nu, Sinv) ? nu.dot(Sinv * nu) : std::numeric_limits<double>::infinity();
 }
 
 Status PoseEkf::updatePose(const Pose2d& z, const Eigen::Matrix3d& R, double gate) noexcept {
   if (!z.isFinite() || !R.allFinite()) {
     return Status::NonFiniteInput;
   }
-  const double d2 = poseMahalanobis2(z, R);
-  if (!(d2 <= gate)) {
-    return Status::Rejected;
-  }
-  const Eigen::Vector3d nu(z.x - pose_.x, z.y - pose_.y, normalizeAngle(z.theta - pose_.theta));
+  Eigen::Vector3d nu;
   Eigen::Matrix3d Sinv;
-  if (!detail::invertSpd3(P_ + R, 1e-15, Sinv)) {
+  if (!poseInnovation(z, R, nu, Sinv) || !(nu.dot(Sinv * nu) <= gate)) {
     return Status::Rejected;
   }
   const Eigen::Matrix3d K = P_ * Sinv;

@@ -153,19 +153,25 @@ Pose2d ScanMatcher::search(const Pose2d& prior, double wx, double wy, double wt,
   return best;
 }
 
-ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
-                                   const LikelihoodFieldBase& field) noexcept {
-  ScanMatchResult result;
+bool ScanMatcher::checkInput(const Pose2d& laser, const Pose2d& prior, const Eigen::Matrix3d& priorCovariance,
+                             const LikelihoodFieldBase& field, ScanMatchResult& result) const noexcept {
+  result = ScanMatchResult{};
   result.pose = prior;
-  if (!prior.isFinite() || !laser.isFinite()) {
+  if (!prior.isFinite() || !laser.isFinite() || !priorCovariance.allFinite()) {
     result.status = Status::NonFiniteInput;
-    return result;
+    return false;
   }
   if (!field.built()) {
     result.status = Status::NotInitialized;
-    return result;
+    return false;
   }
-  if (!collectPoints(scan, laser, result)) {
+  return true;
+}
+
+ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
+                                   const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  if (!checkInput(laser, prior, Eigen::Matrix3d::Zero(), field, result) || !collectPoints(scan, laser, result)) {
     return result;
   }
   const std::uint16_t points = result.points;
@@ -177,16 +183,7 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
 ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
                                    const Eigen::Matrix3d& priorCovariance, const LikelihoodFieldBase& field) noexcept {
   ScanMatchResult result;
-  result.pose = prior;
-  if (!prior.isFinite() || !laser.isFinite() || !priorCovariance.allFinite()) {
-    result.status = Status::NonFiniteInput;
-    return result;
-  }
-  if (!field.built()) {
-    result.status = Status::NotInitialized;
-    return result;
-  }
-  if (!collectPoints(scan, laser, result)) {
+  if (!checkInput(laser, prior, priorCovariance, field, result) || !collectPoints(scan, laser, result)) {
     return result;
   }
   return searchAndRefine(prior, priorCovariance, field, result);
@@ -195,16 +192,7 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
 ScanMatchResult ScanMatcher::match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior,
                                    const Eigen::Matrix3d& priorCovariance, const LikelihoodFieldBase& field) noexcept {
   ScanMatchResult result;
-  result.pose = prior;
-  if (!prior.isFinite() || !laser.isFinite() || !priorCovariance.allFinite()) {
-    result.status = Status::NonFiniteInput;
-    return result;
-  }
-  if (!field.built()) {
-    result.status = Status::NotInitialized;
-    return result;
-  }
-  if (!collectPoints(points, laser, result)) {
+  if (!checkInput(laser, prior, priorCovariance, field, result) || !collectPoints(points, laser, result)) {
     return result;
   }
   return searchAndRefine(prior, priorCovariance, field, result);

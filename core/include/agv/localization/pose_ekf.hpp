@@ -90,6 +90,10 @@ class PoseEkf {
 
  private:
   void condition(Eigen::Matrix3d& P) const noexcept;
+  /// Innovation of a direct pose measurement and (P + R)^-1; false for non-finite input or P + R
+  /// not positive definite.
+  bool poseInnovation(const Pose2d& z, const Eigen::Matrix3d& R, Eigen::Vector3d& nu,
+                      Eigen::Matrix3d& Sinv) const noexcept;
 
   PoseEkfParams params_{};
   Pose2d pose_{};

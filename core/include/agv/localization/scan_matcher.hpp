@@ -152,6 +152,9 @@ class ScanMatcher {
   void setParams(const ScanMatchParams& params) noexcept { params_ = params; }
 
  private:
+  /// Finite prior, mounting and covariance, and a built field; false with `result` saying why.
+  bool checkInput(const Pose2d& laser, const Pose2d& prior, const Eigen::Matrix3d& priorCovariance,
+                  const LikelihoodFieldBase& field, ScanMatchResult& result) const noexcept;
   /// The scan's points in the vehicle frame, thinned; false (status set) when there are none.
   bool collectPoints(const LaserScan& scan, const Pose2d& laser, ScanMatchResult& result) noexcept;
   bool collectPoints(const MatchPoints& points, const Pose2d& laser, ScanMatchResult& result) noexcept;
