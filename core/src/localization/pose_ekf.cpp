@@ -135,16 +135,7 @@ Status PoseEkf::update(const PointInnovation& in, double gate) noexcept {
   const Eigen::Matrix<double, 3, 2> K = P_ * in.H.transpose() * Sinv;
   const Eigen::Vector3d dx = K * in.innovation;
   const Eigen::Matrix3d IKH = Eigen::Matrix3d::Identity() - K * in.H;
-  Eigen::Matrix3d P = IKH * P_ * IKH.transpose() + K * in.R * K.transpose();
-  P = 0.5 * (P + P.transpose()).eval();
-  condition(P);
-  const Pose2d x{pose_.x + dx(0), pose_.y + dx(1), normalizeAngle(pose_.theta + dx(2))};
-  if (!x.isFinite() || !P.allFinite()) {
-    return Status::NonFiniteInput;
-  }
-  pose_ = x;
-  P_ = P;
-  return Status::Ok;
+  return commit(dx, IKH * P_ * IKH.transpose() + K * in.R * K.transpose());
 }
 
 bool PoseEkf::poseInnovation(const Pose2d& z, const Eigen::Matrix3d& R, Eigen::Vector3d& nu,
@@ -174,7 +165,10 @@ Status PoseEkf::updatePose(const Pose2d& z, const Eigen::Matrix3d& R, double gat
   const Eigen::Matrix3d K = P_ * Sinv;
   const Eigen::Vector3d dx = K * nu;
   const Eigen::Matrix3d IK = Eigen::Matrix3d::Identity() - K;
-  Eigen::Matrix3d P = IK * P_ * IK.transpose() + K * R * K.transpose();
+  return commit(dx, IK * P_ * IK.transpose() + K * R * K.transpose());
+}
+
+Status PoseEkf::commit(const Eigen::Vector3d& dx, Eigen::Matrix3d P) noexcept {
   P = 0.5 * (P + P.transpose()).eval();
   condition(P);
   const Pose2d x{pose_.x + dx(0), pose_.y + dx(1), normalizeAngle(pose_.theta + dx(2))};

@@ -90,6 +90,9 @@ class PoseEkf {
 
  private:
   void condition(Eigen::Matrix3d& P) const noexcept;
+  /// x <- x + dx, P <- P symmetrised and conditioned; `NonFiniteInput` (state unchanged) when
+  /// either is not finite.
+  Status commit(const Eigen::Vector3d& dx, Eigen::Matrix3d P) noexcept;
   /// Innovation of a direct pose measurement and (P + R)^-1; false for non-finite input or P + R
   /// not positive definite.
   bool poseInnovation(const Pose2d& z, const Eigen::Matrix3d& R, Eigen::Vector3d& nu,
