@@ -45,7 +45,8 @@ Status LaserIntrinsics::set(std::size_t id, const LaserParams& params) noexcept 
   l.horizOffset = static_cast<float>(params.horizOffset);
   l.cosTheta = static_cast<float>(std::cos(params.theta));
   l.sinTheta = static_cast<float>(std::sin(params.theta));
-  l.alphaCentiDeg = static_cast<float>(params.alpha * 18000.0 / kPi);
+  l.cosAlpha = static_cast<float>(std::cos(params.alpha));
+  l.sinAlpha = static_cast<float>(std::sin(params.alpha));
   return Status::Ok;
 }
 
@@ -60,13 +61,18 @@ Status LaserIntrinsics::setDistanceResolution(double metresPerCount) noexcept {
 
 Eigen::Vector3f LaserIntrinsics::laserPoint(std::size_t laser, std::uint16_t raw,
                                             float azimuthCentiDeg) const noexcept {
+  const float phi = azimuthCentiDeg * kRadPerCentiDeg;
+  return laserPoint(laser, raw, std::sin(phi), std::cos(phi));
+}
+
+Eigen::Vector3f LaserIntrinsics::laserPoint(std::size_t laser, std::uint16_t raw, float sinPhi,
+                                            float cosPhi) const noexcept {
   const Laser& l = lasers_[laser];
   const float d = static_cast<float>(raw) * resolutionF_ + l.distCorrection;  // D = D_ret + D_corr
   const float pz = d * l.sinTheta + l.vertOffset * l.cosTheta;
   const float dxy = d * l.cosTheta - l.vertOffset * l.sinTheta;
-  const float beta = (azimuthCentiDeg - l.alphaCentiDeg) * kRadPerCentiDeg;  // beta = phi - alpha
-  const float sb = std::sin(beta);
-  const float cb = std::cos(beta);
+  const float sb = sinPhi * l.cosAlpha - cosPhi * l.sinAlpha;  // sin(beta), beta = phi - alpha
+  const float cb = cosPhi * l.cosAlpha + sinPhi * l.sinAlpha;  // cos(beta)
   const float px = dxy * sb - l.horizOffset * cb;
   const float py = dxy * cb + l.horizOffset * sb;
   return {py, -px, pz};  // Velodyne frame (x right, y forward) -> REP-103 (x forward, y left)

@@ -257,6 +257,9 @@ Status toFiringReturns(Span<const FiringRecord> records, const LaserIntrinsics& 
     return Status::InvalidArgument;
   }
   Status st = Status::Ok;
+  int cachedAz = -1;  // sin / cos of the head angle, computed once per firing
+  float sinPhi = 0.0F;
+  float cosPhi = 1.0F;
   for (const FiringRecord& r : records) {
     if (r.secondReturn != 0U || r.distance == 0U) {
       continue;
@@ -269,7 +272,13 @@ Status toFiringReturns(Span<const FiringRecord> records, const LaserIntrinsics& 
       return Status::CapacityExceeded;
     }
     FiringReturn& f = out[written++];
-    f.point = intrinsics.laserPoint(r.laser, r.distance, static_cast<float>(r.azimuth));
+    if (r.azimuth != cachedAz) {
+      cachedAz = r.azimuth;
+      const float phi = static_cast<float>(r.azimuth) * (3.14159265358979323846F / 18000.0F);
+      sinPhi = std::sin(phi);
+      cosPhi = std::cos(phi);
+    }
+    f.point = intrinsics.laserPoint(r.laser, r.distance, sinPhi, cosPhi);
     f.laser = r.laser;
     f.firing = static_cast<std::uint32_t>(static_cast<std::size_t>(r.azimuth) * columns / kAzimuthTurn);
   }

@@ -69,6 +69,9 @@ class LaserIntrinsics {
   /// point at D = D_corr and callers skip it), `azimuthCentiDeg` the head angle phi in 0.01 deg
   /// (may be fractional). Precondition: laser < size().
   Eigen::Vector3f laserPoint(std::size_t laser, std::uint16_t raw, float azimuthCentiDeg) const noexcept;
+  /// The same with sin(phi) and cos(phi) given (one pair per firing serves every laser of it:
+  /// beta = phi - alpha by the angle-difference identity, as velodyne_pointcloud's tables do).
+  Eigen::Vector3f laserPoint(std::size_t laser, std::uint16_t raw, float sinPhi, float cosPhi) const noexcept;
 
  private:
   struct Laser {
@@ -78,7 +81,8 @@ class LaserIntrinsics {
     float horizOffset = 0.0F;
     float cosTheta = 1.0F;
     float sinTheta = 0.0F;
-    float alphaCentiDeg = 0.0F;
+    float cosAlpha = 1.0F;
+    float sinAlpha = 0.0F;
   };
   std::array<Laser, kMaxLidarLasers> lasers_{};
   std::size_t size_ = 0;
