@@ -71,13 +71,14 @@ void BM_VelodyneDecodeHdl64(benchmark::State& state) {
     points = 0;
     for (std::size_t k = 0; k < kPackets; ++k) {
       std::size_t n = 0;
-      benchmark::DoNotOptimize(dec.decode(
-          agv::Span<const std::uint8_t>(bytes.data() + k * vd::kPacketBytes, vd::kPacketBytes), agv::Span<vd::FiringRecord>(out), n));
+      benchmark::DoNotOptimize(
+          dec.decode(agv::Span<const std::uint8_t>(bytes.data() + k * vd::kPacketBytes, vd::kPacketBytes),
+                     agv::Span<vd::FiringRecord>(out), n));
       benchmark::DoNotOptimize(rev.add(agv::Span<const vd::FiringRecord>(out, n)));
       std::size_t m = 0;
-      benchmark::DoNotOptimize(vd::toFiringReturns(
-          agv::Span<const vd::FiringRecord>(out, n), cal, 2000,
-          agv::Span<agv::FiringReturn>(returns.data() + points, returns.size() - points), m));
+      benchmark::DoNotOptimize(
+          vd::toFiringReturns(agv::Span<const vd::FiringRecord>(out, n), cal, 2000,
+                              agv::Span<agv::FiringReturn>(returns.data() + points, returns.size() - points), m));
       records += n;
       points += m;
     }

@@ -49,7 +49,7 @@ target_link_options(fuzz_vehicle_config PRIVATE ${_agv_fuzz_flags})
 # and file reader (host code, exceptions on).
 foreach(_t velodyne_yaml velodyne_dbxml)
   add_executable(fuzz_${_t}
-    ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_${_t}.cpp
+    ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_velodyne_calibration.cpp
     ${AGV_FUZZ_ROOT}/apps/lib/datasets/src/velodyne_calibration.cpp
     ${AGV_FUZZ_ROOT}/apps/lib/report/src/number.cpp
     ${AGV_FUZZ_ROOT}/apps/lib/report/src/text_file.cpp)
@@ -59,3 +59,4 @@ foreach(_t velodyne_yaml velodyne_dbxml)
   target_compile_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
   target_link_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
 endforeach()
+target_compile_definitions(fuzz_velodyne_dbxml PRIVATE AGV_FUZZ_DBXML)

@@ -112,8 +112,8 @@ TEST_CASE("Factory files: db.xml and YAML into one table, points by the thesis' 
   const LaserIntrinsics ut = load("hdl64e_utexas.yaml");
   REQUIRE(ut.size() == 64U);
   double e[3];
-  handPoint(Hand{10.0000001490116, 0.0, 0.0, -0.124932751059532 * 180.0 / kPi, -0.0698131695389748 * 180.0 / kPi},
-            4000, 300.0, e);
+  handPoint(Hand{10.0000001490116, 0.0, 0.0, -0.124932751059532 * 180.0 / kPi, -0.0698131695389748 * 180.0 / kPi}, 4000,
+            300.0, e);
   const Eigen::Vector3f q = ut.laserPoint(0, 4000, 30000.0F);
   AGV_CHECK_NEAR(q.x(), e[0], 2e-5);
   AGV_CHECK_NEAR(q.y(), e[1], 2e-5);
@@ -212,8 +212,8 @@ TEST_CASE("einride VLP-16 recording decodes to the counts its README states", "[
   CHECK(minRaw * 0.002 < 0.6);
   CHECK(maxRaw * 0.002 >= 12.25);
   CHECK(maxRaw * 0.002 < 12.35);
-  WARN("einride: " << returns << " returns, " << rev.revolutions() << " revolutions, complete ones " << revMin
-                   << ".." << revMax << " records");
+  WARN("einride: " << returns << " returns, " << rev.revolutions() << " revolutions, complete ones " << revMin << ".."
+                   << revMax << " records");
 }
 
 namespace {
@@ -271,8 +271,8 @@ TEST_CASE("nebula VLP-16 message against nebula's decoded cloud", "[lidar3d][vel
     for (std::uint32_t k = 0; k < count; ++k) {
       std::size_t n = 0;
       PacketInfo info;
-      REQUIRE(dec.decode(Span<const std::uint8_t>(d.data() + 40 + k * 1216U, kPacketBytes), Span<FiringRecord>(out),
-                         n, &info) == Status::Ok);
+      REQUIRE(dec.decode(Span<const std::uint8_t>(d.data() + 40 + k * 1216U, kPacketBytes), Span<FiringRecord>(out), n,
+                         &info) == Status::Ok);
       CHECK(info.returnMode == ReturnMode::Dual);
       ++packets;
       const std::uint8_t* pkt = d.data() + 40 + k * 1216U;
@@ -338,7 +338,8 @@ TEST_CASE("nebula VLP-16 message against nebula's decoded cloud", "[lidar3d][vel
       ++matchedNext;
     }
     if (best == nullptr || bestErr > 0.002) {
-      UNSCOPED_INFO("unmatched: channel " << q.channel << " azimuth " << azCd / 100.0 << " deg distance " << q.distance);
+      UNSCOPED_INFO("unmatched: channel " << q.channel << " azimuth " << azCd / 100.0 << " deg distance "
+                                          << q.distance);
       continue;
     }
     ++matched;
@@ -354,8 +355,8 @@ TEST_CASE("nebula VLP-16 message against nebula's decoded cloud", "[lidar3d][vel
     worstXyz = std::max(worstXyz, static_cast<double>((best->p - Eigen::Vector3f(q.x, q.y, q.z)).norm()));
   }
   WARN("nebula: " << packets << " packets decoded, " << matched << " of 14831 points matched (" << matchedNext
-                  << " of them at the next pair's azimuth), " << azOver << " beyond 0.01 deg, " << inexact << " distances not equal, "
-                  << xyzOver << " points beyond their bound; worst |d distance| "
+                  << " of them at the next pair's azimuth), " << azOver << " beyond 0.01 deg, " << inexact
+                  << " distances not equal, " << xyzOver << " points beyond their bound; worst |d distance| "
                   << worstDist << " m, |d azimuth| " << worstAz << " deg, |d xyz| " << worstXyz << " m");
   CHECK(matched == 14831U);
   CHECK(worstDist <= 0.002 + 1e-6);  // nebula's distance is a float32 of raw * 0.002

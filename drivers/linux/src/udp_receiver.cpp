@@ -11,6 +11,7 @@
 #include <ctime>
 
 #include "agv/drivers/linux/monotonic_clock.hpp"
+#include "receive_control.hpp"
 
 namespace agv::drivers {
 
@@ -89,7 +90,7 @@ Status UdpReceiver::receive(Span<std::uint8_t> buf, Duration timeout, std::size_
   iovec iov{};
   iov.iov_base = buf.data();
   iov.iov_len = buf.size();
-  alignas(cmsghdr) unsigned char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
+  alignas(cmsghdr) unsigned char control[detail::kReceiveControlBytes];
   msghdr msg{};
   msg.msg_iov = &iov;
   msg.msg_iovlen = 1;
@@ -107,23 +108,11 @@ Status UdpReceiver::receive(Span<std::uint8_t> buf, Duration timeout, std::size_
   // Both clocks right after the read map the kernel's wall-clock stamp onto the monotonic clock.
   const Timestamp monoNow = monotonicNow();
   const Timestamp realNow = realtimeNow();
-  Timestamp kernel = realNow;
-  for (cmsghdr* cm = CMSG_FIRSTHDR(&msg); cm != nullptr; cm = CMSG_NXTHDR(&msg, cm)) {
-    if (cm->cmsg_level != SOL_SOCKET) {
-      continue;
-    }
-    if (cm->cmsg_type == SCM_TIMESTAMPNS && cm->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
-      timespec ts{};
-      std::memcpy(&ts, CMSG_DATA(cm), sizeof(ts));
-      if (toNs(ts) != 0) {
-        kernel = Timestamp::fromNanoseconds(toNs(ts));
-      }
-    } else if (cm->cmsg_type == SO_RXQ_OVFL && cm->cmsg_len >= CMSG_LEN(sizeof(std::uint32_t))) {
-      std::uint32_t drops = 0;
-      std::memcpy(&drops, CMSG_DATA(cm), sizeof(drops));
-      counters_.kernelDrops += static_cast<std::uint32_t>(drops - lastKernelDrops_);  // wraps
-      lastKernelDrops_ = drops;
-    }
+  const detail::ReceiveControl rc = detail::readReceiveControl(msg);
+  const Timestamp kernel = rc.stamped ? rc.kernelStamp : realNow;  // no kernel stamp: the read time
+  if (rc.haveDrops) {
+    counters_.kernelDrops += static_cast<std::uint32_t>(rc.drops - lastKernelDrops_);  // wraps
+    lastKernelDrops_ = rc.drops;
   }
   if ((msg.msg_flags & MSG_TRUNC) != 0) {
     ++counters_.oversized;

@@ -113,8 +113,8 @@ Status VelodyneDecoder::decode(Span<const std::uint8_t> packet, Span<FiringRecor
       } else if (firing > 0) {
         const std::uint8_t* pb = p + (firing - 1U) * stride * kBlockBytes;
         if (le16(pb) == kUpperBlock && le16(pb + 2) < kAzimuthTurn) {
-          step = static_cast<float>((static_cast<int>(az) - static_cast<int>(le16(pb + 2)) + kAzimuthTurn) %
-                                    kAzimuthTurn);
+          step =
+              static_cast<float>((static_cast<int>(az) - static_cast<int>(le16(pb + 2)) + kAzimuthTurn) % kAzimuthTurn);
         }
       }
       if (!second) {
@@ -136,8 +136,7 @@ Status VelodyneDecoder::decode(Span<const std::uint8_t> packet, Span<FiringRecor
           r.laser = static_cast<std::uint8_t>(laser);
           const std::uint32_t tIn = laser * kVlp16LaserNs + seq * kVlp16SequenceNs;
           r.timeNs = static_cast<std::uint32_t>(firing) * kVlp16BlockNs + tIn;
-          const float f = static_cast<float>(az) +
-                          step * static_cast<float>(tIn) / static_cast<float>(kVlp16BlockNs);
+          const float f = static_cast<float>(az) + step * static_cast<float>(tIn) / static_cast<float>(kVlp16BlockNs);
           r.azimuth = static_cast<std::uint16_t>(static_cast<long>(std::lround(f)) % kAzimuthTurn);
           break;
         }

@@ -48,7 +48,8 @@ bool fill(std::vector<Entry>& entries, double resolution, std::int64_t declared,
     return false;
   }
   if (declared >= 0 && static_cast<std::size_t>(declared) != entries.size()) {
-    error = "num_lasers is " + std::to_string(declared) + " but " + std::to_string(entries.size()) + " lasers are listed";
+    error =
+        "num_lasers is " + std::to_string(declared) + " but " + std::to_string(entries.size()) + " lasers are listed";
     return false;
   }
   LaserIntrinsics table;

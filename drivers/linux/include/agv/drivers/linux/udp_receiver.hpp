@@ -24,10 +24,10 @@ struct UdpReceiverConfig {
 };
 
 struct UdpReceiverCounters {
-  std::uint32_t datagrams = 0;       ///< delivered to the caller
-  std::uint32_t kernelDrops = 0;     ///< dropped by the kernel (socket buffer full)
-  std::uint32_t oversized = 0;       ///< refused: larger than the caller's buffer
-  std::uint32_t receiveErrors = 0;   ///< recvmsg failures other than "nothing to read"
+  std::uint32_t datagrams = 0;      ///< delivered to the caller
+  std::uint32_t kernelDrops = 0;    ///< dropped by the kernel (socket buffer full)
+  std::uint32_t oversized = 0;      ///< refused: larger than the caller's buffer
+  std::uint32_t receiveErrors = 0;  ///< recvmsg failures other than "nothing to read"
 };
 
 class UdpReceiver {

@@ -88,14 +88,14 @@ struct PacketInfo {
 
 /// What the decoder has refused and skipped since construction (or resetCounters()).
 struct VelodyneCounters {
-  std::uint32_t packets = 0;        ///< packets decoded (possibly with skipped blocks)
-  std::uint32_t truncated = 0;      ///< refused: fewer than 1206 bytes
-  std::uint32_t oversized = 0;      ///< refused: more than 1206 bytes
-  std::uint32_t wrongProduct = 0;   ///< refused: product id / return mode byte not this model's
-  std::uint32_t badBlockId = 0;     ///< blocks skipped: id not 0xEEFF (HDL-64E: nor 0xDDFF)
-  std::uint32_t badAzimuth = 0;     ///< blocks skipped: azimuth >= 36000
-  std::uint32_t noReturn = 0;       ///< records with distance 0 (skipped unless keepNoReturn)
-  std::uint32_t outputFull = 0;     ///< records refused because the output span was full
+  std::uint32_t packets = 0;       ///< packets decoded (possibly with skipped blocks)
+  std::uint32_t truncated = 0;     ///< refused: fewer than 1206 bytes
+  std::uint32_t oversized = 0;     ///< refused: more than 1206 bytes
+  std::uint32_t wrongProduct = 0;  ///< refused: product id / return mode byte not this model's
+  std::uint32_t badBlockId = 0;    ///< blocks skipped: id not 0xEEFF (HDL-64E: nor 0xDDFF)
+  std::uint32_t badAzimuth = 0;    ///< blocks skipped: azimuth >= 36000
+  std::uint32_t noReturn = 0;      ///< records with distance 0 (skipped unless keepNoReturn)
+  std::uint32_t outputFull = 0;    ///< records refused because the output span was full
   std::uint32_t refusedPackets() const noexcept { return truncated + oversized + wrongProduct; }
 };
 
