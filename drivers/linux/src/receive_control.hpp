@@ -4,6 +4,7 @@
 // kernel's drop counter (SO_RXQ_OVFL).
 
 #include <sys/socket.h>
+#include <sys/types.h>
 
 #include <cstdint>
 #include <cstring>
@@ -42,6 +43,27 @@ inline ReceiveControl readReceiveControl(msghdr& msg) noexcept {
     }
   }
   return rc;
+}
+
+/// One recvmsg(MSG_DONTWAIT) of a message into [data, data + len) with room for both control
+/// messages, which are read into `rc`; `flags` = the message's msg_flags (MSG_TRUNC: cut). Returns
+/// recvmsg's result (-1 with errno set: nothing read, `rc` untouched).
+inline ssize_t receiveWithControl(int fd, void* data, std::size_t len, ReceiveControl& rc, int& flags) noexcept {
+  iovec iov{};
+  iov.iov_base = data;
+  iov.iov_len = len;
+  alignas(cmsghdr) unsigned char control[kReceiveControlBytes];
+  msghdr msg{};
+  msg.msg_iov = &iov;
+  msg.msg_iovlen = 1;
+  msg.msg_control = control;
+  msg.msg_controllen = sizeof(control);
+  const ssize_t n = ::recvmsg(fd, &msg, MSG_DONTWAIT);
+  if (n >= 0) {
+    rc = readReceiveControl(msg);
+    flags = msg.msg_flags;
+  }
+  return n;
 }
 
 }  // namespace agv::drivers::detail

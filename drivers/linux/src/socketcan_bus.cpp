@@ -269,18 +269,9 @@ void SocketCanBus::noteErrorFrame(const CanFrame& frame) noexcept {
 
 Status SocketCanBus::readOne(CanFrame& out) noexcept {
   can_frame raw{};
-  iovec iov{};
-  iov.iov_base = &raw;
-  iov.iov_len = sizeof(raw);
-  // Room for the timestamp and the drop counter (aligned like cmsghdr).
-  alignas(cmsghdr) unsigned char control[detail::kReceiveControlBytes];
-  msghdr msg{};
-  msg.msg_iov = &iov;
-  msg.msg_iovlen = 1;
-  msg.msg_control = control;
-  msg.msg_controllen = sizeof(control);
-
-  const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT);
+  detail::ReceiveControl rc;  // the kernel's receive stamp and drop counter
+  int flags = 0;
+  const ssize_t n = detail::receiveWithControl(fd_, &raw, sizeof(raw), rc, flags);
   if (n < 0) {
     const int err = errno;
     if (err == EAGAIN || err == EWOULDBLOCK || err == EINTR) {
@@ -294,7 +285,6 @@ Status SocketCanBus::readOne(CanFrame& out) noexcept {
   // onto the monotonic clock without the read latency entering the stamp.
   const Timestamp monoNow = monotonicNow();
   const Timestamp realNow = clockNow(CLOCK_REALTIME);
-  const detail::ReceiveControl rc = detail::readReceiveControl(msg);
   const bool stamped = rc.stamped;
   Timestamp kernelStamp = rc.kernelStamp;
   if (rc.haveDrops) {
@@ -302,8 +292,7 @@ Status SocketCanBus::readOne(CanFrame& out) noexcept {
     lastKernelDrops_ = rc.drops;
   }
 
-  if (static_cast<std::size_t>(n) != sizeof(can_frame) || (msg.msg_flags & MSG_TRUNC) != 0 ||
-      raw.can_dlc > CAN_MAX_DLEN) {
+  if (static_cast<std::size_t>(n) != sizeof(can_frame) || (flags & MSG_TRUNC) != 0 || raw.can_dlc > CAN_MAX_DLEN) {
     ++health_.counters.rxMalformed;
     return Status::Malformed;
   }

@@ -87,16 +87,9 @@ Status UdpReceiver::receive(Span<std::uint8_t> buf, Duration timeout, std::size_
   if (ready <= 0) {
     return Status::Timeout;  // nothing (or EINTR: the caller calls again)
   }
-  iovec iov{};
-  iov.iov_base = buf.data();
-  iov.iov_len = buf.size();
-  alignas(cmsghdr) unsigned char control[detail::kReceiveControlBytes];
-  msghdr msg{};
-  msg.msg_iov = &iov;
-  msg.msg_iovlen = 1;
-  msg.msg_control = control;
-  msg.msg_controllen = sizeof(control);
-  const ssize_t got = ::recvmsg(fd_, &msg, MSG_DONTWAIT);
+  detail::ReceiveControl rc;
+  int flags = 0;
+  const ssize_t got = detail::receiveWithControl(fd_, buf.data(), buf.size(), rc, flags);
   if (got < 0) {
     const int err = errno;
     if (err == EAGAIN || err == EWOULDBLOCK || err == EINTR) {
@@ -108,13 +101,12 @@ Status UdpReceiver::receive(Span<std::uint8_t> buf, Duration timeout, std::size_
   // Both clocks right after the read map the kernel's wall-clock stamp onto the monotonic clock.
   const Timestamp monoNow = monotonicNow();
   const Timestamp realNow = realtimeNow();
-  const detail::ReceiveControl rc = detail::readReceiveControl(msg);
   const Timestamp kernel = rc.stamped ? rc.kernelStamp : realNow;  // no kernel stamp: the read time
   if (rc.haveDrops) {
     counters_.kernelDrops += static_cast<std::uint32_t>(rc.drops - lastKernelDrops_);  // wraps
     lastKernelDrops_ = rc.drops;
   }
-  if ((msg.msg_flags & MSG_TRUNC) != 0) {
+  if ((flags & MSG_TRUNC) != 0) {
     ++counters_.oversized;
     return Status::Malformed;
   }
