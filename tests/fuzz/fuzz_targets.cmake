@@ -9,14 +9,16 @@ add_library(agv_fuzz_protocol STATIC
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/nav350.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/plc_register_map.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/modbus_request.cpp
-  ${AGV_FUZZ_ROOT}/drivers/protocol/src/canopen_encoders.cpp)
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/canopen_encoders.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/velodyne_packet.cpp
+  ${AGV_FUZZ_ROOT}/core/src/lidar3d/laser_intrinsics.cpp)
 target_include_directories(agv_fuzz_protocol PUBLIC ${AGV_FUZZ_ROOT}/core/include ${AGV_FUZZ_ROOT}/hal/include
                                                     ${AGV_FUZZ_ROOT}/drivers/protocol/include)
 target_link_libraries(agv_fuzz_protocol PUBLIC Eigen3::Eigen)
 target_compile_features(agv_fuzz_protocol PUBLIC cxx_std_17)
 target_compile_options(agv_fuzz_protocol PRIVATE -fsanitize=fuzzer-no-link,address -fno-omit-frame-pointer -g)
 target_link_options(agv_fuzz_protocol INTERFACE -fsanitize=address)
-foreach(_t cola_a nav350 canopen modbus)
+foreach(_t cola_a nav350 canopen modbus velodyne)
   add_executable(fuzz_${_t} ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_${_t}.cpp)
   target_link_libraries(fuzz_${_t} PRIVATE agv_fuzz_protocol)
   target_compile_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
@@ -42,3 +44,19 @@ target_include_directories(fuzz_vehicle_config PRIVATE ${AGV_FUZZ_ROOT}/apps/veh
 target_link_libraries(fuzz_vehicle_config PRIVATE agv_fuzz_protocol)
 target_compile_options(fuzz_vehicle_config PRIVATE ${_agv_fuzz_flags})
 target_link_options(fuzz_vehicle_config PRIVATE ${_agv_fuzz_flags})
+
+# The Velodyne calibration-file parsers (db.xml, ROS YAML) with the report library's number parser
+# and file reader (host code, exceptions on).
+foreach(_t velodyne_yaml velodyne_dbxml)
+  add_executable(fuzz_${_t}
+    ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_velodyne_calibration.cpp
+    ${AGV_FUZZ_ROOT}/apps/lib/datasets/src/velodyne_calibration.cpp
+    ${AGV_FUZZ_ROOT}/apps/lib/report/src/number.cpp
+    ${AGV_FUZZ_ROOT}/apps/lib/report/src/text_file.cpp)
+  target_include_directories(fuzz_${_t} PRIVATE ${AGV_FUZZ_ROOT}/apps/lib/datasets/include
+                                                ${AGV_FUZZ_ROOT}/apps/lib/report/include ${AGV_FUZZ_ROOT}/tests/fuzz)
+  target_link_libraries(fuzz_${_t} PRIVATE agv_fuzz_protocol)
+  target_compile_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
+  target_link_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
+endforeach()
+target_compile_definitions(fuzz_velodyne_dbxml PRIVATE AGV_FUZZ_DBXML)

@@ -13,6 +13,8 @@
 #include <cstring>
 #include <ctime>
 
+#include "receive_control.hpp"
+
 namespace agv::drivers {
 
 const char* toString(CanLinkState state) noexcept {
@@ -267,18 +269,9 @@ void SocketCanBus::noteErrorFrame(const CanFrame& frame) noexcept {
 
 Status SocketCanBus::readOne(CanFrame& out) noexcept {
   can_frame raw{};
-  iovec iov{};
-  iov.iov_base = &raw;
-  iov.iov_len = sizeof(raw);
-  // Room for the timestamp and the drop counter (aligned like cmsghdr).
-  alignas(cmsghdr) unsigned char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
-  msghdr msg{};
-  msg.msg_iov = &iov;
-  msg.msg_iovlen = 1;
-  msg.msg_control = control;
-  msg.msg_controllen = sizeof(control);
-
-  const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT);
+  detail::ReceiveControl rc;  // the kernel's receive stamp and drop counter
+  int flags = 0;
+  const ssize_t n = detail::receiveWithControl(fd_, &raw, sizeof(raw), rc, flags);
   if (n < 0) {
     const int err = errno;
     if (err == EAGAIN || err == EWOULDBLOCK || err == EINTR) {
@@ -292,27 +285,14 @@ Status SocketCanBus::readOne(CanFrame& out) noexcept {
   // onto the monotonic clock without the read latency entering the stamp.
   const Timestamp monoNow = monotonicNow();
   const Timestamp realNow = clockNow(CLOCK_REALTIME);
-  bool stamped = false;
-  Timestamp kernelStamp{};
-  for (cmsghdr* cm = CMSG_FIRSTHDR(&msg); cm != nullptr; cm = CMSG_NXTHDR(&msg, cm)) {
-    if (cm->cmsg_level != SOL_SOCKET) {
-      continue;
-    }
-    if (cm->cmsg_type == SCM_TIMESTAMPNS && cm->cmsg_len >= CMSG_LEN(sizeof(timespec))) {
-      timespec ts{};
-      std::memcpy(&ts, CMSG_DATA(cm), sizeof(ts));
-      kernelStamp = Timestamp::fromNanoseconds(toNs(ts));
-      stamped = kernelStamp.ns != 0;
-    } else if (cm->cmsg_type == SO_RXQ_OVFL && cm->cmsg_len >= CMSG_LEN(sizeof(std::uint32_t))) {
-      std::uint32_t drops = 0;
-      std::memcpy(&drops, CMSG_DATA(cm), sizeof(drops));
-      health_.counters.rxDroppedByKernel += static_cast<std::uint32_t>(drops - lastKernelDrops_);  // wraps
-      lastKernelDrops_ = drops;
-    }
+  const bool stamped = rc.stamped;
+  Timestamp kernelStamp = rc.kernelStamp;
+  if (rc.haveDrops) {
+    health_.counters.rxDroppedByKernel += static_cast<std::uint32_t>(rc.drops - lastKernelDrops_);  // wraps
+    lastKernelDrops_ = rc.drops;
   }
 
-  if (static_cast<std::size_t>(n) != sizeof(can_frame) || (msg.msg_flags & MSG_TRUNC) != 0 ||
-      raw.can_dlc > CAN_MAX_DLEN) {
+  if (static_cast<std::size_t>(n) != sizeof(can_frame) || (flags & MSG_TRUNC) != 0 || raw.can_dlc > CAN_MAX_DLEN) {
     ++health_.counters.rxMalformed;
     return Status::Malformed;
   }

@@ -51,6 +51,9 @@
 #ifndef AGV_MAX_HOUGH_CELLS
 #define AGV_MAX_HOUGH_CELLS 16384
 #endif
+#ifndef AGV_MAX_LIDAR_LASERS
+#define AGV_MAX_LIDAR_LASERS 128
+#endif
 
 namespace agv {
 
@@ -85,6 +88,8 @@ inline constexpr std::size_t kMaxLoopPoints = AGV_MAX_LOOP_POINTS;
 inline constexpr std::size_t kMaxCgVertices = AGV_MAX_CG_VERTICES;
 /// Cells of one translation slice (n_x x n_y) of the affine Hough accumulator.
 inline constexpr std::size_t kMaxHoughCells = AGV_MAX_HOUGH_CELLS;
+/// Lasers (beams) of one multi-beam lidar in a `LaserIntrinsics` table (HDL-64E 64, Ouster 128).
+inline constexpr std::size_t kMaxLidarLasers = AGV_MAX_LIDAR_LASERS;
 
 static_assert(kMaxScanBeams >= 16, "a scan needs at least 16 beams of capacity");
 static_assert(kMaxKeypoints >= 1 && kMaxReflectors >= 1 && kMaxObservations >= 1, "capacities must be positive");
@@ -99,5 +104,6 @@ static_assert(kMaxLoopPoints >= 3 && kMaxLoopPoints < 255, "loop points: at leas
 static_assert(kMaxCgVertices >= 9 && kMaxCgVertices % 64 == 0 && kMaxCgVertices < 65535,
               "correspondence graph vertices: a multiple of 64 (bit-set words)");
 static_assert(kMaxHoughCells >= 4, "capacities must be positive");
+static_assert(kMaxLidarLasers >= 16 && kMaxLidarLasers <= 256, "lidar lasers: 16..256 (ids fit 8 bits)");
 
 }  // namespace agv
