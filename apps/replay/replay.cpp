@@ -102,13 +102,16 @@ class ClusterGrid {
   void add(const Eigen::Vector2d& w, std::size_t cluster) { grid_[key(w.x(), w.y())].push_back(cluster); }
 
  private:
-  long long key(double x, double y) const {
-    return (static_cast<long long>(std::floor(x / cell_)) << 32) ^
-           (static_cast<long long>(std::floor(y / cell_)) & 0xffffffffLL);
+  // Cell indices may be negative: shifted as unsigned (a left shift of a negative signed value is
+  // undefined).
+  unsigned long long key(double x, double y) const {
+    const auto cx = static_cast<unsigned long long>(static_cast<long long>(std::floor(x / cell_)));
+    const auto cy = static_cast<unsigned long long>(static_cast<long long>(std::floor(y / cell_)));
+    return (cx << 32U) ^ (cy & 0xffffffffULL);
   }
 
   double cell_;
-  std::unordered_map<long long, std::vector<std::size_t>> grid_;
+  std::unordered_map<unsigned long long, std::vector<std::size_t>> grid_;
 };
 
 // Clusters the keypoints of every scan, placed in the world with the corrected poses, and adds
