@@ -92,9 +92,13 @@ bool ScanMatcher::collectPoints(const MatchPoints& points, const Pose2d& laser, 
   return true;
 }
 
+double ScanMatcher::effectiveInlierDistance(const LikelihoodFieldBase& field) const noexcept {
+  // The field cannot tell distances beyond its saturation apart.
+  return params_.inlierDistance < field.params().maxDistance ? params_.inlierDistance : field.params().maxDistance;
+}
+
 double ScanMatcher::cost(const Pose2d& x, const LikelihoodFieldBase& field) const noexcept {
-  const double inlierDistance =
-      params_.inlierDistance < field.params().maxDistance ? params_.inlierDistance : field.params().maxDistance;
+  const double inlierDistance = effectiveInlierDistance(field);
   const double outlierCost = huberCost(inlierDistance, params_.huber);
   const double c = std::cos(x.theta);
   const double s = std::sin(x.theta);
@@ -225,8 +229,7 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
                                     double allowedRotation, const LikelihoodFieldBase& field) noexcept {
   ScanMatchResult result;
   result.pose = prior;
-  const double inlierDistance =
-      params_.inlierDistance < field.params().maxDistance ? params_.inlierDistance : field.params().maxDistance;
+  const double inlierDistance = effectiveInlierDistance(field);
   const double outlierCost = huberCost(inlierDistance, params_.huber);
   const auto linearise = [&](const Pose2d& x) noexcept {
     Normal n;

@@ -163,6 +163,8 @@ class ScanMatcher {
   /// Search and refinement once the points are collected.
   ScanMatchResult searchAndRefine(const Pose2d& prior, const Eigen::Matrix3d& priorCovariance,
                                   const LikelihoodFieldBase& field, ScanMatchResult result) noexcept;
+  /// `inlierDistance`, capped at the field's saturation distance.
+  double effectiveInlierDistance(const LikelihoodFieldBase& field) const noexcept;
   /// Robust cost of the points at pose `x` (the refinement's objective, without derivatives).
   double cost(const Pose2d& x, const LikelihoodFieldBase& field) const noexcept;
   /// The coarse search around `prior` over +-(wx, wy, wt); the best pose (prior when no better).
