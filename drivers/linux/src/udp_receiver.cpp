@@ -71,6 +71,7 @@ Status UdpReceiver::open() noexcept {
   }
   localPort_ = ntohs(bound.sin_port);
   lastKernelDrops_ = 0;
+  haveStamp_ = false;
   return Status::Ok;
 }
 
@@ -98,9 +99,12 @@ Status UdpReceiver::receive(Span<std::uint8_t> buf, Duration timeout, std::size_
     ++counters_.receiveErrors;
     return Status::DeviceFault;
   }
-  // Both clocks right after the read map the kernel's wall-clock stamp onto the monotonic clock.
-  const Timestamp monoNow = monotonicNow();
+  // Both clocks right after the read map the kernel's wall-clock stamp onto the monotonic clock;
+  // the wall clock is read between two monotonic reads and paired with their midpoint.
+  const Timestamp monoBefore = monotonicNow();
   const Timestamp realNow = realtimeNow();
+  const Timestamp monoAfter = monotonicNow();
+  const Timestamp monoNow = monoBefore + Duration{(monoAfter - monoBefore).ns / 2};
   const Timestamp kernel = rc.stamped ? rc.kernelStamp : realNow;  // no kernel stamp: the read time
   if (rc.haveDrops) {
     counters_.kernelDrops += static_cast<std::uint32_t>(rc.drops - lastKernelDrops_);  // wraps
@@ -112,6 +116,11 @@ Status UdpReceiver::receive(Span<std::uint8_t> buf, Duration timeout, std::size_
   }
   n = static_cast<std::size_t>(got);
   stamp = kernel - (realNow - monoNow);
+  if (haveStamp_ && stamp < lastStamp_) {
+    stamp = lastStamp_;  // mapping jitter, not a reordering: datagrams are stamped in arrival order
+  }
+  lastStamp_ = stamp;
+  haveStamp_ = true;
   ++counters_.datagrams;
   return Status::Ok;
 }

@@ -46,8 +46,10 @@ class UdpReceiver {
   std::uint16_t localPort() const noexcept { return localPort_; }
 
   /// Receives one datagram into `buf`, waiting at most `timeout` for it. Ok with `n` bytes and its
-  /// receive `stamp` (monotonic); Timeout (nothing arrived); Malformed (a datagram larger than `buf`:
-  /// refused and counted); NotInitialized (not open); DeviceFault (socket error, counted).
+  /// receive `stamp` (monotonic; the kernel's wall-clock arrival stamp mapped onto the monotonic
+  /// clock, never earlier than the previous datagram's: the kernel stamps in arrival order, and the
+  /// microsecond jitter of the mapping must not reorder a burst); Timeout (nothing arrived); Malformed (a datagram
+  /// larger than `buf`: refused and counted); NotInitialized (not open); DeviceFault (socket error, counted).
   Status receive(Span<std::uint8_t> buf, Duration timeout, std::size_t& n, Timestamp& stamp) noexcept;
 
   const UdpReceiverCounters& counters() const noexcept { return counters_; }
@@ -59,6 +61,8 @@ class UdpReceiver {
   int fd_ = -1;
   std::uint16_t localPort_ = 0;
   std::uint32_t lastKernelDrops_ = 0;
+  Timestamp lastStamp_{};
+  bool haveStamp_ = false;
   UdpReceiverCounters counters_{};
 };
 
