@@ -104,6 +104,13 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--resync-after", options.localizer.scanMatch.resyncAfter,
                  "agreeing gated matches that resync (0: off)");
   app.add_option("--resync-agreement", options.localizer.scanMatch.resyncAgreement, "[m] resync agreement");
+  app.add_option("--resync-max-rms", options.localizer.scanMatch.resyncMaxRms, "[m] RMS limit of a match that resyncs");
+  app.add_flag("!--no-field-relocalization", options.fieldRelocalization,
+               "with --map-fraction: no search of the whole field when lost");
+  app.add_option("--reloc-radius", options.relocRadius,
+                 "[m] field relocalization: search radius around the estimate (0: whole field)");
+  app.add_option("--widen-after", options.localizer.scanMatch.widenAfter,
+                 "failed matches before the search widens (0: off)");
   app.add_option("--match-inflation", options.localizer.scanMatch.covarianceInflation,
                  "scan-match covariance inflation");
   app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");

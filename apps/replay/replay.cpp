@@ -361,6 +361,9 @@ class ScanReplay {
       : log_(log), options_(options), inc_(inc), r_(r), lp_(options.localizer) {
     lp_.laser.mounting = options.laserMounting;
     localizer_ = std::make_unique<Localizer>(lp_);
+    FieldRelocalizerParams rp = options.relocalizer;
+    rp.match = lp_.scanMatch;
+    relocalizer_ = std::make_unique<FieldRelocalizer>(rp);
     map_ = std::make_unique<LandmarkMap>(options.map);
     detector_ = std::make_unique<FalkoDetector>(options.falko);
     p0_(0, 0) = p0_(1, 1) = options.initialSigmaXY * options.initialSigmaXY;
@@ -398,7 +401,8 @@ class ScanReplay {
     if (trace_ != nullptr) {
       std::fputs(
           "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
-          "map,match,match_inliers,match_rms,match_d2,correction,heading_correction\n",
+          "map,match,match_inliers,match_rms,match_d2,correction,heading_correction,match_err_xy,match_err_theta,"
+          "window\n",
           trace_);
     }
     return true;
@@ -430,6 +434,9 @@ class ScanReplay {
           ++r_.mapRestarts;
         }
       }
+    }
+    if (field_ && options_.fieldRelocalization && options_.resetWhenLost) {
+      relocalize(i, stamp, h);
     }
     r_.localizer.push_back(localizer_->pose());
     if (field_) {
@@ -472,6 +479,74 @@ class ScanReplay {
     }
     last_ = stamp;
     return true;
+  }
+
+  /// Field relocalization of scan `i` (see `ReplayOptions::fieldRelocalization`): a search when
+  /// the localizer has just been declared lost (or the last candidate was not confirmed), the
+  /// confirmation of a pending candidate otherwise.
+  void relocalize(std::size_t i, Timestamp stamp, const LocalizerHealth& h) {
+    if (reloc_ == RelocState::Searching && h.scanMatch.fused && !h.lost) {
+      reloc_ = RelocState::Idle;  // the tracking found the map again by itself
+    }
+    if (reloc_ == RelocState::Idle && !h.lost) {
+      return;
+    }
+    points_->clear();
+    for (std::size_t b = 0; b < scan_->size(); ++b) {
+      if (scan_->isValid(b)) {
+        const double a = static_cast<double>(scan_->angle(b));
+        const double r = static_cast<double>(scan_->ranges[b]);
+        (void)points_->push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))});
+      }
+    }
+    const Pose2d& mount = lp_.laser.mounting;
+    if (reloc_ == RelocState::Confirming) {
+      const Pose2d carried = candidate_.compose(inc_[i]);
+      Pose2d refined;
+      if (relocalizer_->confirm(*points_, mount, carried, *field_, refined)) {
+        candidate_ = refined;
+        if (++confirmations_ >= options_.relocConfirmations) {
+          Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+          // The candidate's fit over the confirmations, loosely: the tracking refines it.
+          cov(0, 0) = cov(1, 1) = options_.relocConfirmDistance() * options_.relocConfirmDistance() / 4.0;
+          cov(2, 2) = options_.relocConfirmAngle() * options_.relocConfirmAngle() / 4.0;
+          if (localizer_->reset(stamp, candidate_, cov) == Status::Ok) {
+            ++r_.relocConfirmed;
+            const Pose2d& t = log_.scans[i].robotPose;
+            r_.relocWrong += std::hypot(candidate_.x - t.x, candidate_.y - t.y) > 0.3 ||
+                                     std::fabs(normalizeAngle(candidate_.theta - t.theta)) > deg2rad(5.0)
+                                 ? 1U
+                                 : 0U;
+          }
+          reloc_ = RelocState::Idle;
+        }
+        return;
+      }
+      ++r_.relocUnconfirmed;
+      reloc_ = RelocState::Searching;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    RelocRegion region;
+    if (options_.relocRadius > 0.0) {
+      region.x = localizer_->pose().x;
+      region.y = localizer_->pose().y;
+      const Eigen::Matrix3d& P = localizer_->covariance();
+      const double sigma = std::sqrt(std::max(P(0, 0), P(1, 1)));
+      region.radius = std::max(options_.relocRadius, 3.0 * sigma);
+    }
+    const FieldRelocResult f = relocalizer_->localize(*points_, mount, *field_, region);
+    r_.relocSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ++r_.relocSearches;
+    r_.relocAmbiguous += f.outcome == FieldRelocOutcome::Ambiguous ? 1U : 0U;
+    r_.relocWeak += f.outcome == FieldRelocOutcome::WeakSupport ? 1U : 0U;
+    if (f.outcome == FieldRelocOutcome::Found) {
+      ++r_.relocFound;
+      candidate_ = f.pose;
+      confirmations_ = 0;
+      reloc_ = RelocState::Confirming;
+    } else {
+      reloc_ = RelocState::Searching;
+    }
   }
 
   /// Whether the current scan is on the map at the vehicle pose `truth` (`ReplayResult::onMap`).
@@ -544,12 +619,15 @@ class ScanReplay {
     }
     const Pose2d& e = r_.localizer.back();
     const Pose2d& t = log_.scans[i].robotPose;
-    std::fprintf(trace_, "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f,%.4f,%.5f\n", i,
+    std::fprintf(trace_,
+                 "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f,%.4f,%.5f,%.4f,%.4f,%.2f\n", i,
                  obs_->points.size(), unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched},
                  unsigned{h.rejectedGate}, unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma,
                  h.headingSigma, std::hypot(e.x - t.x, e.y - t.y), normalizeAngle(e.theta - t.theta), map_->size(),
                  h.scanMatch.attempted ? toString(h.scanMatch.status) : "-", unsigned{h.scanMatch.inliers},
-                 h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2, h.correction, h.headingCorrection);
+                 h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2, h.correction, h.headingCorrection,
+                 std::hypot(h.scanMatch.pose.x - t.x, h.scanMatch.pose.y - t.y),
+                 normalizeAngle(h.scanMatch.pose.theta - t.theta), h.scanMatch.window);
   }
 
   const datasets::CarmenLog& log_;
@@ -565,6 +643,12 @@ class ScanReplay {
   std::unique_ptr<LaserScan> scan_ = std::make_unique<LaserScan>();
   std::unique_ptr<FalkoKeypoints> kps_ = std::make_unique<FalkoKeypoints>();
   std::unique_ptr<ScanObservations> obs_ = std::make_unique<ScanObservations>();
+  enum class RelocState : std::uint8_t { Idle, Searching, Confirming };
+  RelocState reloc_ = RelocState::Idle;
+  std::unique_ptr<FieldRelocalizer> relocalizer_;
+  std::unique_ptr<MatchPoints> points_ = std::make_unique<MatchPoints>();
+  Pose2d candidate_{};
+  std::size_t confirmations_ = 0;
   Eigen::Matrix3d p0_ = Eigen::Matrix3d::Zero();
   Timestamp last_;
   double ratioSum_ = 0.0;
@@ -684,6 +768,10 @@ std::string resultText(const ReplayResult& r) {
     o << "scan matching: " << r.matchAttempts << " attempts, " << r.matchFused << " fused, " << r.matchGated
       << " gated, " << r.matchRefused << " refused by the matcher; " << r.noFixCycles << " cycles without a fix, "
       << r.lostCycles << " cycles lost\n";
+    o << "field relocalization: " << r.relocSearches << " searches (" << fmt("%.2f s", r.relocSeconds) << "), "
+      << r.relocFound << " found, " << r.relocAmbiguous << " ambiguous, " << r.relocWeak << " weak; "
+      << r.relocConfirmed << " confirmed restarts (" << r.relocWrong << " wrong), " << r.relocUnconfirmed
+      << " unconfirmed\n";
   }
   o << (r.staticMap ? "static map (built from the corrected poses): " : "dynamic map: ") << r.mapSize
     << " landmarks at the end, " << r.mapInserted << " inserted, " << r.mapDeleted << " deleted; replay "
@@ -719,6 +807,15 @@ report::Json resultJson(const ReplayResult& r) {
         {"odometry", errors(r.odometryOnMap.position, r.odometryOnMap.heading)}}},
       {"scan_matching",
        {{"attempts", r.matchAttempts}, {"fused", r.matchFused}, {"gated", r.matchGated}, {"refused", r.matchRefused}}},
+      {"field_relocalization",
+       {{"searches", r.relocSearches},
+        {"found", r.relocFound},
+        {"ambiguous", r.relocAmbiguous},
+        {"weak", r.relocWeak},
+        {"confirmed", r.relocConfirmed},
+        {"wrong", r.relocWrong},
+        {"unconfirmed", r.relocUnconfirmed},
+        {"seconds", r.relocSeconds}}},
       {"laser_x_m", r.laserX},
       {"localizer",
        {{"keypoints", r.keypoints},

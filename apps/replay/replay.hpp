@@ -11,6 +11,7 @@
 #include "agv/core/pose2.hpp"
 #include "agv/datasets/carmen_log.hpp"
 #include "agv/falko/falko_params.hpp"
+#include "agv/localization/field_relocalizer.hpp"
 #include "agv/localization/likelihood_field.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/odometry.hpp"
@@ -64,6 +65,19 @@ struct ReplayOptions {
   /// Scan-to-map matching on the field (with `mapFraction`); off: the corner map alone.
   bool scanMatching = true;
   double onMapFraction = 0.5;  ///< see `ReplayResult::onMap`
+  /// With the field: when the localizer is lost, search the whole field for the scan
+  /// (`FieldRelocalizer`), confirm the candidate on `relocConfirmations` further scans carried by
+  /// the odometry, then restart the localizer there. Off: the lost localizer is restarted at its
+  /// own estimate (`resetWhenLost`).
+  bool fieldRelocalization = true;
+  FieldRelocalizerParams relocalizer{};
+  std::size_t relocConfirmations = 2;
+  double relocConfirmDistance() const { return relocalizer.confirmDistance; }
+  double relocConfirmAngle() const { return relocalizer.confirmAngle; }
+  /// [m] the search covers a disc around the dead-reckoned estimate: 3 standard deviations of its
+  /// position covariance (which grows with the distance driven since the loss), at least this
+  /// radius; 0: the whole field.
+  double relocRadius = 3.0;
   /// When not empty, one CSV line per scan (health and errors) is written here.
   std::string tracePath;
 };
@@ -158,6 +172,15 @@ struct ReplayResult {
   std::size_t matchGated = 0;     ///< refused by the gate against the prior
   std::size_t matchRefused = 0;   ///< refused by the matcher (too few inliers, unobservable, ...)
   std::size_t lostCycles = 0;     ///< cycles whose health said lost
+  // Field relocalization (`ReplayOptions::fieldRelocalization`).
+  std::size_t relocSearches = 0;     ///< scans searched on the whole field
+  std::size_t relocFound = 0;        ///< searches that found one pose
+  std::size_t relocAmbiguous = 0;    ///< searches refused as ambiguous
+  std::size_t relocWeak = 0;         ///< searches with no candidate that fits
+  std::size_t relocConfirmed = 0;    ///< candidates confirmed: the localizer restarted there
+  std::size_t relocUnconfirmed = 0;  ///< candidates the next scans did not confirm
+  std::size_t relocWrong = 0;        ///< confirmed restarts more than 0.3 m / 5 deg from the corrected pose
+  double relocSeconds = 0.0;         ///< wall time spent in the searches
   /// Per localized scan: on the map, i.e. at least `onMapFraction` of its points (thinned as the
   /// matcher thins them) lie within the matcher's inlier distance of the field's surfaces at the
   /// *true* pose. What a map-based localizer can be asked to hold; off the map it dead-reckons.

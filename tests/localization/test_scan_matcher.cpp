@@ -11,6 +11,7 @@
 #include <random>
 #include <vector>
 
+#include "agv/localization/field_relocalizer.hpp"
 #include "agv/localization/likelihood_field.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/scan_matcher.hpp"
@@ -406,8 +407,9 @@ struct FieldRun {
   Timestamp t = Timestamp::fromSeconds(1.0);
   std::mt19937_64 rng{21};
 
-  FieldRun() {
+  explicit FieldRun(const ScanMatchParams& scanMatch = ScanMatchParams{}) {
     buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+    params.scanMatch = scanMatch;
     params.laser.mounting = Pose2d{0.6, 0.0, 0.0};
     loc = std::make_unique<Localizer>(params);
     LandmarkMapParams mp;
@@ -490,6 +492,82 @@ TEST_CASE("localizer with a likelihood field: a slip beyond the odometry model i
   CHECK_FALSE(after.scanMatch.resynced);
 }
 
+TEST_CASE("localizer with a likelihood field: a slip beyond the search window is found by the widened search",
+          "[localization][scanmatch][localizer]") {
+  // The vehicle is carried 0.9 m sideways and turned 8 deg that the odometry never reports: far
+  // outside the tracking window of the filter's millimetre covariance (3 sigma) and beyond the
+  // refinement's basin. Without recovery the filter never finds the map again; with it, the
+  // window doubles per failed cycle and three agreeing matches re-synchronise the pose.
+  const auto drive = [](std::uint8_t widenAfter, int& resyncAt, double& error) {
+    ScanMatchParams sm;
+    sm.widenAfter = widenAfter;
+    FieldRun run(sm);
+    for (int c = 0; c < 5; ++c) {
+      REQUIRE(run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0}).scanMatch.fused);
+    }
+    (void)run.step(Pose2d{0.0, 0.9, 0.14}, Pose2d{0.0, 0.0, 0.0});
+    resyncAt = -1;
+    bool widened = false;
+    for (int c = 0; c < 12 && resyncAt < 0; ++c) {
+      const LocalizerHealth& h = run.step(Pose2d{0.05, 0.0, 0.0}, Pose2d{0.05, 0.0, 0.0});
+      widened = widened || h.scanMatch.widened;
+      CHECK(h.scanMatch.window <= run.params.scanMatch.maxRecoveryTranslation + 1e-9);
+      if (h.scanMatch.resynced) {
+        resyncAt = c;
+      }
+    }
+    CHECK(widened == (widenAfter > 0U));
+    error = std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y);
+  };
+  int resyncAt = -1;
+  double error = 0.0;
+  drive(0, resyncAt, error);
+  CHECK(resyncAt < 0);  // off: the tracking window cannot reach (else the test shows nothing)
+  CHECK(error > 0.5);
+  drive(2, resyncAt, error);
+  CHECK(resyncAt >= 0);
+  CHECK(error < 0.02);
+}
+
+TEST_CASE("scan matcher: an explicit search window reaches beyond the tracking caps; bad windows are refused",
+          "[localization][scanmatch]") {
+  auto field = std::make_unique<HallField>();
+  const std::vector<Segment> segs = hall();
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  auto scan = std::make_unique<LaserScan>();
+  auto matcher = std::make_unique<ScanMatcher>();
+  std::mt19937_64 rng(5);
+  const Pose2d laser{0.6, 0.0, 0.0};
+  const Pose2d truth{4.0, 4.5, -0.4};
+  castScan(segs, truth.compose(laser), 0.01, rng, *scan);
+  const Pose2d prior{truth.x - 1.1, truth.y + 0.8, truth.theta + 0.3};
+  // A covariance as wide as the offset: the window is capped at maxSearchTranslation (0.6 m).
+  Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+  P.diagonal() << 0.5 * 0.5, 0.5 * 0.5, 0.15 * 0.15;
+  const SearchWindow capped = matcher->searchWindow(P);
+  CHECK(capped.x == Approx(matcher->params().maxSearchTranslation));
+  CHECK(capped.theta == Approx(matcher->params().maxSearchRotation));
+  const ScanMatchResult tracking = matcher->match(*scan, laser, prior, P, *field);
+  CHECK_FALSE(
+      (tracking.status == Status::Ok && std::hypot(tracking.pose.x - truth.x, tracking.pose.y - truth.y) < 0.02));
+  const ScanMatchResult wide = matcher->match(*scan, laser, prior, SearchWindow{1.6, 1.6, 0.5}, *field);
+  REQUIRE(wide.status == Status::Ok);
+  CHECK(wide.searched <= matcher->params().maxSearchPoses + 1U);
+  CHECK(std::hypot(wide.pose.x - truth.x, wide.pose.y - truth.y) < 0.02);
+  CHECK(std::fabs(normalizeAngle(wide.pose.theta - truth.theta)) < 0.2 * kPiD / 180.0);
+  CHECK(matcher->match(*scan, laser, prior, SearchWindow{-0.1, 0.5, 0.1}, *field).status == Status::InvalidArgument);
+  CHECK(matcher->match(*scan, laser, prior, SearchWindow{0.5, std::nan(""), 0.1}, *field).status ==
+        Status::InvalidArgument);
+  CHECK(matcher->match(*scan, laser, prior, SearchWindow{0.5, 0.5, INFINITY}, *field).status ==
+        Status::InvalidArgument);
+  ScanMatchParams bad;
+  bad.maxRecoveryTranslation = bad.recoveryTranslation / 2.0;
+  CHECK(bad.validate() == Status::InvalidArgument);
+  bad = ScanMatchParams{};
+  bad.resyncMaxRms = 0.0;
+  CHECK(bad.validate() == Status::InvalidArgument);
+}
+
 TEST_CASE("localizer with a likelihood field: the steady-state cycle allocates nothing",
           "[localization][scanmatch][alloc]") {
   FieldRun run;
@@ -505,4 +583,133 @@ TEST_CASE("localizer with a likelihood field: the steady-state cycle allocates n
                              (void)run.loc->correct(*run.obs, *run.scan, *run.map, *run.field));
     CHECK(run.loc->health().scanMatch.fused);
   }
+}
+
+namespace {
+
+/// The scan's valid beams as points in the laser frame.
+void toPoints(const LaserScan& scan, MatchPoints& points) {
+  points.clear();
+  for (std::size_t b = 0; b < scan.size(); ++b) {
+    if (scan.isValid(b)) {
+      const double a = static_cast<double>(scan.angle(b));
+      const double r = static_cast<double>(scan.ranges[b]);
+      REQUIRE(points.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))}) ==
+              Status::Ok);
+    }
+  }
+}
+
+}  // namespace
+
+TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with no prior, allocation-free",
+          "[localization][scanmatch][reloc]") {
+  auto field = std::make_unique<HallField>();
+  const std::vector<Segment> segs = hall();
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  auto scan = std::make_unique<LaserScan>();
+  auto points = std::make_unique<MatchPoints>();
+  auto reloc = std::make_unique<FieldRelocalizer>();
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<double> ux(0.8, 11.2);
+  std::uniform_real_distribution<double> uy(0.8, 7.2);
+  std::uniform_real_distribution<double> ut(-kPiD, kPiD);
+  const Pose2d laser{0.6, 0.0, 0.0};
+  int tried = 0;
+  int found = 0;
+  for (int k = 0; k < 60 && tried < 12; ++k) {
+    const Pose2d truth{ux(rng), uy(rng), ut(rng)};
+    if (!inFreeSpace(truth.translation()) || !inFreeSpace(truth.compose(laser).translation())) {
+      continue;
+    }
+    ++tried;
+    castScan(segs, truth.compose(laser), 0.01, rng, *scan);
+    toPoints(*scan, *points);
+    FieldRelocResult r;
+    AGV_CHECK_NO_ALLOCATIONS(r = reloc->localize(*points, laser, *field));
+    INFO("truth " << truth.x << " " << truth.y << " " << truth.theta << ": outcome " << static_cast<int>(r.outcome));
+    CHECK(r.scored > 10000U);
+    if (r.outcome != FieldRelocOutcome::Found) {
+      // Never a wrong pose: the only other answers say why there is none.
+      CHECK((r.outcome == FieldRelocOutcome::Ambiguous || r.outcome == FieldRelocOutcome::WeakSupport));
+      WARN("not found: outcome " << static_cast<int>(r.outcome) << " runner-up " << r.runnerUp << " of " << r.close
+                                 << " at " << truth.x << " " << truth.y << " " << truth.theta);
+      continue;
+    }
+    ++found;
+    CHECK(r.status == Status::Ok);
+    CHECK(std::hypot(r.pose.x - truth.x, r.pose.y - truth.y) < 0.02);
+    CHECK(std::fabs(normalizeAngle(r.pose.theta - truth.theta)) < 0.2 * kPiD / 180.0);
+    // Confirmation: the next scan, 0.3 m on, carried by an odometry 8 cm / 3 deg off.
+    const Pose2d next = truth.compose(Pose2d{0.3, 0.0, 0.0});
+    if (inFreeSpace(next.compose(laser).translation())) {
+      castScan(segs, next.compose(laser), 0.01, rng, *scan);
+      toPoints(*scan, *points);
+      Pose2d refined;
+      CHECK(reloc->confirm(*points, laser, r.pose.compose(Pose2d{0.38, 0.0, 0.05}), *field, refined));
+      CHECK(std::hypot(refined.x - next.x, refined.y - next.y) < 0.02);
+      // A candidate 0.8 m off is not confirmed.
+      CHECK_FALSE(reloc->confirm(*points, laser, next.compose(Pose2d{0.0, 0.8, 0.0}), *field, refined));
+    }
+  }
+  CHECK(tried >= 10);
+  CHECK(found >= tried * 3 / 4);  // the hall's column and rack make most poses unique
+}
+
+TEST_CASE("field relocalizer: a symmetric room is ambiguous, a region bounds the search, bad input is refused",
+          "[localization][scanmatch][reloc]") {
+  // An empty 10 m x 6 m room: every pose has a twin turned by 180 deg about the centre.
+  const std::vector<Segment> room = {
+      Segment{Eigen::Vector2d(0, 0), Eigen::Vector2d(10, 0)}, Segment{Eigen::Vector2d(10, 0), Eigen::Vector2d(10, 6)},
+      Segment{Eigen::Vector2d(10, 6), Eigen::Vector2d(0, 6)}, Segment{Eigen::Vector2d(0, 6), Eigen::Vector2d(0, 0)}};
+  auto field = std::make_unique<HallField>();
+  buildField(*field, room, 0.0, 0.0, 10.0, 6.0);
+  auto scan = std::make_unique<LaserScan>();
+  auto points = std::make_unique<MatchPoints>();
+  auto reloc = std::make_unique<FieldRelocalizer>();
+  std::mt19937_64 rng(3);
+  const Pose2d laser{0.6, 0.0, 0.0};
+  const Pose2d truth{3.0, 2.0, 0.4};
+  castScan(room, truth.compose(laser), 0.01, rng, *scan);
+  toPoints(*scan, *points);
+  const FieldRelocResult sym = reloc->localize(*points, laser, *field);
+  CHECK(sym.outcome == FieldRelocOutcome::Ambiguous);
+  CHECK(sym.status == Status::Rejected);
+  CHECK(sym.runnerUp > 0U);
+  // Around the true pose only (a dead-reckoned estimate 0.5 m off, 2 m radius): the twin is
+  // outside the disc, the pose is found, with far fewer poses scored.
+  const FieldRelocResult near = reloc->localize(*points, laser, *field, RelocRegion{3.4, 2.3, 2.0});
+  REQUIRE(near.outcome == FieldRelocOutcome::Found);
+  CHECK(std::hypot(near.pose.x - truth.x, near.pose.y - truth.y) < 0.02);
+  CHECK(near.scored * 4U < sym.scored);
+  // A region outside the field has no candidate position.
+  CHECK(reloc->localize(*points, laser, *field, RelocRegion{50.0, 50.0, 2.0}).outcome ==
+        FieldRelocOutcome::NoCandidate);
+  // Bad input.
+  CHECK(reloc->localize(*points, laser, *field, RelocRegion{std::nan(""), 0.0, 1.0}).outcome ==
+        FieldRelocOutcome::InvalidInput);
+  CHECK(reloc->localize(*points, laser, *field, RelocRegion{0.0, 0.0, -1.0}).status == Status::NonFiniteInput);
+  CHECK(reloc->localize(*points, Pose2d{INFINITY, 0.0, 0.0}, *field).outcome == FieldRelocOutcome::InvalidInput);
+  auto unbuilt = std::make_unique<HallField>();
+  CHECK(reloc->localize(*points, laser, *unbuilt).status == Status::NotInitialized);
+  MatchPoints none;
+  CHECK(reloc->localize(none, laser, *field).outcome == FieldRelocOutcome::NoPoints);
+  MatchPoints nan;
+  REQUIRE(nan.push_back(MatchPoint{std::nanf(""), 1.0F}) == Status::Ok);
+  CHECK(reloc->localize(nan, laser, *field).status == Status::EmptyInput);
+  FieldRelocalizerParams tiny;
+  tiny.maxPoses = 1000;
+  auto bounded = std::make_unique<FieldRelocalizer>(tiny);
+  CHECK(bounded->localize(*points, laser, *field).outcome == FieldRelocOutcome::WorkBoundHit);
+  FieldRelocalizerParams bad;
+  bad.candidates = FieldRelocalizer::kMaxCandidates + 1U;
+  CHECK(bad.validate() == Status::InvalidArgument);
+  auto invalid = std::make_unique<FieldRelocalizer>(bad);
+  CHECK(invalid->localize(*points, laser, *field).outcome == FieldRelocOutcome::InvalidInput);
+  bad = FieldRelocalizerParams{};
+  bad.positionStep = std::nan("");
+  CHECK(bad.validate() == Status::NonFiniteInput);
+  bad = FieldRelocalizerParams{};
+  bad.ambiguityRatio = 1.5;
+  CHECK(bad.validate() == Status::InvalidArgument);
 }

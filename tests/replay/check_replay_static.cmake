@@ -1,12 +1,13 @@
 # Checks of agvnav-replay --json --map-fraction 0.5 on fr079 (localization on the product's own
 # maps: static corners and a likelihood field from the first half of the log, the second half
 # localized on them), included by tests/support/run_json_program.cmake with the document in `j`.
-# End to end and shape only: the field is built, three quarters of the localized scans lie on the
-# map, every scan is matched. The tracking accuracy is not checked here because it is not robust
-# yet (docs/localization.md, "Scan matching on real logs": without a global relocalization one
-# excursion beyond the search window is not recovered, and the on-map RMS swings from 0.35 m to
-# 4.6 m with the cell pooling alone); the matcher's accuracy on these logs is checked apart from
-# the tracking by replay.scan_match_real.
+# End to end: the field is built, three quarters of the localized scans lie on the map, every
+# scan is matched, no field relocalization restarted the localizer at a wrong pose. The tracking
+# is checked against a regression bound, not the issue's 10 cm RMS target, which it does not meet
+# (docs/localization.md, "Scan matching on real logs": with the recovery search fr079 measures
+# 0.42-0.45 m RMS and 6-7 cm median on the on-map scans at map fractions 0.4-0.6, the RMS from
+# a few excursions; before it, 0.6-5.6 m): median below 10 cm, RMS below 1 m. The matcher's
+# accuracy on these logs is checked apart from the tracking by replay.scan_match_real.
 expect_keys("${j}" "scans;static_corners;field_surface_cells;field_width_m;field_height_m" mapping_run)
 expect_number_in("${j}" 1 1000000000 mapping_run field_surface_cells)
 expect_number_in("${j}" 1 1000000000 mapping_run static_corners)
@@ -33,3 +34,11 @@ string(JSON medPos GET "${j}" on_map localizer position_m median)
 string(JSON rmsPos GET "${j}" on_map localizer position_m rms)
 string(JSON odoRms GET "${j}" on_map odometry position_m rms)
 message(STATUS "${LOG_NAME}: on the map ${onMap}/${scans}: localizer median ${medPos} m, RMS ${rmsPos} m (odometry ${odoRms} m); fused ${fused}/${attempts}")
+expect_keys("${j}" "searches;found;ambiguous;weak;confirmed;wrong;unconfirmed;seconds" field_relocalization)
+string(JSON wrong GET "${j}" field_relocalization wrong)
+if(NOT wrong EQUAL 0)
+  message(FATAL_ERROR "JSON: ${LOG_NAME}: ${wrong} field relocalizations restarted the localizer at a wrong pose")
+endif()
+if(medPos GREATER_EQUAL 0.10 OR rmsPos GREATER_EQUAL 1.0)
+  message(FATAL_ERROR "JSON: ${LOG_NAME}: on-map tracking median ${medPos} m / RMS ${rmsPos} m (regression bound 0.10 / 1.0 m)")
+endif()

@@ -38,6 +38,7 @@ Status Localizer::reset(Timestamp stamp, const Pose2d& pose, const Eigen::Matrix
   }
   ekf_ = fresh;
   gatedRun_ = 0;
+  failedRun_ = 0;
   HistoryEntry e;
   e.stamp = stamp;
   e.delta = Pose2d{};
@@ -379,11 +380,31 @@ void Localizer::matchScan(const LaserScan& beams, const MatchPoints* points,
                           const LikelihoodFieldBase& field) noexcept {
   ScanMatchHealth& h = health_.scanMatch;
   h.attempted = true;
-  matcher_.setParams(params_.scanMatch);
+  const ScanMatchParams& sp = params_.scanMatch;
+  matcher_.setParams(sp);
+  SearchWindow window = matcher_.searchWindow(ekf_.covariance());
+  if (sp.widenAfter > 0U && failedRun_ >= sp.widenAfter) {
+    // Recovery: the window doubles per failed cycle beyond widenAfter, from the recovery sizes.
+    const unsigned run = static_cast<unsigned>(failedRun_) - sp.widenAfter;
+    const unsigned doublings = run < 16U ? run : 16U;
+    const double f = static_cast<double>(1U << doublings);
+    const double t =
+        sp.recoveryTranslation * f < sp.maxRecoveryTranslation ? sp.recoveryTranslation * f : sp.maxRecoveryTranslation;
+    const double r =
+        sp.recoveryRotation * f < sp.maxRecoveryRotation ? sp.recoveryRotation * f : sp.maxRecoveryRotation;
+    window.x = window.x > t ? window.x : t;
+    window.y = window.y > t ? window.y : t;
+    window.theta = window.theta > r ? window.theta : r;
+    h.widened = true;
+  }
+  h.window = window.x > window.y ? window.x : window.y;
   const ScanMatchResult m = points != nullptr
-                                ? matcher_.match(*points, params_.laser.mounting, ekf_.pose(), ekf_.covariance(), field)
-                                : matcher_.match(beams, params_.laser.mounting, ekf_.pose(), ekf_.covariance(), field);
+                                ? matcher_.match(*points, params_.laser.mounting, ekf_.pose(), window, field)
+                                : matcher_.match(beams, params_.laser.mounting, ekf_.pose(), window, field);
+  // A cycle whose match is not fused adds to the run that widens the next search.
+  failedRun_ = failedRun_ < 255U ? static_cast<std::uint8_t>(failedRun_ + 1U) : failedRun_;
   h.status = m.status;
+  h.pose = m.pose;
   h.points = m.points;
   h.inliers = m.inliers;
   h.rmsResidual = m.rmsResidual;
@@ -395,10 +416,11 @@ void Localizer::matchScan(const LaserScan& beams, const MatchPoints* points,
       h.fused = true;
       h.correction = std::hypot(ekf_.pose().x - before.x, ekf_.pose().y - before.y);
       gatedRun_ = 0;
+      failedRun_ = 0;
       return;
     }
     h.status = u;
-    if (u == Status::Rejected && params_.scanMatch.resyncAfter > 0) {
+    if (u == Status::Rejected && params_.scanMatch.resyncAfter > 0 && m.rmsResidual <= params_.scanMatch.resyncMaxRms) {
       const Pose2d offset = between(before, m.pose);
       const Pose2d change = between(gatedOffset_, offset);
       const bool agrees = gatedRun_ > 0 && std::hypot(change.x, change.y) <= params_.scanMatch.resyncAgreement &&
@@ -412,6 +434,7 @@ void Localizer::matchScan(const LaserScan& beams, const MatchPoints* points,
         h.correction = std::hypot(m.pose.x - before.x, m.pose.y - before.y);
         health_.flags |= bit(LocalizerFlag::ScanMatchResync);
         gatedRun_ = 0;
+        failedRun_ = 0;
         return;
       }
     } else {

@@ -7,11 +7,29 @@
 namespace agv {
 
 Status ScanMatchParams::validate() const noexcept {
-  const double values[] = {
-      pointSpacing,          inlierDistance,       huber,         minInlierFraction,    sigmaFloor,
-      covarianceInflation,   stepTranslation,      stepRotation,  maxCorrection,        maxRotation,
-      resyncAgreement,       resyncAgreementAngle, searchSigmas,  maxSearchTranslation, maxSearchRotation,
-      searchStepTranslation, searchStepRotation,   maxRmsResidual};
+  const double values[] = {pointSpacing,
+                           inlierDistance,
+                           huber,
+                           minInlierFraction,
+                           sigmaFloor,
+                           covarianceInflation,
+                           stepTranslation,
+                           stepRotation,
+                           maxCorrection,
+                           maxRotation,
+                           resyncAgreement,
+                           resyncAgreementAngle,
+                           searchSigmas,
+                           maxSearchTranslation,
+                           maxSearchRotation,
+                           searchStepTranslation,
+                           searchStepRotation,
+                           maxRmsResidual,
+                           resyncMaxRms,
+                           recoveryTranslation,
+                           recoveryRotation,
+                           maxRecoveryTranslation,
+                           maxRecoveryRotation};
   for (const double v : values) {
     if (!std::isfinite(v)) {
       return Status::NonFiniteInput;
@@ -20,9 +38,10 @@ Status ScanMatchParams::validate() const noexcept {
   if (maxIterations == 0 || pointSpacing < 0.0 || !(inlierDistance > 0.0) || !(huber > 0.0) || !(sigmaFloor > 0.0) ||
       !(covarianceInflation > 0.0) || !(stepTranslation > 0.0) || !(stepRotation > 0.0) || !(maxCorrection > 0.0) ||
       !(maxRotation > 0.0) || !(resyncAgreement > 0.0) || !(resyncAgreementAngle > 0.0) || searchSigmas < 0.0 ||
-      !(maxRmsResidual > 0.0) || maxSearchTranslation < 0.0 || maxSearchRotation < 0.0 ||
+      !(maxRmsResidual > 0.0) || !(resyncMaxRms > 0.0) || maxSearchTranslation < 0.0 || maxSearchRotation < 0.0 ||
       !(searchStepTranslation > 0.0) || !(searchStepRotation > 0.0) || maxSearchPoses == 0 || minInlierFraction < 0.0 ||
-      minInlierFraction > 1.0) {
+      minInlierFraction > 1.0 || recoveryTranslation < 0.0 || recoveryRotation < 0.0 ||
+      maxRecoveryTranslation < recoveryTranslation || maxRecoveryRotation < recoveryRotation) {
     return Status::InvalidArgument;
   }
   return Status::Ok;
@@ -190,7 +209,7 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
   if (!checkInput(laser, prior, priorCovariance, field, result) || !collectPoints(scan, laser, result)) {
     return result;
   }
-  return searchAndRefine(prior, priorCovariance, field, result);
+  return searchAndRefine(prior, searchWindow(priorCovariance), field, result);
 }
 
 ScanMatchResult ScanMatcher::match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior,
@@ -199,18 +218,63 @@ ScanMatchResult ScanMatcher::match(const MatchPoints& points, const Pose2d& lase
   if (!checkInput(laser, prior, priorCovariance, field, result) || !collectPoints(points, laser, result)) {
     return result;
   }
-  return searchAndRefine(prior, priorCovariance, field, result);
+  return searchAndRefine(prior, searchWindow(priorCovariance), field, result);
 }
 
-ScanMatchResult ScanMatcher::searchAndRefine(const Pose2d& prior, const Eigen::Matrix3d& priorCovariance,
-                                             const LikelihoodFieldBase& field, ScanMatchResult result) noexcept {
-  const auto window = [&](double variance, double cap) noexcept {
+namespace {
+bool validWindow(const SearchWindow& w) noexcept {
+  return std::isfinite(w.x) && std::isfinite(w.y) && std::isfinite(w.theta) && w.x >= 0.0 && w.y >= 0.0 &&
+         w.theta >= 0.0;
+}
+}  // namespace
+
+ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
+                                   const SearchWindow& window, const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  if (!checkInput(laser, prior, Eigen::Matrix3d::Zero(), field, result)) {
+    return result;
+  }
+  if (!validWindow(window)) {
+    result.status = Status::InvalidArgument;
+    return result;
+  }
+  if (!collectPoints(scan, laser, result)) {
+    return result;
+  }
+  return searchAndRefine(prior, window, field, result);
+}
+
+ScanMatchResult ScanMatcher::match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior,
+                                   const SearchWindow& window, const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  if (!checkInput(laser, prior, Eigen::Matrix3d::Zero(), field, result)) {
+    return result;
+  }
+  if (!validWindow(window)) {
+    result.status = Status::InvalidArgument;
+    return result;
+  }
+  if (!collectPoints(points, laser, result)) {
+    return result;
+  }
+  return searchAndRefine(prior, window, field, result);
+}
+
+SearchWindow ScanMatcher::searchWindow(const Eigen::Matrix3d& priorCovariance) const noexcept {
+  const auto half = [&](double variance, double cap) noexcept {
     const double w = params_.searchSigmas * std::sqrt(variance > 0.0 ? variance : 0.0);
-    return w < cap ? w : cap;
+    return std::isfinite(w) && w < cap ? w : (std::isfinite(w) ? cap : 0.0);
   };
-  const double wx = window(priorCovariance(0, 0), params_.maxSearchTranslation);
-  const double wy = window(priorCovariance(1, 1), params_.maxSearchTranslation);
-  const double wt = window(priorCovariance(2, 2), params_.maxSearchRotation);
+  return SearchWindow{half(priorCovariance(0, 0), params_.maxSearchTranslation),
+                      half(priorCovariance(1, 1), params_.maxSearchTranslation),
+                      half(priorCovariance(2, 2), params_.maxSearchRotation)};
+}
+
+ScanMatchResult ScanMatcher::searchAndRefine(const Pose2d& prior, const SearchWindow& window,
+                                             const LikelihoodFieldBase& field, ScanMatchResult result) noexcept {
+  const double wx = window.x;
+  const double wy = window.y;
+  const double wt = window.theta;
   Pose2d start = prior;
   std::uint32_t scored = 0;
   if (wx >= params_.searchStepTranslation || wy >= params_.searchStepTranslation || wt >= params_.searchStepRotation) {

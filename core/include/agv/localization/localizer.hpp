@@ -259,6 +259,10 @@ struct ScanMatchHealth {
   double correction = 0.0;            ///< [m] position change of the update (or of the resync)
   std::uint8_t consecutiveGated = 0;  ///< refused by the gate in a row, agreeing with each other
   bool resynced = false;              ///< this cycle reset the pose to the match
+  /// The search window was widened for recovery (`ScanMatchParams::widenAfter`).
+  bool widened = false;
+  double window = 0.0;  ///< [m] the larger translation half-width searched
+  Pose2d pose{};        ///< where the matcher ended (diagnostic, whatever its status)
 };
 
 /// What one correction cycle did and how much it can be trusted.
@@ -431,6 +435,8 @@ class Localizer {
   bool lost_ = false;
   std::uint8_t badCycles_ = 0;
   std::uint8_t gatedRun_ = 0;
+  /// Cycles in a row whose scan match was attempted and not fused (widens the search).
+  std::uint8_t failedRun_ = 0;
   std::uint32_t cycle_ = 0;
   std::uint32_t pendingFlags_ = 0;
   Timestamp lastScanStamp_{};

@@ -57,8 +57,10 @@ struct ScanMatchParams {
   /// [m] a converged match whose inliers fit worse than this (RMS) is refused (`IllConditioned`):
   /// a scan that overlaps the map only in part finds accidental inliers inside the band, spread
   /// uniformly (RMS inlierDistance / sqrt(3) = 17 cm at 0.3 m), where a true alignment leaves
-  /// the range noise and the map's own error (2..6 cm on the real logs, docs/localization.md).
-  double maxRmsResidual = 0.08;
+  /// the range noise and the map's own error (median 5..7 cm, 90th percentile 8..12 cm on the
+  /// real logs, docs/localization.md). The limit admits most true alignments; the localizer's
+  /// gate backs it up, and only `resyncMaxRms` lets a match past the gate.
+  double maxRmsResidual = 0.10;
   /// [m] floor of the residual standard deviation used for the covariance (map quantisation at
   /// 5 cm cells, res / sqrt(12) = 1.4 cm, plus range noise).
   double sigmaFloor = 0.02;
@@ -101,10 +103,33 @@ struct ScanMatchParams {
   std::uint8_t resyncAfter = 3;
   double resyncAgreement = 0.10;
   double resyncAgreementAngle = 0.02;
+  /// [m] a match bypasses the gate only through the resync, and only when its inliers fit at
+  /// least this well (RMS): far stricter than `maxRmsResidual`, which the gate backs up.
+  double resyncMaxRms = 0.06;
+  /// Recovery (used by the localizer): the prior's covariance bounds the search, so a filter that
+  /// has drifted while believing itself (refused matches and wrong corner fixes shrink the
+  /// covariance while the pose walks off) can no longer find the map. After `widenAfter` cycles in
+  /// a row whose match was refused or gated, the search window is widened: doubled per further
+  /// such cycle from `recoveryTranslation` / `recoveryRotation` up to `maxRecoveryTranslation` /
+  /// `maxRecoveryRotation` (beyond the tracking caps above). The work stays bounded by
+  /// `maxSearchPoses`; a match found this way is fused only through the gate or the
+  /// re-synchronisation above (three agreeing matches), never on its own. 0 disables it.
+  std::uint8_t widenAfter = 2;
+  double recoveryTranslation = 0.3;     ///< [m] half-width of the first widened window
+  double recoveryRotation = 0.1;        ///< [rad]
+  double maxRecoveryTranslation = 2.0;  ///< [m]
+  double maxRecoveryRotation = 0.6;     ///< [rad] (34 deg)
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (zero iterations, a negative spacing,
   /// non-positive distances, sigma, inflation, step bounds or agreement bounds, a fraction outside
   /// [0, 1]).
   Status validate() const noexcept;
+};
+
+/// Half-widths of the coarse search around the prior [m, m, rad] (0: no search on that axis).
+struct SearchWindow {
+  double x = 0.0;
+  double y = 0.0;
+  double theta = 0.0;
 };
 
 /// The outcome of one match.
@@ -114,13 +139,13 @@ struct ScanMatchResult {
   /// IllConditioned (the inliers fit worse than maxRmsResidual);
   /// OutOfRange (moved beyond maxCorrection / maxRotation); NonFiniteInput (prior or mounting).
   Status status = Status::EmptyInput;
-  Pose2d pose{};                                             ///< vehicle pose (world frame)
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< of `pose` [m^2, rad^2]
+  std::uint8_t iterations = 0;
   std::uint16_t points = 0;                                  ///< scan points used (after thinning)
   std::uint16_t inliers = 0;                                 ///< within inlierDistance at the end
-  std::uint8_t iterations = 0;
-  std::uint32_t searched = 0;  ///< poses scored by the coarse search (0: none)
-  double rmsResidual = 0.0;    ///< [m] over the inliers at the end
+  std::uint32_t searched = 0;                                ///< poses scored by the coarse search (0: none)
+  Pose2d pose{};                                             ///< vehicle pose (world frame)
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< of `pose` [m^2, rad^2]
+  double rmsResidual = 0.0;                                  ///< [m] over the inliers at the end
 };
 
 /// The matcher (scratch only; holds no map).
@@ -148,6 +173,18 @@ class ScanMatcher {
   ScanMatchResult match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior,
                         const Eigen::Matrix3d& priorCovariance, const LikelihoodFieldBase& field) noexcept;
 
+  /// The same with an explicit search window (not capped by `maxSearchTranslation` /
+  /// `maxSearchRotation`; the work is still bounded by `maxSearchPoses`): the recovery search.
+  /// A match may move the pose as far as the window reaches.
+  ScanMatchResult match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior, const SearchWindow& window,
+                        const LikelihoodFieldBase& field) noexcept;
+  ScanMatchResult match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior, const SearchWindow& window,
+                        const LikelihoodFieldBase& field) noexcept;
+
+  /// The tracking window of a prior covariance: +-`searchSigmas` standard deviations per axis,
+  /// capped at `maxSearchTranslation` and `maxSearchRotation` (zero for a non-finite covariance).
+  SearchWindow searchWindow(const Eigen::Matrix3d& priorCovariance) const noexcept;
+
   const ScanMatchParams& params() const noexcept { return params_; }
   void setParams(const ScanMatchParams& params) noexcept { params_ = params; }
 
@@ -161,8 +198,8 @@ class ScanMatcher {
   /// Appends a vehicle-frame point unless within pointSpacing of the last one kept.
   void keepPoint(const Eigen::Vector2d& p) noexcept;
   /// Search and refinement once the points are collected.
-  ScanMatchResult searchAndRefine(const Pose2d& prior, const Eigen::Matrix3d& priorCovariance,
-                                  const LikelihoodFieldBase& field, ScanMatchResult result) noexcept;
+  ScanMatchResult searchAndRefine(const Pose2d& prior, const SearchWindow& window, const LikelihoodFieldBase& field,
+                                  ScanMatchResult result) noexcept;
   /// `inlierDistance`, capped at the field's saturation distance.
   double effectiveInlierDistance(const LikelihoodFieldBase& field) const noexcept;
   /// Robust cost of the points at pose `x` (the refinement's objective, without derivatives).
