@@ -361,7 +361,19 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
       return 2;
     }
-    std::printf("wrote %s\n", outputPath.c_str());
+    // Round trip: the file read back by the project's reader gives the same table.
+    static agv::LaserIntrinsics back;
+    bool same =
+        agv::datasets::readVelodyneCalibration(outputPath, back, error) && back.size() == result.calibrated.size();
+    for (std::size_t l = 0; same && l < back.size(); ++l) {
+      same = agv::toVector(back.params(l)) == agv::toVector(result.calibrated.params(l));
+    }
+    std::printf("wrote %s (read back: %s)\n", outputPath.c_str(), same ? "the same table" : "DIFFERENT");
+    doc["output"] = Json{{"path", outputPath}, {"read_back_equal", same}};
+    if (!same) {
+      std::fprintf(stderr, "agvnav-lidar-calibrate: %s does not read back as written\n", outputPath.c_str());
+      return 2;
+    }
   }
   if (!jsonPath.empty() && !agv::report::writeJsonFile(jsonPath, doc, error)) {
     std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());

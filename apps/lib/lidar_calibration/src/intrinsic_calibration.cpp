@@ -571,153 +571,207 @@ bool calibrateIntrinsics(const std::vector<CalibrationScan>& scans, const LaserI
                                                        std::to_string(config.minLaserPoints) + ")";
       }
     }
-    st.groups.erase(
-        std::remove_if(st.groups.begin(), st.groups.end(), [&](const Group& g) { return st.refused[g.laser]; }),
-        st.groups.end());
-    for (const Group& g : st.groups) {
-      st.scanPoints[g.scan] += g.phi.size();
-    }
-    // Observability at the current values: hold lasers in null directions or correlated beyond the bound.
-    const Clock::time_point t1 = Clock::now();
-    for (int round = 0; round < 4; ++round) {
-      const Columns cols = makeColumns(st, est);
-      const Analysis a = analyse(st, cols, est, config.nullThreshold, config.holdMeanTheta, alongBeam);
-      if (round == 0 && pass == 1) {
-        result.startConditioning = a.report;
+    // Held and refused lasers' returns leave the problem: their start values are not trusted to
+    // carry the planes (they would bias the lasers estimated).
+    const auto dropHeld = [&st]() {
+      st.groups.erase(
+          std::remove_if(st.groups.begin(), st.groups.end(), [&](const Group& g) { return st.held[g.laser]; }),
+          st.groups.end());
+      std::fill(st.scanPoints.begin(), st.scanPoints.end(), 0U);
+      for (const Group& g : st.groups) {
+        st.scanPoints[g.scan] += g.phi.size();
       }
-      bool changed = false;
-      for (const int l : a.nullLasers) {
-        if (!st.held[static_cast<std::size_t>(l)]) {
-          st.held[static_cast<std::size_t>(l)] = true;
-          result.lasers[static_cast<std::size_t>(l)].reason = "not observable (a null direction of the data)";
-          changed = true;
+    };
+    dropHeld();
+    const std::vector<Eigen::Vector3d> segNormal = st.normal;
+    const std::vector<double> segOffset = st.offset;
+    for (int attempt = 0; attempt < 4; ++attempt) {
+      // Observability at the current values: hold lasers in null directions or correlated beyond the bound.
+      const Clock::time_point t1 = Clock::now();
+      bool newlyHeld = false;
+      for (int round = 0; round < 4; ++round) {
+        const Columns cols = makeColumns(st, est);
+        const Analysis a = analyse(st, cols, est, config.nullThreshold, config.holdMeanTheta, alongBeam);
+        if (round == 0 && pass == 1) {
+          result.startConditioning = a.report;
         }
-      }
-      if (!changed) {
-        for (std::size_t l = 0; l < start.size(); ++l) {
-          std::string pair;
-          const double r = st.held[l] ? 0.0 : laserCorrelation(a.shape, cols, l, pair);
-          if (r > config.maxCorrelation) {
-            st.held[l] = true;
-            char buf[96];
-            std::snprintf(buf, sizeof buf, "not observable: %s correlated %.5f", pair.c_str(), r);
-            result.lasers[l].reason = buf;
+        bool changed = false;
+        for (const int l : a.nullLasers) {
+          if (!st.held[static_cast<std::size_t>(l)]) {
+            st.held[static_cast<std::size_t>(l)] = true;
+            result.lasers[static_cast<std::size_t>(l)].reason = "not observable (a null direction of the data)";
             changed = true;
           }
         }
+        if (!changed) {
+          for (std::size_t l = 0; l < start.size(); ++l) {
+            std::string pair;
+            const double r = st.held[l] ? 0.0 : laserCorrelation(a.shape, cols, l, pair);
+            if (r > config.maxCorrelation) {
+              st.held[l] = true;
+              char buf[96];
+              std::snprintf(buf, sizeof buf, "not observable: %s correlated %.5f", pair.c_str(), r);
+              result.lasers[l].reason = buf;
+              changed = true;
+            }
+          }
+        }
+        if (!changed && attempt > 0) {
+          // At a solution (the residual sigma is then the noise's): determined too loosely to be worth changing the
+          // factory value (a runaway along a flat, curved valley of the cost shows here even where the correlations
+          // look fine).
+          for (std::size_t l = 0; l < start.size(); ++l) {
+            for (int k = 0; k < kLaserParamCount && !st.held[l]; ++k) {
+              const int col = cols.laser[l][static_cast<std::size_t>(k)];
+              const bool angle = k == kTheta || k == kAlpha;
+              const double bound = angle ? config.maxSigmaAngle : config.maxSigmaLength;
+              const double sigma = col >= 0 ? std::sqrt(std::max(0.0, a.covariance(col, col))) : 0.0;
+              if (sigma > bound) {
+                st.held[l] = true;
+                std::string pair;
+                const double r = laserCorrelation(a.shape, cols, l, pair);
+                char buf[160];
+                std::snprintf(buf, sizeof buf, "not determined: sigma(%s) %.3g %s > %.3g (%s correlated %.3f)",
+                              laserParamName(k), angle ? sigma * 180.0 / 3.14159265358979323846 : sigma,
+                              angle ? "deg" : "m", angle ? bound * 180.0 / 3.14159265358979323846 : bound, pair.c_str(),
+                              r);
+                result.lasers[l].reason = buf;
+                changed = true;
+              }
+            }
+          }
+        }
+        newlyHeld = newlyHeld || changed;
+        dropHeld();
+        if (!changed) {
+          break;
+        }
       }
-      if (!changed) {
-        break;
+      result.secondsAnalysis += secondsSince(t1);
+      if (attempt > 0 && !newlyHeld) {
+        break;  // the solution passes the observability checks too
       }
-    }
-    result.secondsAnalysis += secondsSince(t1);
-    std::size_t free = 0;
-    for (std::size_t l = 0; l < start.size(); ++l) {
-      free += st.held[l] ? 0U : 1U;
-    }
-    if (free == 0) {
-      result.lasersHeld = start.size();
-      error = "no laser is observable from these scans (see the per-laser reasons)";
-      return false;
-    }
-    char line[160];
-    std::snprintf(line, sizeof line, "pass %d: %zu scans segmented (%.2f s), %zu lasers estimated, %zu held", pass,
-                  scans.size(), secondsSince(t0), free, start.size() - free);
-    say(config, line);
-
-    // The Ceres problem.
-    const Clock::time_point t2 = Clock::now();
-    ceres::Problem::Options po;
-    po.manifold_ownership = ceres::TAKE_OWNERSHIP;
-    ceres::Problem problem(po);
-    std::vector<int> constant;
-    for (int k = 0; k < kLaserParamCount; ++k) {
-      if (!est[k]) {
-        constant.push_back(k);
+      if (attempt > 0) {
+        // A laser failed the checks at the solution: back to the start values for the held lasers
+        // and to the segmentation's planes, and solve again without them.
+        say(config, "pass " + std::to_string(pass) + ": lasers unobservable at the solution held, solving again");
+        st.normal = segNormal;
+        st.offset = segOffset;
+        for (std::size_t l = 0; l < start.size(); ++l) {
+          if (st.held[l]) {
+            st.x[l] = st.start[l];
+            static_cast<void>(current.set(l, start.params(l)));
+          }
+        }
       }
-    }
-    std::vector<double> normalStore(3 * scans.size());
-    for (std::size_t s = 0; s < scans.size(); ++s) {
-      Eigen::Map<Eigen::Vector3d> n(&normalStore[3 * s]);
-      n = st.normal[s];
-    }
-    std::vector<bool> added(start.size(), false);
-    for (const Group& g : st.groups) {
-      auto* cost = new ceres::AutoDiffCostFunction<PlaneCost, ceres::DYNAMIC, kLaserParamCount, 3, 1>(
-          new PlaneCost{&g, 1.0 / std::sqrt(static_cast<double>(st.scanPoints[g.scan])), alongBeam},
-          static_cast<int>(g.phi.size()));
-      problem.AddResidualBlock(cost, nullptr, st.x[g.laser].data(), &normalStore[3 * g.scan], &st.offset[g.scan]);
-      added[g.laser] = true;
-    }
-    for (std::size_t s = 0; s < scans.size(); ++s) {
-      if (problem.HasParameterBlock(&normalStore[3 * s])) {
-        problem.SetManifold(&normalStore[3 * s], new ceres::SphereManifold<3>());
-      }
-    }
-    for (std::size_t l = 0; l < start.size(); ++l) {
-      if (!added[l]) {
-        continue;
-      }
-      if (st.held[l]) {
-        problem.SetParameterBlockConstant(st.x[l].data());
-      } else if (!constant.empty()) {
-        problem.SetManifold(st.x[l].data(), new ceres::SubsetManifold(kLaserParamCount, constant));
-      }
-    }
-    // Gauge constraints over the free lasers.
-    const Columns cols = makeColumns(st, est);
-    for (const auto& gauge : gauges(st, cols, est, config.holdMeanTheta)) {
-      std::vector<Vec5> coef;
-      std::vector<Vec5> x0;
-      std::vector<double*> blocks;
+      std::size_t free = 0;
       for (std::size_t l = 0; l < start.size(); ++l) {
-        if (st.held[l] || !added[l]) {
+        free += st.held[l] ? 0U : 1U;
+      }
+      if (free == 0) {
+        result.lasersHeld = start.size();
+        error = "no laser is observable from these scans (see the per-laser reasons)";
+        return false;
+      }
+      char line[160];
+      std::snprintf(line, sizeof line, "pass %d: %zu scans segmented (%.2f s), %zu lasers estimated, %zu held", pass,
+                    scans.size(), secondsSince(t0), free, start.size() - free);
+      say(config, line);
+
+      // The Ceres problem.
+      const Clock::time_point t2 = Clock::now();
+      ceres::Problem::Options po;
+      po.manifold_ownership = ceres::TAKE_OWNERSHIP;
+      ceres::Problem problem(po);
+      std::vector<int> constant;
+      for (int k = 0; k < kLaserParamCount; ++k) {
+        if (!est[k]) {
+          constant.push_back(k);
+        }
+      }
+      std::vector<double> normalStore(3 * scans.size());
+      for (std::size_t s = 0; s < scans.size(); ++s) {
+        Eigen::Map<Eigen::Vector3d> n(&normalStore[3 * s]);
+        n = st.normal[s];
+      }
+      std::vector<bool> added(start.size(), false);
+      for (const Group& g : st.groups) {
+        auto* cost = new ceres::AutoDiffCostFunction<PlaneCost, ceres::DYNAMIC, kLaserParamCount, 3, 1>(
+            new PlaneCost{&g, 1.0 / std::sqrt(static_cast<double>(st.scanPoints[g.scan])), alongBeam},
+            static_cast<int>(g.phi.size()));
+        problem.AddResidualBlock(cost, nullptr, st.x[g.laser].data(), &normalStore[3 * g.scan], &st.offset[g.scan]);
+        added[g.laser] = true;
+      }
+      for (std::size_t s = 0; s < scans.size(); ++s) {
+        if (problem.HasParameterBlock(&normalStore[3 * s])) {
+          problem.SetManifold(&normalStore[3 * s], new ceres::SphereManifold<3>());
+        }
+      }
+      for (std::size_t l = 0; l < start.size(); ++l) {
+        if (!added[l]) {
           continue;
         }
-        Vec5 cf = Vec5::Zero();
-        for (int k = 0; k < kLaserParamCount; ++k) {
-          const int col = cols.laser[l][static_cast<std::size_t>(k)];
-          cf[k] = col >= 0 ? gauge.second[col] : 0.0;
+        if (st.held[l]) {
+          problem.SetParameterBlockConstant(st.x[l].data());
+        } else if (!constant.empty()) {
+          problem.SetManifold(st.x[l].data(), new ceres::SubsetManifold(kLaserParamCount, constant));
         }
-        coef.push_back(cf);
-        x0.push_back(st.start[l]);
-        blocks.push_back(st.x[l].data());
       }
-      problem.AddResidualBlock(new GaugeCost(coef, x0, 1e3), nullptr, blocks);
-    }
-    ceres::Solver::Options so;
-    so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-    so.num_threads = std::max(1, config.threads);
-    so.max_num_iterations = config.maxIterations;
-    so.function_tolerance = 1e-14;
-    so.gradient_tolerance = 1e-16;
-    so.parameter_tolerance = 1e-12;
-    so.logging_type = ceres::SILENT;
-    ProgressCallback callback(config, pass);
-    if (config.progress) {
-      so.callbacks.push_back(&callback);
-    }
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &problem, &summary);
-    result.iterations += static_cast<int>(summary.iterations.size()) - 1;
-    result.secondsSolve += secondsSince(t2);
-    if (summary.termination_type == ceres::FAILURE || summary.termination_type == ceres::USER_FAILURE) {
-      error = "the solver failed: " + summary.message;
-      return false;
-    }
-    for (std::size_t s = 0; s < scans.size(); ++s) {
-      st.normal[s] = Eigen::Map<Eigen::Vector3d>(&normalStore[3 * s]);
-    }
-    for (std::size_t l = 0; l < start.size(); ++l) {
-      if (!st.held[l]) {
-        static_cast<void>(current.set(l, toLaserParams(st.x[l])));
+      // Gauge constraints over the free lasers.
+      const Columns cols = makeColumns(st, est);
+      for (const auto& gauge : gauges(st, cols, est, config.holdMeanTheta)) {
+        std::vector<Vec5> coef;
+        std::vector<Vec5> x0;
+        std::vector<double*> blocks;
+        for (std::size_t l = 0; l < start.size(); ++l) {
+          if (st.held[l] || !added[l]) {
+            continue;
+          }
+          Vec5 cf = Vec5::Zero();
+          for (int k = 0; k < kLaserParamCount; ++k) {
+            const int col = cols.laser[l][static_cast<std::size_t>(k)];
+            cf[k] = col >= 0 ? gauge.second[col] : 0.0;
+          }
+          coef.push_back(cf);
+          x0.push_back(st.start[l]);
+          blocks.push_back(st.x[l].data());
+        }
+        problem.AddResidualBlock(new GaugeCost(coef, x0, 1e3), nullptr, blocks);
       }
+      ceres::Solver::Options so;
+      so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+      so.num_threads = std::max(1, config.threads);
+      so.max_num_iterations = config.maxIterations;
+      so.function_tolerance = 1e-14;
+      so.gradient_tolerance = 1e-16;
+      so.parameter_tolerance = 1e-12;
+      so.logging_type = ceres::SILENT;
+      ProgressCallback callback(config, pass);
+      if (config.progress) {
+        so.callbacks.push_back(&callback);
+      }
+      ceres::Solver::Summary summary;
+      ceres::Solve(so, &problem, &summary);
+      result.iterations += static_cast<int>(summary.iterations.size()) - 1;
+      result.secondsSolve += secondsSince(t2);
+      if (summary.termination_type == ceres::FAILURE || summary.termination_type == ceres::USER_FAILURE) {
+        error = "the solver failed: " + summary.message;
+        return false;
+      }
+      for (std::size_t s = 0; s < scans.size(); ++s) {
+        st.normal[s] = Eigen::Map<Eigen::Vector3d>(&normalStore[3 * s]);
+      }
+      for (std::size_t l = 0; l < start.size(); ++l) {
+        if (!st.held[l]) {
+          static_cast<void>(current.set(l, toLaserParams(st.x[l])));
+        }
+      }
+      std::snprintf(line, sizeof line, "pass %d: %s, %d iterations, cost %.6e -> %.6e m^2 (%.2f s)", pass,
+                    ceres::TerminationTypeToString(summary.termination_type),
+                    static_cast<int>(summary.iterations.size()) - 1, 2.0 * summary.initial_cost,
+                    2.0 * summary.final_cost, secondsSince(t2));
+      say(config, line);
     }
-    std::snprintf(line, sizeof line, "pass %d: %s, %d iterations, cost %.6e -> %.6e m^2 (%.2f s)", pass,
-                  ceres::TerminationTypeToString(summary.termination_type),
-                  static_cast<int>(summary.iterations.size()) - 1, 2.0 * summary.initial_cost, 2.0 * summary.final_cost,
-                  secondsSince(t2));
-    say(config, line);
   }
 
   // Figures at the solution.

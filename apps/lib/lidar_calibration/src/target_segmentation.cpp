@@ -171,6 +171,7 @@ struct Candidate {
   std::unordered_map<CellKey, int> cellLabel;
   int label = 0;
   std::vector<std::size_t> pool;  ///< points not taken by the planes extracted before it
+  std::size_t planeIndex = 0;     ///< its plane among the large planes found
 };
 
 /// PCA refit and re-selection of the points within the region's cells and a robust threshold.
@@ -244,9 +245,8 @@ bool segmentTarget(const std::vector<Eigen::Vector3d>& points, const TargetSegme
     }
   }
   std::mt19937_64 rng(c.seed);
-  Candidate best;
-  std::vector<Plane> planes;  // every large plane found
-  std::size_t bestIndex = 0;
+  std::vector<Candidate> candidates;  // regions of the target's size
+  std::vector<Plane> planes;          // every large plane found
   const double large = std::max(c.targetWidth, c.targetHeight);
   const double small = std::min(c.targetWidth, c.targetHeight);
   std::string rejected;
@@ -294,7 +294,8 @@ bool segmentTarget(const std::vector<Eigen::Vector3d>& points, const TargetSegme
     const Plane plane = region.size() >= 3 ? pcaPlane(points, &region, nullptr) : hypothesis;
     const Eigen::Vector2d e = region.size() >= 3 ? extents(points, region, plane) : Eigen::Vector2d::Zero();
     const bool fits = region.size() >= c.minPoints && e[0] <= c.extentTolerance * large &&
-                      e[1] <= c.extentTolerance * small && e[0] >= c.minExtentFraction * large;
+                      e[1] <= c.extentTolerance * small && e[0] >= c.minExtentFraction * large &&
+                      e[1] >= c.minExtentFraction * small;
     if (region.size() >= c.minPoints) {
       planes.push_back(robustPlane(points, region, plane, c));
     }
@@ -302,26 +303,42 @@ bool segmentTarget(const std::vector<Eigen::Vector3d>& points, const TargetSegme
     if (!fits) {
       rejected += (rejected.empty() ? "" : ", ") + std::to_string(region.size()) + " points " +
                   std::to_string(e[0]).substr(0, 5) + " x " + std::to_string(e[1]).substr(0, 5) + " m";
-    } else if (region.size() > best.region.size()) {
-      bestIndex = planes.size() - 1;
-      best.region = region;
-      best.plane = plane;
-      best.ransacPlane = hypothesis;
-      best.cellLabel = std::move(cellLabel);
-      best.label = label;
-      best.pool = remaining;
+    } else {
+      Candidate cand;
+      cand.region = region;
+      cand.plane = plane;
+      cand.ransacPlane = hypothesis;
+      cand.cellLabel = std::move(cellLabel);
+      cand.label = label;
+      cand.pool = remaining;
+      cand.planeIndex = planes.size() - 1;
+      candidates.push_back(std::move(cand));
     }
-    remaining = outliers;  // look for the next plane; the largest fitting region wins
+    remaining = outliers;  // look for the next plane
   }
-  if (!best.region.empty()) {
-    std::vector<Plane> others;  // the large planes that are not the target
+  // The largest candidate that still fits once refined (planar within maxRms, the target's size) wins.
+  std::sort(candidates.begin(), candidates.end(),
+            [](const Candidate& x, const Candidate& y) { return x.region.size() > y.region.size(); });
+  for (const Candidate& cand : candidates) {
+    std::vector<Plane> others;  // the large planes that are not this candidate
     for (std::size_t k = 0; k < planes.size(); ++k) {
-      if (k != bestIndex) {
+      if (k != cand.planeIndex) {
         others.push_back(planes[k]);
       }
     }
-    refine(points, c, best, others, out);
-    return true;
+    TargetSegment seg;
+    refine(points, c, cand, others, seg);
+    const bool fits = seg.indices.size() >= c.minPoints && seg.rms <= c.maxRms &&
+                      seg.extent[0] <= c.extentTolerance * large && seg.extent[1] <= c.extentTolerance * small &&
+                      seg.extent[0] >= c.minExtentFraction * large && seg.extent[1] >= c.minExtentFraction * small;
+    if (fits) {
+      seg.planesTried = out.planesTried;
+      out = std::move(seg);
+      return true;
+    }
+    rejected += (rejected.empty() ? "" : ", ") + std::string("refined ") + std::to_string(seg.indices.size()) +
+                " points " + std::to_string(seg.extent[0]).substr(0, 5) + " x " +
+                std::to_string(seg.extent[1]).substr(0, 5) + " m rms " + std::to_string(seg.rms).substr(0, 5) + " m";
   }
   error = "no plane region of the target's size (" + std::to_string(c.targetWidth).substr(0, 4) + " x " +
           std::to_string(c.targetHeight).substr(0, 4) + " m) among " + std::to_string(out.planesTried) + " planes" +

@@ -20,9 +20,13 @@
 /// Observability: from the Jacobian at the start (and again at the solution), with the planes
 /// eliminated (Schur complement) and the columns normalised: the singular values, the directions
 /// of the smallest, and per laser the correlations of its parameters. A laser whose parameters lie
-/// in a null direction, or two of whose parameters correlate beyond `maxCorrelation`, is held at
+/// in a null direction, two of whose parameters correlate beyond `maxCorrelation`, or whose 1-sigma
+/// exceeds `maxSigmaLength` / `maxSigmaAngle`, is held at
 /// its start values and reported as not observable with the reason; lasers with too few target
-/// points are refused by name.
+/// points are refused by name. The checks run again at the solution (there with the sigma bounds,
+/// the residual then being the noise's): a laser failing them is held too and the pass solved
+/// again without it (no garbage from a near-degenerate set). Held lasers' returns leave the
+/// problem (their untrusted start values would bias the planes).
 
 #include <Eigen/Core>
 #include <functional>
@@ -73,12 +77,14 @@ struct IntrinsicCalibrationConfig {
   double minBeamCosine = 0.25;  ///< AlongBeam: returns with |n . u| below this are not used
   TargetSegmentationConfig segmentation;
   EstimatedParams estimate;
-  int passes = 2;          ///< segment + solve rounds (later passes segment with the new intrinsics)
-  int maxIterations = 50;  ///< Ceres iterations per pass
+  int passes = 2;           ///< segment + solve rounds (later passes segment with the new intrinsics)
+  int maxIterations = 100;  ///< Ceres iterations per pass
   int threads = 2;
-  std::size_t minLaserPoints = 30;  ///< lasers with fewer target points over all scans are refused
-  double maxCorrelation = 0.999;    ///< two parameters of a laser correlated beyond this: laser held
-  double nullThreshold = 1e-9;      ///< normalised eigenvalue / largest below this: a null direction
+  std::size_t minLaserPoints = 30;   ///< lasers with fewer target points over all scans are refused
+  double maxCorrelation = 0.999;     ///< two parameters of a laser correlated beyond this: laser held
+  double maxSigmaLength = 0.02;      ///< [m] a laser whose D_corr (V_o, H_o) 1-sigma exceeds this is held
+  double maxSigmaAngle = 0.0087266;  ///< [rad] (0.5 deg) the same for theta and alpha
+  double nullThreshold = 1e-9;       ///< normalised eigenvalue / largest below this: a null direction
   /// Hold the mean theta at the start values (a third constraint). A common elevation offset of
   /// every laser is, over the narrow azimuth span of a wall in front, nearly a pitch of the head,
   /// which each placement's free plane absorbs: the wall protocol observes it only through the

@@ -3,12 +3,13 @@
 /// Finding the planar calibration target in one multi-beam scan (host code;
 /// docs/lidar-calibration.md). The target is not the only thing in view (floor, hall walls,
 /// clutter), so: sequential RANSAC planes (hypotheses scored on a sample, inliers on all points);
-/// per plane the largest connected region of its inliers on an in-plane grid; the first region
-/// whose in-plane extents fit the target's size (not the floor, not a hall wall, not a pallet) is
-/// the target; then the plane is refit by PCA and the inliers re-selected within the region with
-/// a threshold from the residuals' median absolute deviation, a few times, leaving out points that
-/// also lie on one of the other large planes found (where the target meets the floor, the floor's
-/// points on the line of intersection lie in the target's plane).
+/// per plane the largest connected region of its inliers on an in-plane grid; regions whose
+/// in-plane extents fit the target's size (not the floor, not a hall wall, not a pillar) are
+/// candidates; each is refined (PCA refit, re-selection within the region's cells with a threshold
+/// from the residuals' median absolute deviation, a few times, leaving out points that also lie
+/// on one of the other large planes found: where the target meets the floor, the floor's points
+/// on the line of intersection lie in the target's plane); the largest candidate that still fits
+/// and is planar within `maxRms` (a pallet is not) is the target.
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -19,21 +20,23 @@ namespace agv::lidar_calibration {
 
 /// Segmentation parameters (SI).
 struct TargetSegmentationConfig {
-  double targetWidth = 4.4;         ///< [m] larger side of the target
-  double targetHeight = 3.5;        ///< [m] smaller side
-  double extentTolerance = 1.25;    ///< a region may extend up to this factor times a side
-  double minExtentFraction = 0.35;  ///< the region's larger extent must reach this fraction of the larger side
-  double ransacThreshold = 0.15;    ///< [m] inlier distance of the RANSAC hypotheses (miscalibration allowed)
-  double minThreshold = 0.04;       ///< [m] floor of the refinement threshold
-  double madFactor = 4.0;           ///< refinement threshold = max(minThreshold, madFactor * 1.4826 * MAD)
-  double regionCell = 0.5;          ///< [m] in-plane grid of the connected region
-  int iterations = 300;             ///< RANSAC hypotheses per plane
-  int sample = 3000;                ///< points scoring a hypothesis
-  int maxPlanes = 8;                ///< planes tried before giving up
-  int refinements = 4;              ///< PCA refit / re-selection rounds
-  std::size_t minPoints = 50;       ///< a target region needs this many points
-  double maxRange = 60.0;           ///< [m] points farther from the sensor are not used
-  std::uint64_t seed = 1;           ///< RANSAC random stream
+  double targetWidth = 4.4;       ///< [m] larger side of the target
+  double targetHeight = 3.5;      ///< [m] smaller side
+  double extentTolerance = 1.25;  ///< a region may extend up to this factor times a side
+  double minExtentFraction =
+      0.3;               ///< the region's extents must reach this fraction of the sides (a pillar is no target)
+  double maxRms = 0.08;  ///< [m] a refined target region is planar within this (a pallet's faces are not)
+  double ransacThreshold = 0.15;  ///< [m] inlier distance of the RANSAC hypotheses (miscalibration allowed)
+  double minThreshold = 0.04;     ///< [m] floor of the refinement threshold
+  double madFactor = 4.0;         ///< refinement threshold = max(minThreshold, madFactor * 1.4826 * MAD)
+  double regionCell = 0.5;        ///< [m] in-plane grid of the connected region
+  int iterations = 300;           ///< RANSAC hypotheses per plane
+  int sample = 3000;              ///< points scoring a hypothesis
+  int maxPlanes = 8;              ///< planes tried before giving up
+  int refinements = 4;            ///< PCA refit / re-selection rounds
+  std::size_t minPoints = 50;     ///< a target region needs this many points
+  double maxRange = 60.0;         ///< [m] points farther from the sensor are not used
+  std::uint64_t seed = 1;         ///< RANSAC random stream
 };
 
 /// A plane n . x = d with unit normal n.
