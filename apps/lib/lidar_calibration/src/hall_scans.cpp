@@ -58,6 +58,22 @@ TruthComparison compareWithTruth(const IntrinsicCalibrationResult& result, const
   const bool theta = estimated.theta && config.holdMeanTheta;
   c.commonTheta = theta ? thetaSum / static_cast<double>(n) : 0.0;
   const double commonThetaStart = theta ? thetaStartSum / static_cast<double>(n) : 0.0;
+  // The common z shift (a gauge when D_corr and V_o are both estimated): its least-squares amount.
+  const bool zGauge = estimated.distCorrection && estimated.vertOffset;
+  double zShift = 0.0;
+  double zShiftStart = 0.0;
+  for (const LaserReport& l : result.lasers) {
+    if (zGauge && l.estimated && l.laser < truth.size()) {
+      const LaserParams& t = truth.params(l.laser);
+      const double st = std::sin(l.start.theta);
+      const double ct = std::cos(l.start.theta);
+      zShift += (st * (l.estimate.distCorrection - t.distCorrection) + ct * (l.estimate.vertOffset - t.vertOffset)) /
+                static_cast<double>(n);
+      zShiftStart += (st * (l.start.distCorrection - t.distCorrection) + ct * (l.start.vertOffset - t.vertOffset)) /
+                     static_cast<double>(n);
+    }
+  }
+  c.commonZ = zShift;
   Vec5 sq = Vec5::Zero();
   for (const LaserReport& l : result.lasers) {
     if (!l.estimated || l.laser >= truth.size()) {
@@ -68,6 +84,12 @@ TruthComparison compareWithTruth(const IntrinsicCalibrationResult& result, const
     e[kAlpha] -= c.commonAlpha;
     e0[kAlpha] -= commonStart;
     e[kTheta] -= c.commonTheta;
+    if (zGauge) {
+      e[kDistCorrection] -= zShift * std::sin(l.start.theta);
+      e[kVertOffset] -= zShift * std::cos(l.start.theta);
+      e0[kDistCorrection] -= zShiftStart * std::sin(l.start.theta);
+      e0[kVertOffset] -= zShiftStart * std::cos(l.start.theta);
+    }
     e0[kTheta] -= commonThetaStart;
     c.error[l.laser] = e;
     for (int k = 0; k < kLaserParamCount; ++k) {

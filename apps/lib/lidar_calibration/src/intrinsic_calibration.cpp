@@ -133,15 +133,6 @@ class GaugeCost final : public ceres::CostFunction {
   double weight_;
 };
 
-/// Two unit vectors orthogonal to n (the tangent basis of the plane normal).
-Eigen::Matrix<double, 3, 2> tangentBasis(const Eigen::Vector3d& n) {
-  const Eigen::Vector3d a = std::fabs(n.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
-  Eigen::Matrix<double, 3, 2> b;
-  b.col(0) = n.cross(a).normalized();
-  b.col(1) = n.cross(b.col(0));
-  return b;
-}
-
 /// The state of the problem.
 struct State {
   std::vector<Vec5> x;                  ///< per laser
@@ -241,7 +232,7 @@ Information accumulate(const State& st, const Columns& c, bool alongBeam) {
   info.m = Eigen::MatrixXd::Zero(c.count, c.count);
   std::vector<Eigen::Matrix<double, 3, 2>> basis;
   for (const Eigen::Vector3d& n : st.normal) {
-    basis.push_back(tangentBasis(n));
+    basis.push_back(planeAxes(n));
   }
   for (const Group& g : st.groups) {
     std::array<Jet, kLaserParamCount> x;

@@ -8,6 +8,14 @@
 
 namespace agv::lidar_calibration {
 
+Eigen::Matrix<double, 3, 2> planeAxes(const Eigen::Vector3d& n) {
+  const Eigen::Vector3d a = std::fabs(n.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
+  Eigen::Matrix<double, 3, 2> b;
+  b.col(0) = n.cross(a).normalized();
+  b.col(1) = n.cross(b.col(0));
+  return b;
+}
+
 Plane pcaPlane(const std::vector<Eigen::Vector3d>& points, const std::vector<std::size_t>* indices,
                double* meanSquared) {
   const std::size_t n = indices != nullptr ? indices->size() : points.size();
@@ -36,9 +44,9 @@ namespace {
 
 /// Two unit vectors spanning the plane.
 void inPlaneAxes(const Eigen::Vector3d& n, Eigen::Vector3d& u, Eigen::Vector3d& v) {
-  const Eigen::Vector3d a = std::fabs(n.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
-  u = n.cross(a).normalized();
-  v = n.cross(u);
+  const Eigen::Matrix<double, 3, 2> b = planeAxes(n);
+  u = b.col(0);
+  v = b.col(1);
 }
 
 using CellKey = std::int64_t;

@@ -29,7 +29,8 @@ std::vector<CalibrationScan> simulateHallScans(const HallScansConfig& config, co
 
 /// Errors of a result against the truth, per laser (estimate - truth), with the held common
 /// offsets (the mean alpha error over the estimated lasers; the mean theta error when
-/// `holdMeanTheta`) removed first: the calibration fixes them at the start values by constraint.
+/// `holdMeanTheta`; the common z shift D_corr += c sin(theta), V_o += c cos(theta) when both are
+/// estimated) removed first: the calibration fixes them at the start values by constraint.
 struct TruthComparison {
   std::vector<Eigen::Matrix<double, kLaserParamCount, 1>> error;  ///< per laser (zero for held lasers)
   Eigen::Matrix<double, kLaserParamCount, 1> maxAbs = Eigen::Matrix<double, kLaserParamCount, 1>::Zero();
@@ -38,6 +39,7 @@ struct TruthComparison {
       Eigen::Matrix<double, kLaserParamCount, 1>::Zero();  ///< start - truth, same gauge
   double commonAlpha = 0.0;                                ///< [rad] removed gauge offset
   double commonTheta = 0.0;                                ///< [rad] removed near-gauge offset
+  double commonZ = 0.0;                                    ///< [m] removed common z shift (D_corr and V_o estimated)
   double maxSigmaRatio = 0.0;                              ///< largest |error| / sigma over the estimated parameters
   std::size_t beyondThreeSigma = 0;                        ///< estimated parameters with |error| > 3 sigma
   std::size_t compared = 0;                                ///< estimated parameters compared

@@ -45,6 +45,10 @@ struct Plane {
   double offset = 0.0;
 };
 
+/// Two orthonormal vectors spanning the plane with unit normal `n` (the first horizontal unless n
+/// is nearly vertical): in-plane coordinates, and the tangent space of the normal.
+Eigen::Matrix<double, 3, 2> planeAxes(const Eigen::Vector3d& n);
+
 /// PCA plane of `points[indices]` (all when `indices` is null): through the centroid, normal =
 /// the covariance's smallest eigenvector; `meanSquared` = the smallest eigenvalue = the mean
 /// squared distance of the points to the plane (the thesis' cost of one scan). Needs 3 points.
