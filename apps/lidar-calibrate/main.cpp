@@ -331,6 +331,7 @@ int main(int argc, char** argv) {
       const auto tr = std::chrono::steady_clock::now();
       if (!lc::calibrateIntrinsics(lc::simulateHallScans(s, truth), factory, mc, r, e)) {
         ++failed;
+        std::printf("  monte-carlo %d: refused: %s\n", run, e.c_str());
         continue;
       }
       seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();

@@ -301,8 +301,8 @@ bool segmentTarget(const std::vector<Eigen::Vector3d>& points, const TargetSegme
     const std::vector<std::size_t> region = largestRegion(points, inliers, hypothesis, c.regionCell, cellLabel, label);
     const Plane plane = region.size() >= 3 ? pcaPlane(points, &region, nullptr) : hypothesis;
     const Eigen::Vector2d e = region.size() >= 3 ? extents(points, region, plane) : Eigen::Vector2d::Zero();
-    const bool fits = region.size() >= c.minPoints && e[0] <= c.extentTolerance * large &&
-                      e[1] <= c.extentTolerance * small && e[0] >= c.minExtentFraction * large &&
+    const bool fits = region.size() >= c.minPoints && e[0] <= c.candidateTolerance * large &&
+                      e[1] <= c.candidateTolerance * small && e[0] >= c.minExtentFraction * large &&
                       e[1] >= c.minExtentFraction * small;
     if (region.size() >= c.minPoints) {
       planes.push_back(robustPlane(points, region, plane, c));

@@ -22,7 +22,10 @@ namespace agv::lidar_calibration {
 struct TargetSegmentationConfig {
   double targetWidth = 4.4;       ///< [m] larger side of the target
   double targetHeight = 3.5;      ///< [m] smaller side
-  double extentTolerance = 1.25;  ///< a region may extend up to this factor times a side
+  double extentTolerance = 1.25;  ///< the refined target may extend up to this factor times a side
+  /// The RANSAC region of a candidate may extend up to this factor times a side (at the RANSAC
+  /// threshold it can hold the floor's ring whose radius is the target's distance).
+  double candidateTolerance = 1.6;
   double minExtentFraction =
       0.3;               ///< the region's extents must reach this fraction of the sides (a pillar is no target)
   double maxRms = 0.08;  ///< [m] a refined target region is planar within this (a pallet's faces are not)
