@@ -48,7 +48,7 @@ lc::HallScansConfig reducedProtocol(int distances, int tilts, double noise) {
 
 }  // namespace
 
-TEST_CASE("the ray form of the point model equals LaserIntrinsics::laserPoint", "[lidar3d][calibrate]") {
+TEST_CASE("the ray form of the point model equals LaserIntrinsics::laserPoint", "[lidar3d][lidar-calibration]") {
   const agv::LaserIntrinsics& t = factory();
   double worst = 0.0;
   for (std::size_t l = 0; l < t.size(); ++l) {
@@ -68,7 +68,7 @@ TEST_CASE("the ray form of the point model equals LaserIntrinsics::laserPoint", 
   CHECK(worst < 5e-5);  // float model (epsilon 6e-8) at ranges up to 62 m
 }
 
-TEST_CASE("the hall's scans invert the model: truth points lie on the surfaces hit", "[lidar3d][calibrate]") {
+TEST_CASE("the hall's scans invert the model: truth points lie on the surfaces hit", "[lidar3d][lidar-calibration]") {
   const agv::sim::CalibrationHall hall = agv::sim::calibrationHall();
   agv::sim::ModelSensorConfig sensor;
   sensor.rangeNoise = 0.0;
@@ -98,7 +98,7 @@ TEST_CASE("the hall's scans invert the model: truth points lie on the surfaces h
 }
 
 TEST_CASE("the target is segmented in every placement of the protocol despite clutter and miscalibration",
-          "[lidar3d][calibrate]") {
+          "[lidar3d][lidar-calibration]") {
   std::mt19937_64 rng(5);
   const agv::LaserIntrinsics truth =
       agv::sim::perturbIntrinsics(factory(), 0.05, agv::deg2rad(0.3), agv::deg2rad(0.5), 0.0, rng);
@@ -152,7 +152,8 @@ Eigen::Matrix<double, agv::kLaserParamCount, 1> rawErrors(const lc::IntrinsicCal
 
 }  // namespace
 
-TEST_CASE("noise-free walls: the perturbed intrinsics are recovered to 1e-6 m / 1e-6 rad", "[lidar3d][calibrate]") {
+TEST_CASE("noise-free walls: the perturbed intrinsics are recovered to 1e-6 m / 1e-6 rad",
+          "[lidar3d][lidar-calibration]") {
   std::mt19937_64 rng(11);
   // Zero-mean angle perturbations: the common alpha (a gauge) and theta (held) stay the factory's.
   const agv::LaserIntrinsics truth =
@@ -201,7 +202,7 @@ TEST_CASE("noise-free walls: the perturbed intrinsics are recovered to 1e-6 m / 
 }
 
 TEST_CASE("no perturbation: the factory values stay put (exactly without noise, within the noise's sigma with it)",
-          "[lidar3d][calibrate]") {
+          "[lidar3d][lidar-calibration]") {
   lc::IntrinsicCalibrationConfig config;
   config.segmentation.minThreshold = 0.005;
   lc::IntrinsicCalibrationResult result;
@@ -248,7 +249,7 @@ TEST_CASE("no perturbation: the factory values stay put (exactly without noise, 
   }
 }
 
-TEST_CASE("bad input is refused with a reason", "[lidar3d][calibrate]") {
+TEST_CASE("bad input is refused with a reason", "[lidar3d][lidar-calibration]") {
   lc::IntrinsicCalibrationConfig config;
   lc::IntrinsicCalibrationResult result;
   std::string error;
@@ -299,7 +300,8 @@ TEST_CASE("bad input is refused with a reason", "[lidar3d][calibrate]") {
   }
 }
 
-TEST_CASE("a laser that never hits the target is refused by name, the others are calibrated", "[lidar3d][calibrate]") {
+TEST_CASE("a laser that never hits the target is refused by name, the others are calibrated",
+          "[lidar3d][lidar-calibration]") {
   agv::LaserIntrinsics table = factory();
   agv::LaserParams up = table.params(5);
   up.theta = agv::deg2rad(70.0);  // into the ceiling at every placement
@@ -316,7 +318,7 @@ TEST_CASE("a laser that never hits the target is refused by name, the others are
 }
 
 TEST_CASE("one placement at one distance: D_corr and theta are reported correlated, not estimated",
-          "[lidar3d][calibrate]") {
+          "[lidar3d][lidar-calibration]") {
   std::mt19937_64 rng(13);
   const agv::LaserIntrinsics truth =
       agv::sim::perturbIntrinsics(factory(), 0.05, agv::deg2rad(0.3), agv::deg2rad(0.5), 0.0, rng, true);
@@ -347,7 +349,7 @@ TEST_CASE("one placement at one distance: D_corr and theta are reported correlat
   CHECK(error.find("no laser is observable") == 0);
 }
 
-TEST_CASE("the calibrated table written as YAML reads back the same doubles", "[lidar3d][calibrate]") {
+TEST_CASE("the calibrated table written as YAML reads back the same doubles", "[lidar3d][lidar-calibration]") {
   std::mt19937_64 rng(17);
   const agv::LaserIntrinsics t =
       agv::sim::perturbIntrinsics(factory(), 0.05, agv::deg2rad(0.3), agv::deg2rad(0.5), 0.01, rng);

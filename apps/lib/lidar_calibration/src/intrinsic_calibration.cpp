@@ -180,27 +180,23 @@ Columns makeColumns(const State& st, const EstimatedParams& est) {
 std::vector<std::pair<std::string, Eigen::VectorXd>> gauges(const State& st, const Columns& c,
                                                             const EstimatedParams& est, bool holdMeanTheta) {
   std::vector<std::pair<std::string, Eigen::VectorXd>> out;
-  if (est.alpha) {
+  // The same offset on parameter k of every laser.
+  const auto common = [&](int k, const char* name) {
     Eigen::VectorXd g = Eigen::VectorXd::Zero(c.count);
     for (std::size_t l = 0; l < st.x.size(); ++l) {
-      if (c.laser[l][kAlpha] >= 0) {
-        g[c.laser[l][kAlpha]] = 1.0;
+      if (c.laser[l][static_cast<std::size_t>(k)] >= 0) {
+        g[c.laser[l][static_cast<std::size_t>(k)]] = 1.0;
       }
     }
     if (g.squaredNorm() > 0.0) {
-      out.emplace_back("common alpha", g);
+      out.emplace_back(name, g);
     }
+  };
+  if (est.alpha) {
+    common(kAlpha, "common alpha");
   }
   if (est.theta && holdMeanTheta) {
-    Eigen::VectorXd g = Eigen::VectorXd::Zero(c.count);
-    for (std::size_t l = 0; l < st.x.size(); ++l) {
-      if (c.laser[l][kTheta] >= 0) {
-        g[c.laser[l][kTheta]] = 1.0;
-      }
-    }
-    if (g.squaredNorm() > 0.0) {
-      out.emplace_back("common theta", g);
-    }
+    common(kTheta, "common theta");
   }
   if (est.distCorrection && est.vertOffset) {
     Eigen::VectorXd g = Eigen::VectorXd::Zero(c.count);
