@@ -9,7 +9,7 @@
 set -euo pipefail
 
 base=(cmake make g++ pkg-config libeigen3-dev catch2 libbenchmark-dev zlib1g-dev libcli11-dev nlohmann-json3-dev clang-format clang-tidy
-      libmodbus-dev libsqlite3-dev)
+      libmodbus-dev libsqlite3-dev libceres-dev)
 cross=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user qemu-system-arm
        gcc-arm-none-eabi binutils-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib
        qemu-system-x86 linux-image-amd64 busybox-static can-utils cpio xz-utils clang-14 libclang-rt-14-dev)

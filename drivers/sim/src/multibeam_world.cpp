@@ -10,14 +10,17 @@
 namespace agv::sim {
 
 double MultibeamWorld::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double maxRange,
-                            const std::vector<std::size_t>* candidates) const {
+                            const std::vector<std::size_t>* candidates, int* surface) const {
   double best = maxRange;
-  if (dir.z() < -1e-12) {
-    best = std::min(best, -origin.z() / dir.z());  // ground z = 0
+  int what = -1;
+  if (dir.z() < -1e-12 && -origin.z() / dir.z() < best) {
+    best = -origin.z() / dir.z();  // ground z = 0
+    what = 0;
   }
   const std::size_t n = candidates != nullptr ? candidates->size() : boxes.size();
   for (std::size_t k = 0; k < n; ++k) {
-    const Box3& b = boxes[candidates != nullptr ? (*candidates)[k] : k];
+    const std::size_t index = candidates != nullptr ? (*candidates)[k] : k;
+    const Box3& b = boxes[index];
     // Slab test in the box frame.
     const Eigen::Vector3d o = b.rotation.transpose() * (origin - b.centre);
     const Eigen::Vector3d d = b.rotation.transpose() * dir;
@@ -40,7 +43,11 @@ double MultibeamWorld::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d
     }
     if (hit && t0 > 1e-9 && t0 < best) {
       best = t0;
+      what = static_cast<int>(index) + 1;
     }
+  }
+  if (surface != nullptr) {
+    *surface = what;
   }
   return best;
 }

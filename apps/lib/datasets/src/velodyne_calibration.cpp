@@ -1,5 +1,7 @@
 #include "agv/datasets/velodyne_calibration.hpp"
 
+#include <cstdio>
+
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -304,6 +306,39 @@ bool readVelodyneCalibration(const std::string& path, LaserIntrinsics& out, std:
     error = path + ": " + error;
   }
   return ok;
+}
+
+std::string formatVelodyneYaml(const LaserIntrinsics& table, const std::string& comment) {
+  std::string out;
+  std::size_t from = 0;
+  while (!comment.empty() && from <= comment.size()) {
+    const std::size_t nl = comment.find('\n', from);
+    out += "# " + comment.substr(from, nl == std::string::npos ? std::string::npos : nl - from) + "\n";
+    if (nl == std::string::npos) {
+      break;
+    }
+    from = nl + 1;
+  }
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "distance_resolution: %.17g\nnum_lasers: %zu\nlasers:\n", table.distanceResolution(),
+                table.size());
+  out += buf;
+  for (std::size_t l = 0; l < table.size(); ++l) {
+    const LaserParams& p = table.params(l);
+    std::snprintf(buf, sizeof buf, "- laser_id: %zu\n", l);
+    out += buf;
+    const std::pair<const char*, double> fields[] = {{"dist_correction", p.distCorrection},
+                                                     {"horiz_offset_correction", p.horizOffset},
+                                                     {"rot_correction", p.alpha},
+                                                     {"vert_correction", p.theta},
+                                                     {"vert_offset_correction", p.vertOffset}};
+    for (const auto& [name, value] : fields) {
+      std::snprintf(buf, sizeof buf, "  %s: %.17g\n", name, value);
+      out += buf;
+    }
+    out += "  two_pt_correction_available: false\n";
+  }
+  return out;
 }
 
 }  // namespace agv::datasets

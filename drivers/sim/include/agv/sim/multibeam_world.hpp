@@ -27,9 +27,10 @@ struct Box3 {
 struct MultibeamWorld {
   std::vector<Box3> boxes;
   /// Distance along the unit ray (origin, dir) to the nearest surface, or maxRange when none is
-  /// nearer; `candidates` (indices into boxes) limits the boxes tested (all when null).
+  /// nearer; `candidates` (indices into boxes) limits the boxes tested (all when null). When
+  /// `surface` is given it receives what was hit: -1 nothing, 0 the ground, k + 1 box k.
   double cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double maxRange,
-              const std::vector<std::size_t>* candidates = nullptr) const;
+              const std::vector<std::size_t>* candidates = nullptr, int* surface = nullptr) const;
 };
 
 /// A multi-beam lidar: one entry per laser (hardware order), firings per revolution, noise.

@@ -25,4 +25,10 @@ bool parseVelodyneYaml(std::string_view text, LaserIntrinsics& out, std::string&
 /// Reads `path` and parses it as db.xml when it starts with `<` (after blanks), else as YAML.
 bool readVelodyneCalibration(const std::string& path, LaserIntrinsics& out, std::string& error);
 
+/// The table as velodyne_pointcloud YAML (`distance_resolution`, `num_lasers`, `lasers:` in block
+/// style with the five thesis fields per laser, `two_pt_correction_available: false`; numbers
+/// with 17 significant digits, so `parseVelodyneYaml` reads back the same doubles). `comment`
+/// lines are written first as `# ...`.
+std::string formatVelodyneYaml(const LaserIntrinsics& table, const std::string& comment = std::string());
+
 }  // namespace agv::datasets

@@ -1,0 +1,384 @@
+// agvnav-lidar-calibrate: per-laser intrinsic calibration (D_corr, theta, alpha; V_o, H_o on
+// request) of a multi-beam lidar from scans of a planar target, the thesis' cost (mean squared
+// distance of each target scan to its PCA plane) solved with Ceres. The scans come from the
+// simulator's calibration hall (9 distances x 5 tilts by default) with a factory file perturbed
+// by known amounts as the truth; the program reports the errors against that truth, the plane
+// residuals before / after / at the noise floor, the conditioning and the wall time, and writes
+// the calibrated intrinsics as velodyne_pointcloud YAML.
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <random>
+#include <string>
+
+#include "agv/core/angle.hpp"
+#include "agv/datasets/velodyne_calibration.hpp"
+#include "agv/lidar_calibration/hall_scans.hpp"
+#include "agv/lidar_calibration/intrinsic_calibration.hpp"
+#include "agv/report/json.hpp"
+#include "agv/report/text_file.hpp"
+
+namespace {
+
+namespace lc = agv::lidar_calibration;
+using agv::report::Json;
+
+Json conditioningJson(const lc::ConditioningReport& c) {
+  Json j;
+  j["parameters"] = c.parameters;
+  j["condition_number"] = c.conditionNumber;
+  j["null_directions"] = c.nullDirections;
+  Json smallest = Json::array();
+  for (const lc::ConditionDirection& d : c.smallest) {
+    smallest.push_back(Json{{"singular_value", d.singularValue}, {"gauge", d.gauge}, {"components", d.components}});
+  }
+  j["smallest"] = smallest;
+  return j;
+}
+
+void printConditioning(const char* title, const lc::ConditioningReport& c) {
+  std::printf("%s: %zu parameters, condition number %.3g (gauges fixed), %zu null directions besides the gauges\n",
+              title, c.parameters, c.conditionNumber, c.nullDirections);
+  for (const lc::ConditionDirection& d : c.smallest) {
+    std::printf("  singular value %.3e%s%s: %s\n", d.singularValue, d.gauge.empty() ? "" : " gauge ", d.gauge.c_str(),
+                d.components.c_str());
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string factoryPath;
+  std::string truthPath;
+  std::string outputPath;
+  std::string jsonPath;
+  double perturbDist = 0.05;
+  double perturbThetaDeg = 0.3;
+  double perturbAlphaDeg = 0.5;
+  double perturbOffsets = 0.0;
+  int distances = 9;
+  int tilts = 5;
+  double nearest = 3.0;
+  double farthest = 22.0;
+  double minTiltDeg = 0.0;
+  double maxTiltDeg = 24.0;
+  double windowDeg = 0.0;
+  bool noQuantize = false;
+  bool estimateOffsets = false;
+  bool quiet = false;
+  int monteCarlo = 0;
+  std::uint64_t seed = 1;
+  lc::HallScansConfig sim;
+  lc::IntrinsicCalibrationConfig config;
+
+  CLI::App app{"agvnav-lidar-calibrate: per-laser intrinsics of a multi-beam lidar from planar-target scans (Ceres)"};
+  app.add_option("--factory", factoryPath,
+                 "factory / start intrinsics (db.xml or YAML; default: the shared HDL-64E S2.1 SZTAKI file)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--truth", truthPath, "simulated unit's intrinsics (default: the factory file perturbed)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--perturb-dist", perturbDist, "[m] truth = factory D_corr + uniform(+-this)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--perturb-theta", perturbThetaDeg, "[deg] theta perturbation bound")->check(CLI::Range(0.0, 5.0));
+  app.add_option("--perturb-alpha", perturbAlphaDeg, "[deg] alpha perturbation bound")->check(CLI::Range(0.0, 5.0));
+  app.add_option("--perturb-offsets", perturbOffsets, "[m] V_o and H_o perturbation bound")
+      ->check(CLI::Range(0.0, 0.5));
+  app.add_option("--noise", sim.sensor.rangeNoise, "[m] range noise (standard deviation)")->check(CLI::Range(0.0, 1.0));
+  app.add_flag("--no-quantize", noQuantize, "keep the simulated ranges continuous (no 2 mm counts)");
+  app.add_option("--firings", sim.sensor.firings, "firings per revolution")->check(CLI::Range(36, 20000));
+  app.add_option("--azimuth-window", windowDeg, "[deg] fire only within +-this of the target (0: full turn)")
+      ->check(CLI::Range(0.0, 180.0));
+  app.add_option("--distances", distances, "placements: number of distances")->check(CLI::Range(1, 50));
+  app.add_option("--nearest", nearest, "[m] nearest placement")->check(CLI::Range(2.0, 25.0));
+  app.add_option("--farthest", farthest, "[m] farthest placement")->check(CLI::Range(2.0, 25.0));
+  app.add_option("--tilts", tilts, "placements: number of head tilts")->check(CLI::Range(1, 20));
+  app.add_option("--min-tilt", minTiltDeg, "[deg] lowest head tilt (up)")->check(CLI::Range(-30.0, 40.0));
+  app.add_option("--max-tilt", maxTiltDeg, "[deg] highest head tilt (up)")->check(CLI::Range(-30.0, 40.0));
+  app.add_flag("--estimate-offsets", estimateOffsets, "also estimate V_o and H_o");
+  const std::map<std::string, lc::PlaneResidual> residuals{{"orthogonal", lc::PlaneResidual::Orthogonal},
+                                                           {"beam", lc::PlaneResidual::AlongBeam}};
+  app.add_option("--residual", config.residual,
+                 "orthogonal: the thesis' plane distance; beam: the range error along the beam (unbiased)")
+      ->transform(CLI::CheckedTransformer(residuals, CLI::ignore_case));
+  bool freeMeanTheta = false;
+  app.add_flag("--free-mean-theta", freeMeanTheta, "do not hold the mean theta at the factory values (near-gauge)");
+  app.add_option("--passes", config.passes, "segment + solve rounds")->check(CLI::Range(1, 5));
+  app.add_option("--threads", config.threads, "Ceres threads")->check(CLI::Range(1, 2));
+  app.add_option("--max-correlation", config.maxCorrelation,
+                 "hold a laser two of whose parameters correlate beyond this")
+      ->check(CLI::Range(0.5, 1.0));
+  app.add_option("--seed", seed, "perturbation and noise seed");
+  app.add_option("--monte-carlo", monteCarlo, "repeat with this many noise seeds; report the errors against sigma")
+      ->check(CLI::Range(0, 1000));
+  app.add_option("--output", outputPath, "write the calibrated intrinsics (velodyne_pointcloud YAML)");
+  app.add_option("--json", jsonPath, "write the figures as JSON");
+  app.add_flag("--quiet", quiet, "no progress lines");
+  CLI11_PARSE(app, argc, argv);
+  if (factoryPath.empty()) {
+    factoryPath = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/hdl64e_s2.1_sztaki.yaml";
+  }
+  if (farthest < nearest) {
+    std::fprintf(stderr, "agvnav-lidar-calibrate: --farthest below --nearest\n");
+    return 2;
+  }
+
+  std::string error;
+  static agv::LaserIntrinsics factory;
+  static agv::LaserIntrinsics truth;
+  if (!agv::datasets::readVelodyneCalibration(factoryPath, factory, error)) {
+    std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
+    return 2;
+  }
+  std::mt19937_64 rng(seed);
+  if (!truthPath.empty()) {
+    if (!agv::datasets::readVelodyneCalibration(truthPath, truth, error)) {
+      std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
+      return 2;
+    }
+  } else {
+    truth = agv::sim::perturbIntrinsics(factory, perturbDist, agv::deg2rad(perturbThetaDeg),
+                                        agv::deg2rad(perturbAlphaDeg), perturbOffsets, rng);
+  }
+  if (truth.size() != factory.size()) {
+    std::fprintf(stderr, "agvnav-lidar-calibrate: the truth has %zu lasers, the factory file %zu\n", truth.size(),
+                 factory.size());
+    return 2;
+  }
+  sim.placements =
+      agv::sim::hallProtocol(distances, nearest, farthest, tilts, agv::deg2rad(minTiltDeg), agv::deg2rad(maxTiltDeg));
+  sim.sensor.quantize = !noQuantize;
+  sim.sensor.azimuthWindow = agv::deg2rad(windowDeg);
+  sim.seed = seed;
+  config.holdMeanTheta = !freeMeanTheta;
+  config.estimate.vertOffset = estimateOffsets;
+  config.estimate.horizOffset = estimateOffsets;
+  if (!quiet) {
+    config.progress = [](const std::string& line) { std::printf("  %s\n", line.c_str()); };
+  }
+  std::printf(
+      "agvnav-lidar-calibrate: %zu lasers (%s), %zu placements (%d distances %.1f..%.1f m x %d tilts %.0f..%.0f deg), "
+      "noise %.3f m, truth = factory + D_corr +-%.3f m, theta +-%.2f deg, alpha +-%.2f deg, V_o/H_o +-%.3f m\n",
+      factory.size(), factoryPath.c_str(), sim.placements.size(), distances, nearest, farthest, tilts, minTiltDeg,
+      maxTiltDeg, sim.sensor.rangeNoise, perturbDist, perturbThetaDeg, perturbAlphaDeg, perturbOffsets);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::vector<lc::CalibrationScan> scans = lc::simulateHallScans(sim, truth);
+  const double simSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::size_t returns = 0;
+  for (const lc::CalibrationScan& s : scans) {
+    returns += s.returns.size();
+  }
+  std::printf("simulated %zu scans, %zu returns in %.2f s\n", scans.size(), returns, simSeconds);
+
+  lc::IntrinsicCalibrationResult result;
+  const auto t1 = std::chrono::steady_clock::now();
+  const bool ok = lc::calibrateIntrinsics(scans, factory, config, result, error);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  Json doc;
+  doc["program"] = "agvnav-lidar-calibrate";
+  doc["factory"] = factoryPath;
+  doc["lasers"] = factory.size();
+  doc["placements"] = sim.placements.size();
+  doc["noise_m"] = sim.sensor.rangeNoise;
+  doc["residual"] = config.residual == lc::PlaneResidual::AlongBeam ? "beam" : "orthogonal";
+  doc["returns"] = returns;
+  doc["ok"] = ok;
+  if (!ok) {
+    std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
+    doc["error"] = error;
+  }
+  printConditioning("conditioning at the factory values", result.startConditioning);
+  Json lasers = Json::array();
+  std::size_t held = 0;
+  for (const lc::LaserReport& l : result.lasers) {
+    if (!l.estimated) {
+      ++held;
+      std::printf("laser %2zu held at the start values: %s\n", l.laser, l.reason.c_str());
+    }
+  }
+  if (!ok) {
+    for (const lc::LaserReport& l : result.lasers) {
+      lasers.push_back(Json{{"laser", l.laser}, {"estimated", l.estimated}, {"reason", l.reason}});
+    }
+    doc["laser_reports"] = lasers;
+    if (!jsonPath.empty() && !agv::report::writeJsonFile(jsonPath, doc, error)) {
+      std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
+    }
+    return 3;
+  }
+  // Noise floor: the truth's own plane residual on the same target points.
+  std::vector<std::vector<std::size_t>> targets;
+  for (const lc::ScanReport& s : result.scans) {
+    targets.push_back(s.targets);
+  }
+  const std::vector<double> floor = lc::planeResiduals(scans, targets, truth);
+  const lc::TruthComparison cmp = lc::compareWithTruth(result, truth, config);
+
+  std::printf("\n%-22s %8s %10s %10s %10s %8s\n", "scan", "points", "rms start", "rms final", "rms truth",
+              "final/truth");
+  Json scanJson = Json::array();
+  double worstRatio = 0.0;
+  for (std::size_t s = 0; s < result.scans.size(); ++s) {
+    const lc::ScanReport& r = result.scans[s];
+    const double ratio = floor[s] > 0.0 ? r.rmsFinal / floor[s] : 0.0;
+    worstRatio = std::max(worstRatio, ratio);
+    std::printf("%-22s %8zu %10.5f %10.5f %10.5f %8.4f\n", r.name.c_str(), r.targetPoints, r.rmsStart, r.rmsFinal,
+                floor[s], ratio);
+    scanJson.push_back(Json{{"name", r.name},
+                            {"returns", r.returns},
+                            {"target_points", r.targetPoints},
+                            {"rms_start_m", r.rmsStart},
+                            {"rms_final_m", r.rmsFinal},
+                            {"rms_truth_m", floor[s]}});
+  }
+  std::printf("\n%5s %7s %10s %10s %10s %10s %10s %10s %6s\n", "laser", "points", "D_corr", "err [mm]", "theta[deg]",
+              "err [mdeg]", "alpha[deg]", "err [mdeg]", "corr");
+  for (const lc::LaserReport& l : result.lasers) {
+    const auto& e = cmp.error[l.laser];
+    std::printf("%5zu %7zu %10.5f %5.2f+-%-4.2f %10.4f %5.1f+-%-4.1f %10.4f %5.1f+-%-4.1f %6.3f%s\n", l.laser, l.points,
+                l.estimate.distCorrection, e[agv::kDistCorrection] * 1e3, l.sigma[agv::kDistCorrection] * 1e3,
+                agv::rad2deg(l.estimate.theta), agv::rad2deg(e[agv::kTheta]) * 1e3,
+                agv::rad2deg(l.sigma[agv::kTheta]) * 1e3, agv::rad2deg(l.estimate.alpha),
+                agv::rad2deg(e[agv::kAlpha]) * 1e3, agv::rad2deg(l.sigma[agv::kAlpha]) * 1e3, l.maxCorrelation,
+                l.estimated ? "" : "  held");
+    Json lj{{"laser", l.laser},
+            {"estimated", l.estimated},
+            {"reason", l.reason},
+            {"points", l.points},
+            {"scans", l.scans},
+            {"max_correlation", l.maxCorrelation},
+            {"max_correlation_pair", l.maxCorrelationPair}};
+    Json est;
+    Json sig;
+    Json err;
+    for (int k = 0; k < agv::kLaserParamCount; ++k) {
+      est[lc::laserParamName(k)] = agv::toVector(l.estimate)[k];
+      sig[lc::laserParamName(k)] = l.sigma[k];
+      err[lc::laserParamName(k)] = e[k];
+    }
+    lj["estimate"] = est;
+    lj["sigma"] = sig;
+    lj["error_vs_truth"] = err;
+    lasers.push_back(lj);
+  }
+  printConditioning("\nconditioning at the solution", result.conditioning);
+  std::printf(
+      "\nerrors against the truth (%zu lasers estimated, %zu held; held common offsets removed: alpha %.4f deg, "
+      "theta %.4f deg):\n",
+      result.lasersEstimated, held, agv::rad2deg(cmp.commonAlpha), agv::rad2deg(cmp.commonTheta));
+  Json errJson;
+  for (int k = 0; k < agv::kLaserParamCount; ++k) {
+    if (!config.estimate[k]) {
+      continue;
+    }
+    const bool angle = k == agv::kTheta || k == agv::kAlpha;
+    const double f = angle ? agv::rad2deg(1.0) * 1e3 : 1e3;
+    std::printf("  %-7s start max %8.3f, final max %8.4f rms %8.4f %s\n", lc::laserParamName(k), cmp.maxAbsStart[k] * f,
+                cmp.maxAbs[k] * f, cmp.rms[k] * f, angle ? "mdeg" : "mm");
+    errJson[lc::laserParamName(k)] =
+        Json{{"start_max", cmp.maxAbsStart[k]}, {"final_max", cmp.maxAbs[k]}, {"final_rms", cmp.rms[k]}};
+  }
+  std::printf("  |error| / sigma: max %.2f, %zu of %zu beyond 3 sigma\n", cmp.maxSigmaRatio, cmp.beyondThreeSigma,
+              cmp.compared);
+  std::printf(
+      "cost (sum over scans of the mean squared plane distance): start %.6e, final %.6e m^2 (PCA planes), "
+      "%.6e m^2 (Ceres' planes), planes within %.2e rad; worst scan rms final / truth %.4f\n",
+      result.costStart, result.costFinal, result.costFinalJoint, result.maxPlaneAngle, worstRatio);
+  std::printf("residual sigma %.5f m; %d iterations; wall time %.2f s (segmentation %.2f, solve %.2f, analysis %.2f)\n",
+              result.noiseSigma, result.iterations, wall, result.secondsSegmentation, result.secondsSolve,
+              result.secondsAnalysis);
+  doc["cost_start_m2"] = result.costStart;
+  doc["cost_final_m2"] = result.costFinal;
+  doc["cost_final_joint_m2"] = result.costFinalJoint;
+  doc["max_plane_angle_rad"] = result.maxPlaneAngle;
+  doc["worst_rms_final_over_truth"] = worstRatio;
+  doc["noise_sigma_m"] = result.noiseSigma;
+  doc["iterations"] = result.iterations;
+  doc["wall_time_s"] = wall;
+  doc["seconds"] = Json{{"simulation", simSeconds},
+                        {"segmentation", result.secondsSegmentation},
+                        {"solve", result.secondsSolve},
+                        {"analysis", result.secondsAnalysis}};
+  doc["lasers_estimated"] = result.lasersEstimated;
+  doc["lasers_held"] = held;
+  doc["errors_vs_truth"] = errJson;
+  doc["common_alpha_offset_rad"] = cmp.commonAlpha;
+  doc["common_theta_offset_rad"] = cmp.commonTheta;
+  doc["max_error_over_sigma"] = cmp.maxSigmaRatio;
+  doc["beyond_three_sigma"] = cmp.beyondThreeSigma;
+  doc["conditioning_start"] = conditioningJson(result.startConditioning);
+  doc["conditioning"] = conditioningJson(result.conditioning);
+  doc["scans"] = scanJson;
+  doc["laser_reports"] = lasers;
+
+  // Monte-Carlo: the same truth, new noise; errors against each run's sigma.
+  if (monteCarlo > 0) {
+    lc::IntrinsicCalibrationConfig mc = config;
+    mc.progress = nullptr;
+    std::size_t compared = 0;
+    std::size_t beyond = 0;
+    double worst = 0.0;
+    double seconds = 0.0;
+    int failed = 0;
+    for (int run = 0; run < monteCarlo; ++run) {
+      lc::HallScansConfig s = sim;
+      s.seed = seed + 1000U + static_cast<std::uint64_t>(run);
+      lc::IntrinsicCalibrationResult r;
+      std::string e;
+      const auto tr = std::chrono::steady_clock::now();
+      if (!lc::calibrateIntrinsics(lc::simulateHallScans(s, truth), factory, mc, r, e)) {
+        ++failed;
+        std::printf("  monte-carlo %d: refused: %s\n", run, e.c_str());
+        continue;
+      }
+      seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - tr).count();
+      const lc::TruthComparison c = lc::compareWithTruth(r, truth, mc);
+      compared += c.compared;
+      beyond += c.beyondThreeSigma;
+      worst = std::max(worst, c.maxSigmaRatio);
+      if (!quiet) {
+        std::printf("  monte-carlo %d: max |error|/sigma %.2f, %zu of %zu beyond 3 sigma\n", run, c.maxSigmaRatio,
+                    c.beyondThreeSigma, c.compared);
+      }
+    }
+    std::printf(
+        "monte-carlo: %d runs (%d failed), %zu of %zu parameter errors beyond 3 sigma (%.3f %%), worst %.2f "
+        "sigma, mean calibration time %.2f s\n",
+        monteCarlo, failed, beyond, compared,
+        compared > 0 ? 100.0 * static_cast<double>(beyond) / static_cast<double>(compared) : 0.0, worst,
+        monteCarlo > failed ? seconds / (monteCarlo - failed) : 0.0);
+    doc["monte_carlo"] = Json{{"runs", monteCarlo},   {"failed", failed},
+                              {"compared", compared}, {"beyond_three_sigma", beyond},
+                              {"worst_sigma", worst}, {"mean_seconds", seconds / std::max(1, monteCarlo - failed)}};
+  }
+  if (!outputPath.empty()) {
+    const std::string text = agv::datasets::formatVelodyneYaml(
+        result.calibrated, "agvnav-lidar-calibrate: calibrated from " + std::to_string(scans.size()) +
+                               " planar-target scans, start " + factoryPath);
+    if (!agv::report::writeTextFile(outputPath, text, error)) {
+      std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
+      return 2;
+    }
+    // Round trip: the file read back by the project's reader gives the same table.
+    static agv::LaserIntrinsics back;
+    bool same =
+        agv::datasets::readVelodyneCalibration(outputPath, back, error) && back.size() == result.calibrated.size();
+    for (std::size_t l = 0; same && l < back.size(); ++l) {
+      same = agv::toVector(back.params(l)) == agv::toVector(result.calibrated.params(l));
+    }
+    std::printf("wrote %s (read back: %s)\n", outputPath.c_str(), same ? "the same table" : "DIFFERENT");
+    doc["output"] = Json{{"path", outputPath}, {"read_back_equal", same}};
+    if (!same) {
+      std::fprintf(stderr, "agvnav-lidar-calibrate: %s does not read back as written\n", outputPath.c_str());
+      return 2;
+    }
+  }
+  if (!jsonPath.empty() && !agv::report::writeJsonFile(jsonPath, doc, error)) {
+    std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
+    return 2;
+  }
+  return 0;
+}
