@@ -51,21 +51,23 @@ inline std::string goodVehicleConfig(const std::string& canIf = "can0",
 }
 
 inline const char* goodCalibration() {
-  return "agvnav-calibration 1\n"
+  return "agvnav-calibration 2\n"
          "wheelbase 1.5\n"
          "drive_scale 0.0005 0.00000003\n"
          "steer_offset_forward 0.017455\n"
          "steer_offset_backward -0.008727\n"
          "laser_x 1.6\n"
          "laser_y 0.0\n"
-         "laser_theta 0.0\n";
+         "laser_theta 0.0\n"
+         "end 7\n";
 }
 
 inline const char* goodMap() {
-  return "agvnav-landmarks 1\n"
+  return "agvnav-landmarks 2\n"
          "reflector 1 5.0 1.0 0.002\n"
          "reflector 2 6.0 -2.0 0.002\n"
-         "reflector 3 9.0 3.0 0.002\n";
+         "reflector 3 9.0 3.0 0.002\n"
+         "end 3\n";
 }
 
 /// A fresh folder under /tmp, removed (with the files written by `write`) by the destructor.
