@@ -15,34 +15,12 @@
 #include "vehicle_files.hpp"
 #include "vehicle_runtime.hpp"
 
+using agv::test::withValue;
 using agv::vehicle::ConfigError;
 using agv::vehicle::parseVehicleConfig;
 using agv::vehicle::VehicleConfig;
 
 namespace {
-
-/// `text` with the line of `key` replaced by `key = value` (appended when the key is absent).
-/// `line` receives its 1-based line number.
-std::string withValue(const std::string& text, const std::string& key, const std::string& value, std::size_t& line) {
-  std::istringstream in(text);
-  std::string out;
-  std::string l;
-  std::size_t n = 0;
-  line = 0;
-  while (std::getline(in, l)) {
-    ++n;
-    if (l.rfind(key + " ", 0) == 0 || l.rfind(key + "=", 0) == 0) {
-      l = key + " = " + value;
-      line = n;
-    }
-    out += l + "\n";
-  }
-  if (line == 0) {
-    out += key + " = " + value + "\n";
-    line = n + 1;
-  }
-  return out;
-}
 
 std::string withoutKey(const std::string& text, const std::string& key) {
   std::istringstream in(text);

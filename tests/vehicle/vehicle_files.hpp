@@ -6,7 +6,9 @@
 
 #include <cstdint>
 #include <fstream>
+#include <sstream>
 #include <string>
+#include <vector>
 
 namespace agv::test {
 
@@ -48,6 +50,36 @@ inline std::string goodVehicleConfig(const std::string& canIf = "can0",
          "map.mode = static\n"                        // 24
          "localization.initial_pose = 1.0 2.0 0.5\n"  // 25
          "loop.period = 0.001\n";                     // 26
+}
+
+/// `text` with the line of `key` replaced by `key = value` (appended when the key is absent).
+/// `line` receives its 1-based line number.
+inline std::string withValue(const std::string& text, const std::string& key, const std::string& value,
+                             std::size_t& line) {
+  std::istringstream in(text);
+  std::string out;
+  std::string l;
+  std::size_t n = 0;
+  line = 0;
+  while (std::getline(in, l)) {
+    ++n;
+    if (l.rfind(key + " ", 0) == 0 || l.rfind(key + "=", 0) == 0) {
+      l = key + " = " + value;
+      line = n;
+    }
+    out += l + "\n";
+  }
+  if (line == 0) {
+    out += key + " = " + value + "\n";
+    line = n + 1;
+  }
+  return out;
+}
+
+/// `text` with the line of `key` replaced by `key = value` (appended when the key is absent).
+inline std::string withValue(const std::string& text, const std::string& key, const std::string& value) {
+  std::size_t line = 0;
+  return withValue(text, key, value, line);
 }
 
 inline const char* goodCalibration() {
