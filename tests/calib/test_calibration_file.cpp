@@ -153,6 +153,9 @@ TEST_CASE("formatting refuses values the parser would refuse and a buffer that i
   bad.sigmas.laserY = -1e-3;
   CHECK(agv::formatCalibrationFile(bad, Span<char>(buf, sizeof buf)).status() == Status::OutOfRange);
   bad = cal;
+  bad.sigmas.laserX = 1e10;  // could not be written with 9 decimals
+  CHECK(agv::formatCalibrationFile(bad, Span<char>(buf, sizeof buf)).status() == Status::OutOfRange);
+  bad = cal;
   bad.params.steerOffsetForward = 0.6;
   CHECK(agv::formatCalibrationFile(bad, Span<char>(buf, sizeof buf)).status() == Status::OutOfRange);
 }
@@ -203,6 +206,8 @@ TEST_CASE("bad files are refused with the line or key named, and the output is l
       {withLine("wheelbase", "wheelbase 1.5 0.001"), Status::Malformed, 0, "wheelbase"},
       {withLine("laser_y", "laser_y 51"), Status::OutOfRange, 0, "laser_y"},
       {withLine("laser_y", "laser_y 0.3 -0.001"), Status::OutOfRange, 0, "laser_y"},
+      {withLine("laser_y", "laser_y 0.3 100.001"), Status::OutOfRange, 0, "laser_y"},
+      {withLine("drive_scale", "drive_scale 5e-4 1e19"), Status::OutOfRange, 0, "drive_scale"},
       {withLine("drive_scale", "drive_scale 0"), Status::OutOfRange, 0, "drive_scale"},
       {withLine("drive_scale", "drive_scale -5e-4"), Status::OutOfRange, 0, "drive_scale"},
       {withLine("wheelbase", "wheelbase 0.05"), Status::OutOfRange, 0, "wheelbase"},

@@ -255,6 +255,7 @@ TEST_CASE("landmark map text: malformed input is refused and leaves the map unch
       {"agvnav-landmarks 1\nreflector 0 0 0 0\n", Status::OutOfRange, 2U},
       {"agvnav-landmarks 1\nreflector 1 0 2000000 0\n", Status::OutOfRange, 2U},
       {"agvnav-landmarks 1\nreflector 1 0 0 -0.1\n", Status::OutOfRange, 2U},
+      {"agvnav-landmarks 1\nreflector 1 0 0 1000000.5\n", Status::OutOfRange, 2U},
       {"agvnav-landmarks 1\nreflector 1 0 0 0\nreflector 2 0 0 0\nreflector 1 1 1 0\n", Status::InvalidArgument, 4U},
       {"agvnav-landmarks 1\nreflector 5 0 0 0\n", Status::InvalidArgument, 2U},  // id already in the map
   };

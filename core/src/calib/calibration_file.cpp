@@ -47,6 +47,12 @@ bool inRange(Key k, double v) noexcept {
   return v >= kKeys[k].minValue && v <= kKeys[k].maxValue;
 }
 
+/// A sigma is at least 0 and at most the width of its value's range (larger says nothing, and
+/// could not be written back with the file's decimals).
+bool sigmaInRange(Key k, double sigma) noexcept {
+  return sigma >= 0.0 && sigma <= kKeys[k].maxValue - kKeys[k].minValue;
+}
+
 /// The sigma field of `k` in `s` (const or not); nullptr for the wheelbase, which has none.
 template <typename Sigmas>
 auto sigmaSlot(Sigmas& s, Key k) noexcept -> decltype(&s.driveScale) {
@@ -123,7 +129,7 @@ Status parseCalibrationFile(Span<const char> textIn, VehicleCalibration& out, Ca
     if (seen[k]) {
       return fail(Status::InvalidArgument, nullptr);
     }
-    if (!inRange(k, v) || sigma < 0.0) {
+    if (!inRange(k, v) || !sigmaInRange(k, sigma)) {
       return fail(Status::OutOfRange, nullptr);
     }
     seen[k] = true;
@@ -168,7 +174,7 @@ Result<std::size_t> formatCalibrationFile(const VehicleCalibration& cal, Span<ch
   for (int k = 0; k < kKeyCount; ++k) {
     const Key key = static_cast<Key>(k);
     const double s = kKeys[k].hasSigma ? *sigmaSlot(cal.sigmas, key) : 0.0;
-    if (!std::isfinite(values[k]) || !inRange(key, values[k]) || !std::isfinite(s) || s < 0.0) {
+    if (!std::isfinite(values[k]) || !inRange(key, values[k]) || !std::isfinite(s) || !sigmaInRange(key, s)) {
       return Status::OutOfRange;
     }
   }

@@ -55,7 +55,9 @@ Status parseRecord(const char* p, const char* end, Record* r) noexcept {
   if (nextToken(p, end, &tb, &te)) {
     return Status::Malformed;  // trailing field
   }
-  if (r->id == 0 || std::fabs(r->x) > kMaxMapCoordinate || std::fabs(r->y) > kMaxMapCoordinate || r->sigma < 0.0) {
+  // sigma is bounded like the coordinates: larger is meaningless, and it could not be written back.
+  if (r->id == 0 || std::fabs(r->x) > kMaxMapCoordinate || std::fabs(r->y) > kMaxMapCoordinate || r->sigma < 0.0 ||
+      r->sigma > kMaxMapCoordinate) {
     return Status::OutOfRange;
   }
   return Status::Ok;

@@ -26,7 +26,8 @@
 ///   the text ends; a count that differs from the key lines read is refused (`Malformed`, or
 ///   `Truncated` when the `end` line itself is cut). The final LF may be missing.
 /// - Ranges: 0.1 <= wheelbase <= 20 m; 0 < drive_scale <= 0.1 m/tick; |steer offsets| <= 0.5 rad;
-///   |laser_x|, |laser_y| <= 50 m; |laser_theta| <= 2 pi (normalised to (-pi, pi] on reading).
+///   |laser_x|, |laser_y| <= 50 m; |laser_theta| <= 2 pi (normalised to (-pi, pi] on reading). A
+///   sigma is at most the width of its value's range (0.1 m/tick, 1 rad, 100 m, 4 pi rad).
 /// - Numbers are decimal: optional sign, digits, optional fraction, optional exponent (`5e-4`).
 ///
 /// Version 1 (header `agvnav-calibration 1`, no `end` record) is still read:

@@ -14,7 +14,7 @@
 ///
 /// - The first record is the header `agvnav-landmarks 2`.
 /// - kind: `reflector` or `corner`; id: integer 1..4294967295, unique in the file and in the map;
-///   x, y: world coordinates, |v| <= 1e6; sigma: isotropic position standard deviation >= 0.
+///   x, y: world coordinates, |v| <= 1e6; sigma: isotropic position standard deviation, 0..1e6.
 /// - The last record is `end <count>`, count = the number of landmark records (decimal). Nothing
 ///   but blank lines and comments may follow it. A file that ends before it (cut short by a copy,
 ///   a full disk, a power loss) is refused as `Truncated`, naming the line where the text ends; a
@@ -53,7 +53,7 @@ struct LandmarkMapParseReport {
 /// Parses `text` and adds its landmarks to `map` as surveyed landmarks. All or nothing: on any
 /// error the map is left as it was. Errors: `Malformed` (bad header, kind, number or field count,
 /// `end` count; see `report->errorLine`), `Truncated` (version 2 without its `end` line, or cut
-/// inside its last line), `OutOfRange` (coordinate beyond 1e6 m, negative sigma, id 0),
+/// inside its last line), `OutOfRange` (coordinate beyond 1e6 m, sigma outside 0..1e6 m, id 0),
 /// `InvalidArgument` (duplicate id), `CapacityExceeded` (the map cannot take them all; counted
 /// in the map's refusedFull), `EmptyInput` (no header), `Unsupported` (a newer version).
 Status parseLandmarkMap(Span<const char> text, LandmarkMap& map, LandmarkMapParseReport* report = nullptr) noexcept;
