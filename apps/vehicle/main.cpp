@@ -63,6 +63,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "agvnav-vehicle: bad configuration: %s\n", error.text().c_str());
     return 2;
   }
+  for (const std::string& w : files.warnings) {
+    std::fprintf(stderr, "agvnav-vehicle: warning: %s\n", w.c_str());
+  }
   if (checkOnly) {
     std::printf("agvnav-vehicle: %s: configuration ok (%zu landmarks)\n", configPath.c_str(), files.map->size());
     return 0;

@@ -30,7 +30,7 @@ std::string calibrationErrorText(Status s, const CalibrationFileReport& r) {
   const char* why = toString(s);
   switch (s) {
     case Status::EmptyInput:
-      why = "no 'agvnav-calibration 1' header";
+      why = "no 'agvnav-calibration 2' header";
       break;
     case Status::Malformed:
       why = "malformed line (header, unknown key, bad number or field count)";
@@ -47,15 +47,21 @@ std::string calibrationErrorText(Status s, const CalibrationFileReport& r) {
     default:
       break;
   }
+  if (r.detail != nullptr) {
+    why = r.detail;
+  }
   return r.key != nullptr ? std::string(r.key) + ": " + why : std::string(why);
 }
 
-std::string mapErrorText(Status s) {
+std::string mapErrorText(Status s, const LandmarkMapParseReport& r) {
+  if (r.detail != nullptr) {
+    return r.detail;
+  }
   switch (s) {
     case Status::EmptyInput:
-      return "no 'agvnav-landmarks 1' header";
+      return "no 'agvnav-landmarks 2' header";
     case Status::Malformed:
-      return "malformed line (header, kind, number or field count)";
+      return "malformed line (kind, number or field count)";
     case Status::OutOfRange:
       return "coordinate beyond 1e6 m, negative sigma or id 0";
     case Status::InvalidArgument:
@@ -65,6 +71,14 @@ std::string mapErrorText(Status s) {
     default:
       return toString(s);
   }
+}
+
+/// The warning for a file of format version 1, which has no `end` line.
+std::string versionOneWarning(const std::string& path, const char* key, const char* header, std::size_t records) {
+  return path + ": " + key + ": format version 1 has no 'end' line: a file cut short at a line end cannot be told " +
+         "from a complete one. Once its " + std::to_string(records) +
+         " records are checked, make it version 2: " + "header '" + header + " 2' and a last line 'end " +
+         std::to_string(records) + "'";
 }
 
 }  // namespace
@@ -83,6 +97,11 @@ bool loadVehicleFiles(const VehicleConfig& config, VehicleFiles& files, ConfigEr
                         "calibration.file", "refused: " + calibrationErrorText(cs, crep)};
     return false;
   }
+  files.warnings.clear();
+  if (crep.version < kCalibrationFileFormatVersion) {
+    files.warnings.push_back(
+        versionOneWarning(config.calibrationFile, "calibration.file", "agvnav-calibration", crep.records));
+  }
   if (!report::readTextFile(config.mapFile, text, why)) {
     error = ConfigError{config.mapFile, "map.file", "refused: " + why};
     return false;
@@ -94,8 +113,11 @@ bool loadVehicleFiles(const VehicleConfig& config, VehicleFiles& files, ConfigEr
   const Status ms = parseLandmarkMap(Span<const char>(text.data(), text.size()), *files.map, &mrep);
   if (ms != Status::Ok) {
     error = ConfigError{config.mapFile + (mrep.errorLine > 0 ? ":" + std::to_string(mrep.errorLine) : ""), "map.file",
-                        "refused: " + mapErrorText(ms)};
+                        "refused: " + mapErrorText(ms, mrep)};
     return false;
+  }
+  if (mrep.version < kLandmarkMapFormatVersion) {
+    files.warnings.push_back(versionOneWarning(config.mapFile, "map.file", "agvnav-landmarks", mrep.records));
   }
   return true;
 }

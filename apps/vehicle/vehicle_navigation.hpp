@@ -8,6 +8,8 @@
 /// (the vcan VM test does).
 
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "agv/calib/calibration_file.hpp"
 #include "agv/drivers/linux/canopen_encoder_source.hpp"
@@ -20,10 +22,15 @@ namespace agv::vehicle {
 struct VehicleFiles {
   VehicleCalibration calibration{};
   std::unique_ptr<LandmarkMap> map;
+  /// What the program should log about files it accepted: one line per file of format version 1
+  /// (no `end` line, so a cut cannot be detected), naming the file and how to convert it.
+  std::vector<std::string> warnings;
 };
 
 /// Reads the calibration file and the map file named by `config`. False with `error` naming the
-/// file, the line and the key (or the landmark field) when one cannot be read or is refused.
+/// file, the line and the key (or the landmark field) when one cannot be read or is refused: a
+/// version-2 file cut short (no `end <count>` line, or cut inside a line) names the line where the
+/// text ends. Files of format version 1 are accepted with a warning in `files.warnings`.
 bool loadVehicleFiles(const VehicleConfig& config, VehicleFiles& files, ConfigError& error);
 
 /// The encoder source's configuration from `config`, with the interface name pointing into

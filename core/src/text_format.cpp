@@ -34,6 +34,117 @@ bool nextLine(Cursor& c, const char** begin, const char** lineEnd) noexcept {
   return true;
 }
 
+namespace {
+
+/// True when the line `nextLine` just returned is the last of the text and has no LF: a file cut
+/// inside its last line (or written without a final line end).
+bool atUnterminatedEnd(const Cursor& c) noexcept {
+  // After a line was read the text is not empty, so c.end[-1] exists.
+  return c.p >= c.end && c.end[-1] != '\n';
+}
+
+/// The header record `<magic> <version>`: `Ok` with `*version` in 1..`maxVersion`; `Unsupported`
+/// for a larger version number (a file of a newer format); `Malformed` for anything else.
+Status parseHeader(const char* tb, const char* te, const char* p, const char* e, const char* magic,
+                   std::uint64_t maxVersion, std::uint64_t* version) noexcept {
+  const char* vb = nullptr;
+  const char* ve = nullptr;
+  const char* xb = nullptr;
+  const char* xe = nullptr;
+  std::uint64_t v = 0;
+  if (!tokenIs(tb, te, magic) || !nextToken(p, e, &vb, &ve) || nextToken(p, e, &xb, &xe) ||
+      !parseUnsigned(vb, ve, 0xFFFFFFFFULL, &v) || v == 0U) {
+    return Status::Malformed;
+  }
+  if (v > maxVersion) {
+    return Status::Unsupported;
+  }
+  *version = v;
+  return Status::Ok;
+}
+
+/// The count of an `end <count>` record from the rest of its line [p, e): false when it is missing,
+/// not a decimal integer or followed by another field.
+bool parseEndCount(const char* p, const char* e, std::uint64_t* count) noexcept {
+  const char* cb = nullptr;
+  const char* ce = nullptr;
+  const char* xb = nullptr;
+  const char* xe = nullptr;
+  return nextToken(p, e, &cb, &ce) && !nextToken(p, e, &xb, &xe) && parseUnsigned(cb, ce, 0xFFFFFFFFULL, count);
+}
+
+}  // namespace
+
+RecordReader::RecordReader(const char* text, std::size_t size, const char* magic, std::uint32_t maxVersion,
+                           const char* headerDetail) noexcept
+    : c_{text, text + size}, magic_(magic), maxVersion_(maxVersion), headerDetail_(headerDetail) {}
+
+Status RecordReader::stop(Status s, const char* detail) noexcept {
+  status_ = s;
+  errorLine_ = line_;
+  detail_ = detail;
+  return s;
+}
+
+Status RecordReader::fail(Status s, const char* detail) noexcept {
+  if (version_ >= 2U && atUnterminatedEnd(c_) && s != Status::InvalidArgument) {
+    return stop(Status::Truncated, "the file ends inside this line (cut short?)");
+  }
+  return stop(s, detail);
+}
+
+bool RecordReader::next(const char** tb, const char** te, const char** p, const char** e) noexcept {
+  const char* b = nullptr;
+  const char* le = nullptr;
+  // Bounded: each iteration consumes at least one character of the text.
+  while (nextLine(c_, &b, &le)) {
+    ++line_;
+    const char* q = b;
+    if (!nextToken(q, le, tb, te)) {
+      continue;  // blank or comment
+    }
+    if (version_ == 0U) {
+      std::uint64_t v = 0;
+      const Status hs = parseHeader(*tb, *te, q, le, magic_, maxVersion_, &v);
+      if (hs != Status::Ok) {
+        (void)stop(hs, hs == Status::Unsupported ? "a newer format version than this program reads" : headerDetail_);
+        return false;
+      }
+      version_ = static_cast<std::uint32_t>(v);
+      continue;
+    }
+    if (ended_) {
+      (void)stop(Status::Malformed, "a record after the 'end' line");
+      return false;
+    }
+    if (version_ >= 2U && tokenIs(*tb, *te, "end")) {
+      std::uint64_t count = 0;
+      if (!parseEndCount(q, le, &count)) {
+        (void)fail(Status::Malformed, "'end' takes one count");
+        return false;
+      }
+      if (count != records_) {
+        (void)fail(Status::Malformed, "the count of 'end' is not the number of records before it");
+        return false;
+      }
+      ended_ = true;
+      continue;
+    }
+    ++records_;
+    *p = q;
+    *e = le;
+    return true;
+  }
+  if (version_ == 0U) {
+    (void)stop(Status::EmptyInput, nullptr);
+  } else if (version_ >= 2U && !ended_) {
+    (void)stop(Status::Truncated, "the file ends without its 'end <count>' line (cut short?)");
+  } else {
+    status_ = Status::Ok;
+  }
+  return false;
+}
+
 bool nextToken(const char*& p, const char* end, const char** tb, const char** te) noexcept {
   while (p < end && isBlank(*p)) {
     ++p;

@@ -7,6 +7,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "agv/core/status.hpp"
+
 namespace agv::text {
 
 /// Reading position in a buffer.
@@ -31,6 +33,49 @@ bool parseNumber(const char* b, const char* e, double* out) noexcept;
 
 /// Unsigned decimal integer [b, e) no larger than `max`.
 bool parseUnsigned(const char* b, const char* e, std::uint64_t max, std::uint64_t* out) noexcept;
+
+/// The records of a versioned text file: first the header `<magic> <version>` (1..maxVersion),
+/// then the data records; from version 2 on the last record is `end <count>` (count = the data
+/// records), after which only blank lines and comments may come. A version-2 file that ends before
+/// its `end` line, or whose last line is unterminated and fails (`fail`), is `Truncated`: cut short.
+class RecordReader {
+ public:
+  /// `headerDetail`: the detail of a bad header (static text naming the expected header).
+  RecordReader(const char* text, std::size_t size, const char* magic, std::uint32_t maxVersion,
+               const char* headerDetail) noexcept;
+
+  /// The next data record: true with its first token [*tb, *te) and the rest of its line [*p, *e).
+  /// False at the end of the records or at an error of the framing; `status()` then says which.
+  bool next(const char** tb, const char** te, const char** p, const char** e) noexcept;
+  /// The record just returned is refused with `s` (`detail` may be null): returns the status to
+  /// report (`Truncated` when it is a cut last line of a version-2 file, except for a duplicate,
+  /// `InvalidArgument`), and remembers the line.
+  Status fail(Status s, const char* detail) noexcept;
+
+  /// After `next` returned false: `Ok`, or why the framing is refused.
+  Status status() const noexcept { return status_; }
+  std::size_t errorLine() const noexcept { return errorLine_; }
+  const char* detail() const noexcept { return detail_; }
+  /// Header version (0 until the header was read).
+  std::uint32_t version() const noexcept { return version_; }
+  /// Data records returned by `next` so far.
+  std::size_t records() const noexcept { return records_; }
+
+ private:
+  Status stop(Status s, const char* detail) noexcept;
+
+  Cursor c_;
+  const char* magic_;
+  std::uint32_t maxVersion_;
+  const char* headerDetail_;
+  std::size_t line_ = 0;
+  std::uint32_t version_ = 0;
+  std::size_t records_ = 0;
+  bool ended_ = false;
+  Status status_ = Status::Ok;
+  std::size_t errorLine_ = 0;
+  const char* detail_ = nullptr;
+};
 
 /// Appends text to a caller-owned buffer; remembers an overflow instead of writing past the end.
 struct Writer {

@@ -20,27 +20,25 @@ namespace agv::test {
 class LoopbackServer {
  public:
   /// Listens on 127.0.0.1:`port` (0: an ephemeral port).
-  explicit LoopbackServer(std::uint16_t port = 0) {
-    listenFd_ = ::socket(AF_INET, SOCK_STREAM, 0);
-    const int one = 1;
-    ::setsockopt(listenFd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    a.sin_port = htons(port);
-    ok_ = ::bind(listenFd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 && ::listen(listenFd_, 4) == 0;
-    socklen_t len = sizeof a;
-    ::getsockname(listenFd_, reinterpret_cast<sockaddr*>(&a), &len);
-    port_ = ntohs(a.sin_port);
-  }
+  explicit LoopbackServer(std::uint16_t port = 0) { ok_ = listenOn(port); }
   ~LoopbackServer() {
     if (thread_.joinable()) {
       thread_.join();
     }
-    ::close(listenFd_);
+    stopListening();
   }
   bool ok() const { return ok_; }
   std::uint16_t port() const { return port_; }
+
+  /// Stops listening, as a rebooting device: connection attempts are refused until `listenAgain`.
+  void stopListening() {
+    if (listenFd_ >= 0) {
+      ::close(listenFd_);
+    }
+    listenFd_ = -1;
+  }
+  /// Listens again on the same port; false when it cannot be bound.
+  bool listenAgain() { return listenOn(port_); }
 
   /// Runs `script` on a thread (joined by the destructor or `join()`).
   void start(std::function<void(LoopbackServer&)> script) {
@@ -58,7 +56,7 @@ class LoopbackServer {
     if (::poll(&p, 1, ms) != 1) {
       return -1;
     }
-    return ::accept(listenFd_, nullptr, nullptr);
+    return ::accept4(listenFd_, nullptr, nullptr, SOCK_CLOEXEC);
   }
   /// Reads until `want` bytes arrived, the peer closed, or `ms` passed.
   static std::vector<std::uint8_t> read(int fd, std::size_t want, int ms = 5000) {
@@ -102,6 +100,23 @@ class LoopbackServer {
   }
 
  private:
+  bool listenOn(std::uint16_t port) {
+    // Close-on-exec: a program the test spawns (agvnav-vehicle) must not inherit the listener and
+    // keep the port listening after `stopListening`.
+    listenFd_ = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    const int one = 1;
+    ::setsockopt(listenFd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = htons(port);
+    const bool ok = ::bind(listenFd_, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 && ::listen(listenFd_, 4) == 0;
+    socklen_t len = sizeof a;
+    ::getsockname(listenFd_, reinterpret_cast<sockaddr*>(&a), &len);
+    port_ = ntohs(a.sin_port);
+    return ok;
+  }
+
   int listenFd_ = -1;
   bool ok_ = false;
   std::uint16_t port_ = 0;

@@ -60,3 +60,15 @@ foreach(_t velodyne_yaml velodyne_dbxml)
   target_link_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})
 endforeach()
 target_compile_definitions(fuzz_velodyne_dbxml PRIVATE AGV_FUZZ_DBXML)
+
+# The landmark map and calibration file parsers of the core (text formats, versions 1 and 2).
+add_executable(fuzz_vehicle_files
+  ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_vehicle_files.cpp
+  ${AGV_FUZZ_ROOT}/core/src/text_format.cpp
+  ${AGV_FUZZ_ROOT}/core/src/localization/landmark_map.cpp
+  ${AGV_FUZZ_ROOT}/core/src/localization/landmark_map_io.cpp
+  ${AGV_FUZZ_ROOT}/core/src/calib/calibration_file.cpp)
+target_include_directories(fuzz_vehicle_files PRIVATE ${AGV_FUZZ_ROOT}/tests/fuzz)
+target_link_libraries(fuzz_vehicle_files PRIVATE agv_fuzz_protocol)
+target_compile_options(fuzz_vehicle_files PRIVATE ${_agv_fuzz_flags})
+target_link_options(fuzz_vehicle_files PRIVATE ${_agv_fuzz_flags})

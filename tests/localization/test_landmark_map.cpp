@@ -169,14 +169,16 @@ TEST_CASE("landmark map text: round trip, comments, CRLF", "[localization][map][
   static const char text[] =
       "# surveyed hall 3\r\n"
       "\r\n"
-      "agvnav-landmarks 1   # version\r\n"
+      "agvnav-landmarks 2   # version\r\n"
       "reflector 1 12.345 -3.21 0.002\r\n"
       "corner\t2\t-0.5\t1e1\t1.5e-2\n"
       "   # indented comment\n"
-      "reflector 7 +0.000001 -1000000 0";
+      "reflector 7 +0.000001 -1000000 0\r\n"
+      "end 3 # no final line end";
   LandmarkMapParseReport rep;
   REQUIRE(parseLandmarkMap(Span<const char>(text, sizeof(text) - 1U), map, &rep) == Status::Ok);
   CHECK(rep.landmarks == 3U);
+  CHECK(rep.version == 2U);
   CHECK(map.size() == 3U);
   const Landmark* a = map.at(map.findById(1U));
   const Landmark* b = map.at(map.findById(2U));
@@ -198,6 +200,9 @@ TEST_CASE("landmark map text: round trip, comments, CRLF", "[localization][map][
   static char buffer[1024];
   const auto w = formatLandmarkMap(map, Span<char>(buffer, sizeof(buffer)));
   REQUIRE(w.ok());
+  REQUIRE(w.value() > 25U);
+  CHECK(std::strncmp(buffer, "agvnav-landmarks 2\n", 19) == 0);
+  CHECK(std::strncmp(buffer + w.value() - 6U, "end 3\n", 6) == 0);
   LandmarkMap& copy = sharedMap();
   REQUIRE(parseLandmarkMap(Span<const char>(buffer, w.value()), copy, &rep) == Status::Ok);
   CHECK(copy.size() == 3U);
@@ -220,7 +225,25 @@ TEST_CASE("landmark map text: malformed input is refused and leaves the map unch
   static const Case cases[] = {
       {"", Status::EmptyInput, 0U},
       {"# only a comment\n", Status::EmptyInput, 1U},
-      {"agvnav-landmarks 2\n", Status::Malformed, 1U},
+      {"agvnav-landmarks 3\n", Status::Unsupported, 1U},
+      {"agvnav-landmarks 0\n", Status::Malformed, 1U},
+      {"agvnav-landmarks 1.0\n", Status::Malformed, 1U},
+      {"agvnav-landmarks\n", Status::Malformed, 1U},
+      {"agvnav-landmarks 2\n", Status::Truncated, 1U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\n", Status::Truncated, 2U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\n\n# x\n", Status::Truncated, 4U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\nend 2\n", Status::Malformed, 3U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\nend 0\n", Status::Malformed, 3U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\nend\n", Status::Malformed, 3U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\nend 1 1\n", Status::Malformed, 3U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\nend 1\nreflector 2 0 0 0\n", Status::Malformed, 4U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\nend 1\n# c\n\nx", Status::Malformed, 6U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\nend 1\nend 1\n", Status::Malformed, 4U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 0\nend 12", Status::Truncated, 3U},  // cut inside the end line
+      {"agvnav-landmarks 2\nreflector 1 0 0", Status::Truncated, 2U},
+      {"agvnav-landmarks 2\nreflector 1 0 0 -0.1", Status::Truncated, 2U},  // "-0.1e-3" cut
+      {"agvnav-landmarks 2\nreflector 1 0 0 -0.1\nend 1\n", Status::OutOfRange, 2U},
+      {"agvnav-landmarks 1\nreflector 1 0 0 0\nend 1\n", Status::Malformed, 3U},  // no end in version 1
       {"reflector 1 0 0 0\n", Status::Malformed, 1U},
       {"agvnav-landmarks 1\nreflector 1 0 0 0\npole 2 0 0 0\n", Status::Malformed, 3U},
       {"agvnav-landmarks 1\nreflector 1 0 0\n", Status::Malformed, 2U},
@@ -232,15 +255,74 @@ TEST_CASE("landmark map text: malformed input is refused and leaves the map unch
       {"agvnav-landmarks 1\nreflector 0 0 0 0\n", Status::OutOfRange, 2U},
       {"agvnav-landmarks 1\nreflector 1 0 2000000 0\n", Status::OutOfRange, 2U},
       {"agvnav-landmarks 1\nreflector 1 0 0 -0.1\n", Status::OutOfRange, 2U},
+      {"agvnav-landmarks 1\nreflector 1 0 0 1000000.5\n", Status::OutOfRange, 2U},
       {"agvnav-landmarks 1\nreflector 1 0 0 0\nreflector 2 0 0 0\nreflector 1 1 1 0\n", Status::InvalidArgument, 4U},
       {"agvnav-landmarks 1\nreflector 5 0 0 0\n", Status::InvalidArgument, 2U},  // id already in the map
   };
   for (const Case& c : cases) {
     LandmarkMapParseReport rep;
     const Status s = parseLandmarkMap(Span<const char>(c.text, std::strlen(c.text)), map, &rep);
+    INFO(c.text);
     CHECK(s == c.expect);
     CHECK(rep.errorLine == c.line);
     CHECK(rep.landmarks == 0U);
     CHECK(map.size() == 1U);
   }
+}
+
+TEST_CASE("landmark map text: every cut of a written map is refused, naming the line where it ends",
+          "[localization][map][io]") {
+  LandmarkMap& map = sharedMap();
+  for (std::uint32_t id = 1; id <= 5U; ++id) {
+    REQUIRE(map.addSurveyed(id % 2U != 0U ? LandmarkKind::Reflector : LandmarkKind::Corner, 1.25 * id, -3.5 * id,
+                            0.002 * id, id)
+                .ok());
+  }
+  static char full[1024];
+  const auto w = formatLandmarkMap(map, Span<char>(full, sizeof(full)));
+  REQUIRE(w.ok());
+  const std::size_t n = w.value();
+  const std::size_t header = 19U;  // "agvnav-landmarks 2\n"
+  std::size_t refused = 0;
+  for (std::size_t cut = 0; cut < n; ++cut) {
+    LandmarkMap& copy = sharedMap();
+    LandmarkMapParseReport rep;
+    const Status s = parseLandmarkMap(Span<const char>(full, cut), copy, &rep);
+    INFO("cut at " << cut);
+    if (cut + 1U == n) {
+      CHECK(s == Status::Ok);  // only the final LF missing: nothing lost
+      CHECK(copy.size() == 5U);
+      continue;
+    }
+    refused += s != Status::Ok ? 1U : 0U;
+    CHECK(copy.size() == 0U);
+    if (cut <= header) {
+      continue;  // inside the header: EmptyInput or Malformed
+    }
+    CHECK(s == Status::Truncated);
+    std::size_t lines = 0;
+    for (std::size_t i = 0; i < cut; ++i) {
+      lines += full[i] == '\n' ? 1U : 0U;
+    }
+    lines += full[cut - 1U] != '\n' ? 1U : 0U;
+    CHECK(rep.errorLine == lines);
+    CHECK(rep.detail != nullptr);
+  }
+  CHECK(refused == n - 1U);
+
+  // Version 1 is still read (no end line), and a cut at a line end goes unnoticed: why version 2.
+  static char v1[1024];
+  std::memcpy(v1, full, n - 6U);  // without "end 5\n"
+  v1[17] = '1';                   // "agvnav-landmarks 1"
+  LandmarkMapParseReport rep;
+  REQUIRE(parseLandmarkMap(Span<const char>(v1, n - 6U), sharedMap(), &rep) == Status::Ok);
+  CHECK(rep.version == 1U);
+  CHECK(rep.landmarks == 5U);
+  std::size_t lastLine = n - 7U;
+  while (v1[lastLine - 1U] != '\n') {
+    --lastLine;
+  }
+  LandmarkMap& cutMap = sharedMap();
+  CHECK(parseLandmarkMap(Span<const char>(v1, lastLine), cutMap, &rep) == Status::Ok);
+  CHECK(cutMap.size() == 4U);
 }

@@ -801,11 +801,12 @@ TEST_CASE(
   const double y1 = 6.0;
   lms.walls = {{{x0, y0}, {x1, y0}}, {{x1, y0}, {x1, y1}}, {{x1, y1}, {x0, y1}}, {{x0, y1}, {x0, y0}}};
   const std::string map =
-      "agvnav-landmarks 1\n"
+      "agvnav-landmarks 2\n"
       "corner 1 -1.0 -1.0 0.002\n"
       "corner 2 7.0 -1.0 0.002\n"
       "corner 3 7.0 6.0 0.002\n"
-      "corner 4 -1.0 6.0 0.002\n";
+      "corner 4 -1.0 6.0 0.002\n"
+      "end 4\n";
   VmVehicle v;
   REQUIRE(v.open(lms.peer.listener.port(), "lms1xx", "localization.corners = true\n", map));
   REQUIRE(v.landmarks.size() == 4U);

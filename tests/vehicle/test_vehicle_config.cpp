@@ -15,34 +15,12 @@
 #include "vehicle_files.hpp"
 #include "vehicle_runtime.hpp"
 
+using agv::test::withValue;
 using agv::vehicle::ConfigError;
 using agv::vehicle::parseVehicleConfig;
 using agv::vehicle::VehicleConfig;
 
 namespace {
-
-/// `text` with the line of `key` replaced by `key = value` (appended when the key is absent).
-/// `line` receives its 1-based line number.
-std::string withValue(const std::string& text, const std::string& key, const std::string& value, std::size_t& line) {
-  std::istringstream in(text);
-  std::string out;
-  std::string l;
-  std::size_t n = 0;
-  line = 0;
-  while (std::getline(in, l)) {
-    ++n;
-    if (l.rfind(key + " ", 0) == 0 || l.rfind(key + "=", 0) == 0) {
-      l = key + " = " + value;
-      line = n;
-    }
-    out += l + "\n";
-  }
-  if (line == 0) {
-    out += key + " = " + value + "\n";
-    line = n + 1;
-  }
-  return out;
-}
 
 std::string withoutKey(const std::string& text, const std::string& key) {
   std::istringstream in(text);
@@ -364,21 +342,60 @@ TEST_CASE("the calibration and map files are loaded, a bad one is refused by fil
   {
     // A calibration without laser_theta: the file and the missing key are named.
     std::string cal = agv::test::goodCalibration();
-    cal = cal.substr(0, cal.find("laser_theta"));
+    cal = cal.substr(0, cal.find("laser_theta")) + "end 6\n";
     dir.write("calibration.txt", cal);
     agv::vehicle::VehicleFiles files;
     CHECK_FALSE(agv::vehicle::loadVehicleFiles(c, files, e));
     CHECK(e.key == "calibration.file");
     CHECK(e.where == dir.path() + "/calibration.txt");
     CHECK(e.message.find("laser_theta") != std::string::npos);
+    // Cut inside its last value: refused as cut short, naming the line where the file ends.
+    cal = agv::test::goodCalibration();
+    dir.write("calibration.txt", cal.substr(0, cal.find("laser_theta 0.0") + 13U));
+    CHECK_FALSE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(e.where == dir.path() + "/calibration.txt:8");
+    CHECK(e.message.find("cut short") != std::string::npos);
     dir.write("calibration.txt", agv::test::goodCalibration());
   }
   {
-    dir.write("landmarks.txt", std::string(agv::test::goodMap()) + "pole 4 1 1 0.01\n");
+    std::string map = agv::test::goodMap();
+    dir.write("landmarks.txt", map.substr(0, map.find("end")) + "pole 4 1 1 0.01\nend 4\n");
     agv::vehicle::VehicleFiles files;
     CHECK_FALSE(agv::vehicle::loadVehicleFiles(c, files, e));
     CHECK(e.key == "map.file");
     CHECK(e.where == dir.path() + "/landmarks.txt:5");
+    // Cut after its second landmark: refused, naming the line where the file ends.
+    dir.write("landmarks.txt", map.substr(0, map.find("reflector 3")));
+    CHECK_FALSE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(e.where == dir.path() + "/landmarks.txt:3");
+    CHECK(e.message.find("without its 'end <count>' line") != std::string::npos);
+    // The count does not match.
+    dir.write("landmarks.txt", map.substr(0, map.find("end")) + "end 4\n");
+    CHECK_FALSE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(e.where == dir.path() + "/landmarks.txt:5");
+    CHECK(e.message.find("count of 'end'") != std::string::npos);
+  }
+  {
+    // Version 1 files (no end line) load, with one warning each naming the file and the fix.
+    std::string map = agv::test::goodMap();
+    map = "agvnav-landmarks 1" + map.substr(18, map.find("end") - 18);
+    std::string cal = agv::test::goodCalibration();
+    cal = "agvnav-calibration 1" + cal.substr(20, cal.find("end") - 20);
+    dir.write("landmarks.txt", map);
+    dir.write("calibration.txt", cal);
+    agv::vehicle::VehicleFiles files;
+    REQUIRE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(files.map->size() == 3U);
+    REQUIRE(files.warnings.size() == 2U);
+    CHECK(files.warnings[0].find(dir.path() + "/calibration.txt: calibration.file: format version 1") == 0U);
+    CHECK(files.warnings[0].find("'end 7'") != std::string::npos);
+    CHECK(files.warnings[1].find(dir.path() + "/landmarks.txt: map.file: format version 1") == 0U);
+    CHECK(files.warnings[1].find("'agvnav-landmarks 2'") != std::string::npos);
+    CHECK(files.warnings[1].find("'end 3'") != std::string::npos);
+    dir.write("landmarks.txt", agv::test::goodMap());
+    dir.write("calibration.txt", agv::test::goodCalibration());
+    REQUIRE(agv::vehicle::loadVehicleFiles(c, files, e));
+    CHECK(files.warnings.empty());
   }
   {
     c.mapFile = dir.path() + "/absent.txt";

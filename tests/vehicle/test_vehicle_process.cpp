@@ -101,7 +101,7 @@ TEST_CASE("agvnav-vehicle refuses a bad configuration with exit 2, naming file, 
   CHECK(runVehicle({"--config", dir.path() + "/absent.conf"}, dir, log) == 2);
   CHECK(log.find("absent.conf") != std::string::npos);
 
-  dir.write("landmarks.txt", "agvnav-landmarks 1\nreflector 1 5.0\n");
+  dir.write("landmarks.txt", "agvnav-landmarks 2\nreflector 1 5.0\nend 1\n");
   const std::string good = dir.write("good.conf", agv::test::goodVehicleConfig());
   CHECK(runVehicle({"--config", good}, dir, log) == 2);
   CHECK(log.find("landmarks.txt:2: map.file: ") != std::string::npos);

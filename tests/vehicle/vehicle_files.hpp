@@ -6,7 +6,9 @@
 
 #include <cstdint>
 #include <fstream>
+#include <sstream>
 #include <string>
+#include <vector>
 
 namespace agv::test {
 
@@ -50,22 +52,54 @@ inline std::string goodVehicleConfig(const std::string& canIf = "can0",
          "loop.period = 0.001\n";                     // 26
 }
 
+/// `text` with the line of `key` replaced by `key = value` (appended when the key is absent).
+/// `line` receives its 1-based line number.
+inline std::string withValue(const std::string& text, const std::string& key, const std::string& value,
+                             std::size_t& line) {
+  std::istringstream in(text);
+  std::string out;
+  std::string l;
+  std::size_t n = 0;
+  line = 0;
+  while (std::getline(in, l)) {
+    ++n;
+    if (l.rfind(key + " ", 0) == 0 || l.rfind(key + "=", 0) == 0) {
+      l = key + " = " + value;
+      line = n;
+    }
+    out += l + "\n";
+  }
+  if (line == 0) {
+    out += key + " = " + value + "\n";
+    line = n + 1;
+  }
+  return out;
+}
+
+/// `text` with the line of `key` replaced by `key = value` (appended when the key is absent).
+inline std::string withValue(const std::string& text, const std::string& key, const std::string& value) {
+  std::size_t line = 0;
+  return withValue(text, key, value, line);
+}
+
 inline const char* goodCalibration() {
-  return "agvnav-calibration 1\n"
+  return "agvnav-calibration 2\n"
          "wheelbase 1.5\n"
          "drive_scale 0.0005 0.00000003\n"
          "steer_offset_forward 0.017455\n"
          "steer_offset_backward -0.008727\n"
          "laser_x 1.6\n"
          "laser_y 0.0\n"
-         "laser_theta 0.0\n";
+         "laser_theta 0.0\n"
+         "end 7\n";
 }
 
 inline const char* goodMap() {
-  return "agvnav-landmarks 1\n"
+  return "agvnav-landmarks 2\n"
          "reflector 1 5.0 1.0 0.002\n"
          "reflector 2 6.0 -2.0 0.002\n"
-         "reflector 3 9.0 3.0 0.002\n";
+         "reflector 3 9.0 3.0 0.002\n"
+         "end 3\n";
 }
 
 /// A fresh folder under /tmp, removed (with the files written by `write`) by the destructor.

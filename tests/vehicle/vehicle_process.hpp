@@ -14,9 +14,11 @@
 #include <chrono>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "agv/drivers/protocol/plc/plc_register_map.hpp"
@@ -87,20 +89,56 @@ inline int runVehicle(const std::vector<std::string>& args, agv::test::TempFolde
   return rc;
 }
 
-/// agvnav-vehicle running against a loopback CoLa A laser (a 541-beam scan of 4 m every 40 ms once
-/// subscribed: no reflector, no corner) and polled by a libmodbus client as the PLC; no CAN
-/// interface (`agvcan7` does not exist). The PLC waits until the status block shows the device
-/// fault and the laser ok.
+/// The CoLa A laser of a RunningVehicle on connection `fd`: reads the subscription (counted in
+/// `subscriptions`), then sends a 541-beam scan of 4 m every 40 ms (no reflector, no corner) until
+/// `more()` turns false, the vehicle goes away or 1000 scans were sent. Does not close `fd`.
+template <typename More>
+void streamColaScans(LoopbackServer& s, int fd, std::atomic<int>& subscriptions, More more) {
+  const auto subscribe = stxEtx("sEN LMDscandata 1");
+  if (s.read(fd, subscribe.size()) == subscribe)
+    ++subscriptions;
+  for (std::uint32_t i = 1; i < 1000 && more(); ++i) {
+    const auto t = colaScanTelegram(i, 4000, 541, false);
+    if (::send(fd, t.data(), t.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(t.size()))
+      break;  // the vehicle went away
+    std::this_thread::sleep_for(std::chrono::milliseconds(40));
+  }
+}
+
+/// How a RunningVehicle is set up beyond the test configuration.
+struct VehicleSetup {
+  /// Configuration keys set to a value (the line replaced, or appended), e.g. {"laser.model", "nav350"}.
+  std::vector<std::pair<std::string, std::string>> settings;
+  /// The laser's script on the loopback server, until `stop`; empty: one connection streaming CoLa
+  /// A scans (`streamColaScans`).
+  std::function<void(LoopbackServer&, const std::atomic<bool>& stop)> laser;
+  /// False: the laser's port refuses connections when the program starts (a laser still booting;
+  /// the script calls `listenAgain`), and `ready()` does not wait for "laser ok".
+  bool laserUp = true;
+};
+
+/// agvnav-vehicle running against a loopback laser (by default CoLa A, `streamColaScans`) and
+/// polled by a libmodbus client as the PLC; no CAN interface (`agvcan7` does not exist). The PLC
+/// waits until the status block shows the device fault and the laser ok (unless the laser is
+/// down at start).
 class RunningVehicle {
  public:
   /// `extraConfig`: lines appended to the test configuration (e.g. modbus.idle_timeout).
-  explicit RunningVehicle(const std::string& extraConfig = "") {
+  explicit RunningVehicle(const std::string& extraConfig = "", const VehicleSetup& setup = {}) {
     if (!dir.ok() || !laser.ok())
       return;
-    laser.start([this](agv::test::LoopbackServer& s) { serveLaser(s); });
+    if (!setup.laserUp)
+      laser.stopListening();
+    if (setup.laser) {
+      laser.start([this, script = setup.laser](LoopbackServer& s) { script(s, stopLaser_); });
+    } else {
+      laser.start([this](LoopbackServer& s) { serveLaser(s); });
+    }
     const std::uint16_t modbusPort = agv::test::closedPort();
-    const std::string conf = dir.write(
-        "vehicle.conf", agv::test::goodVehicleConfig("agvcan7", "127.0.0.1", laser.port(), modbusPort) + extraConfig);
+    std::string text = agv::test::goodVehicleConfig("agvcan7", "127.0.0.1", laser.port(), modbusPort);
+    for (const auto& kv : setup.settings)
+      text = withValue(text, kv.first, kv.second);
+    const std::string conf = dir.write("vehicle.conf", text + extraConfig);
     dir.write("calibration.txt", agv::test::goodCalibration());
     dir.write("landmarks.txt", agv::test::goodMap());
     logPath_ = dir.track("vehicle.log");
@@ -124,7 +162,7 @@ class RunningVehicle {
     for (int i = 0; i < 100 && !(faultSeen && laserOkSeen); ++i) {
       if (modbus_read_registers(plc, 0, 40, regs) == 40) {
         faultSeen = hasBit(PlcHealthBit::DeviceFault);
-        laserOkSeen = hasBit(PlcHealthBit::LaserOk);
+        laserOkSeen = hasBit(PlcHealthBit::LaserOk) || !setup.laserUp;
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
@@ -191,19 +229,11 @@ class RunningVehicle {
   std::atomic<int> subscriptions{0};
 
  private:
-  void serveLaser(agv::test::LoopbackServer& s) {
-    const auto subscribe = agv::test::stxEtx("sEN LMDscandata 1");
+  void serveLaser(LoopbackServer& s) {
     const int fd = s.accept(10000);
     if (fd < 0)
       return;
-    if (s.read(fd, subscribe.size()) == subscribe)
-      ++subscriptions;
-    for (std::uint32_t i = 1; i < 1000 && !stopLaser_.load(); ++i) {
-      const auto t = agv::test::colaScanTelegram(i, 4000, 541, false);
-      if (::send(fd, t.data(), t.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(t.size()))
-        break;  // the vehicle went away
-      std::this_thread::sleep_for(std::chrono::milliseconds(40));
-    }
+    streamColaScans(s, fd, subscriptions, [this] { return !stopLaser_.load(); });
     ::close(fd);
   }
 

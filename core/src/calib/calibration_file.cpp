@@ -47,6 +47,12 @@ bool inRange(Key k, double v) noexcept {
   return v >= kKeys[k].minValue && v <= kKeys[k].maxValue;
 }
 
+/// A sigma is at least 0 and at most the width of its value's range (larger says nothing, and
+/// could not be written back with the file's decimals).
+bool sigmaInRange(Key k, double sigma) noexcept {
+  return sigma >= 0.0 && sigma <= kKeys[k].maxValue - kKeys[k].minValue;
+}
+
 /// The sigma field of `k` in `s` (const or not); nullptr for the wheelbase, which has none.
 template <typename Sigmas>
 auto sigmaSlot(Sigmas& s, Key k) noexcept -> decltype(&s.driveScale) {
@@ -78,33 +84,27 @@ Status parseCalibrationFile(Span<const char> textIn, VehicleCalibration& out, Ca
   double values[kKeyCount] = {};
   double sigmas[kKeyCount] = {};
   bool seen[kKeyCount] = {};
-  bool header = false;
-  text::Cursor c{textIn.data(), textIn.data() + textIn.size()};
-  const char* b = nullptr;
+  text::RecordReader reader(textIn.data(), textIn.size(), "agvnav-calibration", kCalibrationFileFormatVersion,
+                            "the first record is not 'agvnav-calibration <version>'");
+  const auto fail = [&](Status s, const char* detail) {
+    const Status r = reader.fail(s, detail);
+    rep.errorLine = reader.errorLine();
+    rep.detail = reader.detail();
+    rep.records = reader.records();
+    return r;
+  };
+  const char* tb = nullptr;
+  const char* te = nullptr;
+  const char* p = nullptr;
   const char* e = nullptr;
-  std::size_t line = 0;
-  // Bounded: each iteration consumes at least one character of the buffer.
-  while (text::nextLine(c, &b, &e)) {
-    ++line;
-    const char* p = b;
-    const char* tb = nullptr;
-    const char* te = nullptr;
-    if (!text::nextToken(p, e, &tb, &te)) {
-      continue;  // blank or comment
-    }
+  // Bounded: the reader consumes the text.
+  while (reader.next(&tb, &te, &p, &e)) {
+    rep.version = reader.version();
     const char* fb[3] = {};
     const char* fe[3] = {};
     int fields = 0;
     while (fields < 3 && text::nextToken(p, e, &fb[fields], &fe[fields])) {
       ++fields;
-    }
-    if (!header) {
-      if (!text::tokenIs(tb, te, "agvnav-calibration") || fields != 1 || !text::tokenIs(fb[0], fe[0], "1")) {
-        rep.errorLine = line;
-        return Status::Malformed;
-      }
-      header = true;
-      continue;
     }
     int key = -1;
     for (int k = 0; k < kKeyCount; ++k) {
@@ -112,36 +112,37 @@ Status parseCalibrationFile(Span<const char> textIn, VehicleCalibration& out, Ca
         key = k;
       }
     }
-    rep.errorLine = line;
     if (key < 0) {
-      return Status::Malformed;  // unknown key
+      return fail(Status::Malformed, "unknown key");
     }
     const Key k = static_cast<Key>(key);
     rep.key = kKeys[k].name;
     const int maxFields = kKeys[k].hasSigma ? 2 : 1;
     if (fields < 1 || fields > maxFields) {
-      return Status::Malformed;
+      return fail(Status::Malformed, nullptr);
     }
     double v = 0.0;
     double sigma = 0.0;
     if (!text::parseNumber(fb[0], fe[0], &v) || (fields == 2 && !text::parseNumber(fb[1], fe[1], &sigma))) {
-      return Status::Malformed;
+      return fail(Status::Malformed, nullptr);
     }
     if (seen[k]) {
-      return Status::InvalidArgument;
+      return fail(Status::InvalidArgument, nullptr);
     }
-    if (!inRange(k, v) || sigma < 0.0) {
-      return Status::OutOfRange;
+    if (!inRange(k, v) || !sigmaInRange(k, sigma)) {
+      return fail(Status::OutOfRange, nullptr);
     }
     seen[k] = true;
     values[k] = v;
     sigmas[k] = sigma;
-    rep.errorLine = 0;
     rep.key = nullptr;
   }
-  if (!header) {
-    rep.errorLine = line;
-    return Status::EmptyInput;
+  rep.version = reader.version();
+  rep.records = reader.records();
+  if (reader.status() != Status::Ok) {
+    rep.errorLine = reader.errorLine();
+    rep.detail = reader.detail();
+    return reader.status();
   }
   for (int k = 0; k < kKeyCount; ++k) {
     if (!seen[k]) {
@@ -173,7 +174,7 @@ Result<std::size_t> formatCalibrationFile(const VehicleCalibration& cal, Span<ch
   for (int k = 0; k < kKeyCount; ++k) {
     const Key key = static_cast<Key>(k);
     const double s = kKeys[k].hasSigma ? *sigmaSlot(cal.sigmas, key) : 0.0;
-    if (!std::isfinite(values[k]) || !inRange(key, values[k]) || !std::isfinite(s) || s < 0.0) {
+    if (!std::isfinite(values[k]) || !inRange(key, values[k]) || !std::isfinite(s) || !sigmaInRange(key, s)) {
       return Status::OutOfRange;
     }
   }
@@ -182,7 +183,7 @@ Result<std::size_t> formatCalibrationFile(const VehicleCalibration& cal, Span<ch
       "laser x [m]",  "laser y [m]",  "laser theta [rad]",
   };
   text::Writer w{out.data(), out.data() + out.size()};
-  w.put("agvnav-calibration 1\n# key value sigma (SI units; sigma 0 = not known)\n");
+  w.put("agvnav-calibration 2\n# key value sigma (SI units; sigma 0 = not known)\n");
   for (int k = 0; k < kKeyCount; ++k) {
     const Key key = static_cast<Key>(k);
     const int decimals = key == kDriveScale ? 12 : 9;
@@ -202,6 +203,9 @@ Result<std::size_t> formatCalibrationFile(const VehicleCalibration& cal, Span<ch
     }
     w.put('\n');
   }
+  w.put("end ");
+  w.putUnsigned(kKeyCount, 1);
+  w.put('\n');
   if (w.overflow) {
     return Status::Truncated;
   }

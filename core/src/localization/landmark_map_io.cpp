@@ -8,8 +8,6 @@ namespace agv {
 
 namespace {
 
-using text::Cursor;
-using text::nextLine;
 using text::nextToken;
 using text::parseNumber;
 using text::tokenIs;
@@ -57,59 +55,49 @@ Status parseRecord(const char* p, const char* end, Record* r) noexcept {
   if (nextToken(p, end, &tb, &te)) {
     return Status::Malformed;  // trailing field
   }
-  if (r->id == 0 || std::fabs(r->x) > kMaxMapCoordinate || std::fabs(r->y) > kMaxMapCoordinate || r->sigma < 0.0) {
+  // sigma is bounded like the coordinates: larger is meaningless, and it could not be written back.
+  if (r->id == 0 || std::fabs(r->x) > kMaxMapCoordinate || std::fabs(r->y) > kMaxMapCoordinate || r->sigma < 0.0 ||
+      r->sigma > kMaxMapCoordinate) {
     return Status::OutOfRange;
   }
   return Status::Ok;
 }
 
-/// Walks the records; calls f(record) for each. Returns the first error and its line.
+/// Where a walk over the records stopped, and what it read.
+struct Walk {
+  std::size_t errorLine = 0;
+  const char* detail = nullptr;
+  std::uint32_t version = 0;
+  std::size_t records = 0;
+};
+
+/// Walks the records; calls f(record) for each. Returns the first error, with its line and detail
+/// in `w`.
 template <typename F>
-Status forEachRecord(Span<const char> text, std::size_t* errorLine, F&& f) noexcept {
-  Cursor c{text.data(), text.data() + text.size()};
-  const char* b = nullptr;
+Status forEachRecord(Span<const char> text, Walk& w, F&& f) noexcept {
+  text::RecordReader reader(text.data(), text.size(), "agvnav-landmarks", kLandmarkMapFormatVersion,
+                            "the first record is not 'agvnav-landmarks <version>'");
+  const char* tb = nullptr;
+  const char* te = nullptr;
+  const char* p = nullptr;
   const char* e = nullptr;
-  std::size_t line = 0;
-  bool header = false;
-  // Bounded: each iteration consumes at least one character.
-  while (nextLine(c, &b, &e)) {
-    ++line;
-    const char* p = b;
-    const char* tb = nullptr;
-    const char* te = nullptr;
-    if (!nextToken(p, e, &tb, &te)) {
-      continue;  // blank or comment
-    }
-    if (!header) {
-      const char* vb = nullptr;
-      const char* ve = nullptr;
-      const char* xb = nullptr;
-      const char* xe = nullptr;
-      if (!tokenIs(tb, te, "agvnav-landmarks") || !nextToken(p, e, &vb, &ve) || !tokenIs(vb, ve, "1") ||
-          nextToken(p, e, &xb, &xe)) {
-        *errorLine = line;
-        return Status::Malformed;
-      }
-      header = true;
-      continue;
-    }
+  Status s = Status::Ok;
+  // Bounded: the reader consumes the text.
+  while (s == Status::Ok && reader.next(&tb, &te, &p, &e)) {
     Record r;
-    const Status s = parseRecord(b, e, &r);
+    s = parseRecord(tb, e, &r);
+    if (s == Status::Ok) {
+      s = f(r);
+    }
     if (s != Status::Ok) {
-      *errorLine = line;
-      return s;
-    }
-    const Status fs = f(r);
-    if (fs != Status::Ok) {
-      *errorLine = line;
-      return fs;
+      s = reader.fail(s, nullptr);
     }
   }
-  if (!header) {
-    *errorLine = line;
-    return Status::EmptyInput;
+  if (s == Status::Ok) {
+    s = reader.status();
   }
-  return Status::Ok;
+  w = Walk{reader.errorLine(), reader.detail(), reader.version(), reader.records()};
+  return s;
 }
 
 }  // namespace
@@ -119,14 +107,16 @@ Status parseLandmarkMap(Span<const char> text, LandmarkMap& map, LandmarkMapPars
   LandmarkMapParseReport& rep = report != nullptr ? *report : local;
   rep = LandmarkMapParseReport{};
   // Pass 1: validate everything and count.
-  std::size_t count = 0;
-  Status s = forEachRecord(text, &rep.errorLine, [&](const Record&) {
-    ++count;
-    return Status::Ok;
-  });
+  Walk w;
+  Status s = forEachRecord(text, w, [](const Record&) { return Status::Ok; });
+  rep.version = w.version;
+  rep.records = w.records;
+  rep.errorLine = w.errorLine;
+  rep.detail = w.detail;
   if (s != Status::Ok) {
     return s;
   }
+  const std::size_t count = w.records;
   if (count > map.capacity() - map.size()) {
     rep.errorLine = 0;
     map.countRefusedFull(static_cast<std::uint32_t>(count));
@@ -134,8 +124,7 @@ Status parseLandmarkMap(Span<const char> text, LandmarkMap& map, LandmarkMapPars
   }
   // Pass 2: insert; on a duplicate id undo what this call added.
   std::size_t added = 0;
-  std::size_t failLine = 0;
-  s = forEachRecord(text, &failLine, [&](const Record& r) {
+  s = forEachRecord(text, w, [&](const Record& r) {
     const Result<LandmarkIndex> res = map.addSurveyed(r.kind, r.x, r.y, r.sigma, r.id);
     if (!res.ok()) {
       return res.status();
@@ -144,10 +133,11 @@ Status parseLandmarkMap(Span<const char> text, LandmarkMap& map, LandmarkMapPars
     return Status::Ok;
   });
   if (s != Status::Ok) {
-    rep.errorLine = failLine;
+    rep.errorLine = w.errorLine;
+    rep.detail = w.detail;
     std::size_t undone = 0;
-    std::size_t ignored = 0;
-    (void)forEachRecord(text, &ignored, [&](const Record& r) {
+    Walk ignored;
+    (void)forEachRecord(text, ignored, [&](const Record& r) {
       if (undone >= added) {
         return Status::Ok;
       }
@@ -163,11 +153,13 @@ Status parseLandmarkMap(Span<const char> text, LandmarkMap& map, LandmarkMapPars
 
 Result<std::size_t> formatLandmarkMap(const LandmarkMap& map, Span<char> out, bool surveyedOnly) noexcept {
   text::Writer w{out.data(), out.data() + out.size()};
-  w.put("agvnav-landmarks 1\n# kind id x[m] y[m] sigma[m]\n");
+  w.put("agvnav-landmarks 2\n# kind id x[m] y[m] sigma[m]\n");
+  std::uint64_t count = 0;
   map.forEach([&](LandmarkIndex, const Landmark& l) {
     if (surveyedOnly && !l.surveyed) {
       return;
     }
+    ++count;
     w.put(l.kind == LandmarkKind::Corner ? "corner " : "reflector ");
     w.putUnsigned(l.id, 1);
     w.put(' ');
@@ -178,6 +170,9 @@ Result<std::size_t> formatLandmarkMap(const LandmarkMap& map, Span<char> out, bo
     w.putFixed(std::sqrt(l.variance), 6);
     w.put('\n');
   });
+  w.put("end ");
+  w.putUnsigned(count, 1);
+  w.put('\n');
   if (w.overflow) {
     return Status::Truncated;
   }
