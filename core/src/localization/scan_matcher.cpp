@@ -230,6 +230,17 @@ bool validWindow(const SearchWindow& w) noexcept {
 
 ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, const Pose2d& prior,
                                    const SearchWindow& window, const LikelihoodFieldBase& field) noexcept {
+  return matchInWindow(scan, laser, prior, window, field);
+}
+
+ScanMatchResult ScanMatcher::match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior,
+                                   const SearchWindow& window, const LikelihoodFieldBase& field) noexcept {
+  return matchInWindow(points, laser, prior, window, field);
+}
+
+template <typename Scan>
+ScanMatchResult ScanMatcher::matchInWindow(const Scan& scan, const Pose2d& laser, const Pose2d& prior,
+                                           const SearchWindow& window, const LikelihoodFieldBase& field) noexcept {
   ScanMatchResult result;
   if (!checkInput(laser, prior, Eigen::Matrix3d::Zero(), field, result)) {
     return result;
@@ -239,22 +250,6 @@ ScanMatchResult ScanMatcher::match(const LaserScan& scan, const Pose2d& laser, c
     return result;
   }
   if (!collectPoints(scan, laser, result)) {
-    return result;
-  }
-  return searchAndRefine(prior, window, field, result);
-}
-
-ScanMatchResult ScanMatcher::match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior,
-                                   const SearchWindow& window, const LikelihoodFieldBase& field) noexcept {
-  ScanMatchResult result;
-  if (!checkInput(laser, prior, Eigen::Matrix3d::Zero(), field, result)) {
-    return result;
-  }
-  if (!validWindow(window)) {
-    result.status = Status::InvalidArgument;
-    return result;
-  }
-  if (!collectPoints(points, laser, result)) {
     return result;
   }
   return searchAndRefine(prior, window, field, result);

@@ -197,6 +197,10 @@ class ScanMatcher {
   bool collectPoints(const MatchPoints& points, const Pose2d& laser, ScanMatchResult& result) noexcept;
   /// Appends a vehicle-frame point unless within pointSpacing of the last one kept.
   void keepPoint(const Eigen::Vector2d& p) noexcept;
+  /// The explicit-window match of either scan type (`LaserScan` or `MatchPoints`).
+  template <typename Scan>
+  ScanMatchResult matchInWindow(const Scan& scan, const Pose2d& laser, const Pose2d& prior, const SearchWindow& window,
+                                const LikelihoodFieldBase& field) noexcept;
   /// Search and refinement once the points are collected.
   ScanMatchResult searchAndRefine(const Pose2d& prior, const SearchWindow& window, const LikelihoodFieldBase& field,
                                   ScanMatchResult result) noexcept;
