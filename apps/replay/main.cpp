@@ -103,7 +103,6 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--match-max-rms", options.localizer.scanMatch.maxRmsResidual, "[m] scan-match RMS limit");
   app.add_option("--resync-after", options.localizer.scanMatch.resyncAfter,
                  "agreeing gated matches that resync (0: off)");
-  app.add_option("--resync-agreement", options.localizer.scanMatch.resyncAgreement, "[m] resync agreement");
   app.add_option("--resync-max-rms", options.localizer.scanMatch.resyncMaxRms, "[m] RMS limit of a match that resyncs");
   app.add_flag("!--no-field-relocalization", options.fieldRelocalization,
                "with --map-fraction: no search of the whole field when lost");

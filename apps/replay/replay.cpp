@@ -420,6 +420,10 @@ class ScanReplay {
     const LocalizerHealth& h =
         field_ ? localizer_->correct(*obs_, *scan_, *map_, *field_) : localizer_->correct(*obs_, *scan_, *map_);
     tally(h);
+    if (h.scanMatch.resynced) {
+      ++r_.matchResyncs;
+      r_.resyncWrong += isWrongRestart(h.scanMatch.pose, log_.scans[i].robotPose) ? 1U : 0U;
+    }
     if (h.lost) {
       ++r_.lostEvents;
       if (options_.resetWhenLost) {
@@ -513,10 +517,7 @@ class ScanReplay {
           if (localizer_->reset(stamp, candidate_, cov) == Status::Ok) {
             ++r_.relocConfirmed;
             const Pose2d& t = log_.scans[i].robotPose;
-            r_.relocWrong += std::hypot(candidate_.x - t.x, candidate_.y - t.y) > 0.3 ||
-                                     std::fabs(normalizeAngle(candidate_.theta - t.theta)) > deg2rad(5.0)
-                                 ? 1U
-                                 : 0U;
+            r_.relocWrong += isWrongRestart(candidate_, t) ? 1U : 0U;
           }
           reloc_ = RelocState::Idle;
         }
@@ -547,6 +548,13 @@ class ScanReplay {
     } else {
       reloc_ = RelocState::Searching;
     }
+  }
+
+  /// A restart of the filter (relocalization, resync) at `pose` that the corrected pose `truth`
+  /// says is wrong: more than 0.3 m or 5 deg off (the tracking cannot pull it back).
+  static bool isWrongRestart(const Pose2d& pose, const Pose2d& truth) {
+    return std::hypot(pose.x - truth.x, pose.y - truth.y) > 0.3 ||
+           std::fabs(normalizeAngle(pose.theta - truth.theta)) > deg2rad(5.0);
   }
 
   /// Whether the current scan is on the map at the vehicle pose `truth` (`ReplayResult::onMap`).
@@ -766,8 +774,8 @@ std::string resultText(const ReplayResult& r) {
                r.odometryOnMap.heading.rms * kDeg);
     }
     o << "scan matching: " << r.matchAttempts << " attempts, " << r.matchFused << " fused, " << r.matchGated
-      << " gated, " << r.matchRefused << " refused by the matcher; " << r.noFixCycles << " cycles without a fix, "
-      << r.lostCycles << " cycles lost\n";
+      << " gated, " << r.matchRefused << " refused by the matcher, " << r.matchResyncs << " resyncs (" << r.resyncWrong
+      << " wrong); " << r.noFixCycles << " cycles without a fix, " << r.lostCycles << " cycles lost\n";
     o << "field relocalization: " << r.relocSearches << " searches (" << fmt("%.2f s", r.relocSeconds) << "), "
       << r.relocFound << " found, " << r.relocAmbiguous << " ambiguous, " << r.relocWeak << " weak; "
       << r.relocConfirmed << " confirmed restarts (" << r.relocWrong << " wrong), " << r.relocUnconfirmed
@@ -784,59 +792,63 @@ report::Json resultJson(const ReplayResult& r) {
   const auto errors = [](const ErrorStats& position, const ErrorStats& heading) {
     return Json{{"position_m", statsJson(position, 1.0)}, {"heading_deg", statsJson(heading, kDeg)}};
   };
-  return Json{
-      {"log", r.log},
-      {"scans", r.scans},
-      {"path_length_m", r.pathLength},
-      {"duration_s", r.duration},
-      {"zero_increments", r.zeroIncrements},
-      {"odometry_per_metre", errors(r.odometryRelative.position, r.odometryRelative.heading)},
-      {"localizer_per_metre", errors(r.localizerRelative.position, r.localizerRelative.heading)},
-      {"odometry_absolute", errors(r.odometryAbsolute.position, r.odometryAbsolute.heading)},
-      {"localizer_absolute", errors(r.localizerAbsolute.position, r.localizerAbsolute.heading)},
-      {"static_map", r.staticMap},
-      {"mapping_run",
-       {{"scans", r.mappingScans},
-        {"static_corners", r.staticCorners},
-        {"field_surface_cells", r.fieldSurfaceCells},
-        {"field_width_m", r.fieldWidth},
-        {"field_height_m", r.fieldHeight}}},
-      {"on_map",
-       {{"scans", r.onMapScans},
-        {"localizer", errors(r.localizerOnMap.position, r.localizerOnMap.heading)},
-        {"odometry", errors(r.odometryOnMap.position, r.odometryOnMap.heading)}}},
-      {"scan_matching",
-       {{"attempts", r.matchAttempts}, {"fused", r.matchFused}, {"gated", r.matchGated}, {"refused", r.matchRefused}}},
-      {"field_relocalization",
-       {{"searches", r.relocSearches},
-        {"found", r.relocFound},
-        {"ambiguous", r.relocAmbiguous},
-        {"weak", r.relocWeak},
-        {"confirmed", r.relocConfirmed},
-        {"wrong", r.relocWrong},
-        {"unconfirmed", r.relocUnconfirmed},
-        {"seconds", r.relocSeconds}}},
-      {"laser_x_m", r.laserX},
-      {"localizer",
-       {{"keypoints", r.keypoints},
-        {"used", r.used},
-        {"fix_cycles", r.fixCycles},
-        {"bad_cycles", r.badCycles},
-        {"lost_events", r.lostEvents},
-        {"lost_cycles", r.lostCycles},
-        {"no_fix_cycles", r.noFixCycles},
-        {"map_restarts", r.mapRestarts},
-        {"rejected_gate", r.rejectedGate},
-        {"rejected_ambiguous", r.rejectedAmbiguous},
-        {"rejected_duplicate", r.rejectedDuplicate},
-        {"rejected_update", r.rejectedUpdate},
-        {"mean_test_ratio", r.meanTestRatio},
-        {"map_size", r.mapSize},
-        {"map_inserted", r.mapInserted},
-        {"map_deleted", r.mapDeleted},
-        {"expected_in_view", r.expected},
-        {"occluded_or_no_return", r.occluded}}},
-      {"replay_seconds", r.seconds}};
+  return Json{{"log", r.log},
+              {"scans", r.scans},
+              {"path_length_m", r.pathLength},
+              {"duration_s", r.duration},
+              {"zero_increments", r.zeroIncrements},
+              {"odometry_per_metre", errors(r.odometryRelative.position, r.odometryRelative.heading)},
+              {"localizer_per_metre", errors(r.localizerRelative.position, r.localizerRelative.heading)},
+              {"odometry_absolute", errors(r.odometryAbsolute.position, r.odometryAbsolute.heading)},
+              {"localizer_absolute", errors(r.localizerAbsolute.position, r.localizerAbsolute.heading)},
+              {"static_map", r.staticMap},
+              {"mapping_run",
+               {{"scans", r.mappingScans},
+                {"static_corners", r.staticCorners},
+                {"field_surface_cells", r.fieldSurfaceCells},
+                {"field_width_m", r.fieldWidth},
+                {"field_height_m", r.fieldHeight}}},
+              {"on_map",
+               {{"scans", r.onMapScans},
+                {"localizer", errors(r.localizerOnMap.position, r.localizerOnMap.heading)},
+                {"odometry", errors(r.odometryOnMap.position, r.odometryOnMap.heading)}}},
+              {"scan_matching",
+               {{"attempts", r.matchAttempts},
+                {"fused", r.matchFused},
+                {"gated", r.matchGated},
+                {"refused", r.matchRefused},
+                {"resyncs", r.matchResyncs},
+                {"resync_wrong", r.resyncWrong}}},
+              {"field_relocalization",
+               {{"searches", r.relocSearches},
+                {"found", r.relocFound},
+                {"ambiguous", r.relocAmbiguous},
+                {"weak", r.relocWeak},
+                {"confirmed", r.relocConfirmed},
+                {"wrong", r.relocWrong},
+                {"unconfirmed", r.relocUnconfirmed},
+                {"seconds", r.relocSeconds}}},
+              {"laser_x_m", r.laserX},
+              {"localizer",
+               {{"keypoints", r.keypoints},
+                {"used", r.used},
+                {"fix_cycles", r.fixCycles},
+                {"bad_cycles", r.badCycles},
+                {"lost_events", r.lostEvents},
+                {"lost_cycles", r.lostCycles},
+                {"no_fix_cycles", r.noFixCycles},
+                {"map_restarts", r.mapRestarts},
+                {"rejected_gate", r.rejectedGate},
+                {"rejected_ambiguous", r.rejectedAmbiguous},
+                {"rejected_duplicate", r.rejectedDuplicate},
+                {"rejected_update", r.rejectedUpdate},
+                {"mean_test_ratio", r.meanTestRatio},
+                {"map_size", r.mapSize},
+                {"map_inserted", r.mapInserted},
+                {"map_deleted", r.mapDeleted},
+                {"expected_in_view", r.expected},
+                {"occluded_or_no_return", r.occluded}}},
+              {"replay_seconds", r.seconds}};
 }
 
 std::string trajectorySvg(const ReplayResult& r) {

@@ -171,6 +171,8 @@ struct ReplayResult {
   std::size_t matchFused = 0;     ///< matches used in the update
   std::size_t matchGated = 0;     ///< refused by the gate against the prior
   std::size_t matchRefused = 0;   ///< refused by the matcher (too few inliers, unobservable, ...)
+  std::size_t matchResyncs = 0;   ///< resets of the filter to a confirmed hypothesis (`resyncAfter`)
+  std::size_t resyncWrong = 0;    ///< of which more than 0.3 m / 5 deg from the corrected pose
   std::size_t lostCycles = 0;     ///< cycles whose health said lost
   // Field relocalization (`ReplayOptions::fieldRelocalization`).
   std::size_t relocSearches = 0;     ///< scans searched on the whole field

@@ -421,14 +421,16 @@ struct FieldRun {
   }
 
   /// Drives `delta` (vehicle frame) in 10 steps reporting `reported` to the filter, then one scan.
-  const LocalizerHealth& step(const Pose2d& delta, const Pose2d& reported) {
+  /// `headingVariance` [rad^2]: what the odometry model says its heading may be off by over the
+  /// cycle.
+  const LocalizerHealth& step(const Pose2d& delta, const Pose2d& reported, double headingVariance = 1e-6) {
     for (int k = 0; k < 10; ++k) {
       t = t + Duration::fromMilliseconds(10);
       OdometryIncrement inc;
       inc.stamp = t;
       inc.delta = Pose2d{reported.x / 10.0, reported.y / 10.0, reported.theta / 10.0};
       inc.covariance = Eigen::Matrix3d::Identity() * 1e-6;
-      inc.covariance(2, 2) = 1e-7;
+      inc.covariance(2, 2) = headingVariance / 10.0;
       REQUIRE(loc->predict(inc) == Status::Ok);
       truth = truth.compose(Pose2d{delta.x / 10.0, delta.y / 10.0, delta.theta / 10.0});
     }
@@ -490,6 +492,38 @@ TEST_CASE("localizer with a likelihood field: a slip beyond the odometry model i
   const LocalizerHealth& after = run.step(Pose2d{0.05, 0.0, 0.0}, Pose2d{0.05, 0.0, 0.0});
   CHECK(after.scanMatch.fused);
   CHECK_FALSE(after.scanMatch.resynced);
+}
+
+TEST_CASE(
+    "localizer with a likelihood field: a turn the odometry under-reports is re-synchronised by a hypothesis it "
+    "carries",
+    "[localization][scanmatch][localizer]") {
+  // Real odometry in turns (the intel log): the wheels slip, and the reported turn falls short
+  // cycle after cycle. One bad turn puts the filter beyond its gate; the match is right and
+  // refused, and the filter's heading drifts on by the shortfall of every later turn. The odometry
+  // model knows its turns are uncertain (its heading sigma per turning cycle covers the later
+  // shortfalls), so the hypothesis started at the refused match and carried by the odometry with
+  // that noise is confirmed by the next matches and resets the pose. A fixed agreement bound
+  // tighter than the odometry's own noise would refuse every confirmation.
+  FieldRun run;
+  for (int c = 0; c < 5; ++c) {
+    REQUIRE(run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0}).scanMatch.fused);
+  }
+  const double sigmaTurn = 0.015;  // [rad] the odometry model's heading sigma per turning cycle
+  const LocalizerHealth& first = run.step(Pose2d{0.1, 0.0, 0.16}, Pose2d{0.1, 0.0, 0.10}, sigmaTurn * sigmaTurn);
+  CHECK(first.scanMatch.status == Status::Rejected);
+  int resyncAt = -1;
+  for (int c = 0; c < 6 && resyncAt < 0; ++c) {
+    // Turning on, 1.4 deg per cycle more than reported (1.6 sigma of the model).
+    const LocalizerHealth& h = run.step(Pose2d{0.1, 0.0, 0.10}, Pose2d{0.1, 0.0, 0.075}, sigmaTurn * sigmaTurn);
+    CHECK_FALSE(h.scanMatch.fused != h.scanMatch.resynced);  // nothing fused but the resync
+    if (h.scanMatch.resynced) {
+      resyncAt = c;
+    }
+  }
+  CHECK(resyncAt == run.params.scanMatch.resyncAfter - 2);
+  CHECK(std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y) < 0.02);
+  CHECK(std::fabs(normalizeAngle(run.loc->pose().theta - run.truth.theta)) < 0.1 * kPiD / 180.0);
 }
 
 TEST_CASE("localizer with a likelihood field: a slip beyond the search window is found by the widened search",

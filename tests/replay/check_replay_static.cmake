@@ -2,7 +2,7 @@
 # maps: static corners and a likelihood field from the first half of the log, the second half
 # localized on them), included by tests/support/run_json_program.cmake with the document in `j`.
 # End to end: the field is built, three quarters of the localized scans lie on the map, every
-# scan is matched, no field relocalization restarted the localizer at a wrong pose. The tracking
+# scan is matched, no field relocalization or resync restarted the localizer at a wrong pose. The tracking
 # is checked against a regression bound, not the issue's 10 cm RMS target, which it does not meet
 # (docs/localization.md, "Scan matching on real logs": with the recovery search fr079 measures
 # 0.42-0.45 m RMS and 6-7 cm median on the on-map scans at map fractions 0.4-0.6, the RMS from
@@ -11,7 +11,7 @@
 expect_keys("${j}" "scans;static_corners;field_surface_cells;field_width_m;field_height_m" mapping_run)
 expect_number_in("${j}" 1 1000000000 mapping_run field_surface_cells)
 expect_number_in("${j}" 1 1000000000 mapping_run static_corners)
-expect_keys("${j}" "attempts;fused;gated;refused" scan_matching)
+expect_keys("${j}" "attempts;fused;gated;refused;resync_wrong;resyncs" scan_matching)
 expect_keys("${j}" "scans;localizer;odometry" on_map)
 string(JSON scans GET "${j}" scans)
 string(JSON onMap GET "${j}" on_map scans)
@@ -38,6 +38,10 @@ expect_keys("${j}" "searches;found;ambiguous;weak;confirmed;wrong;unconfirmed;se
 string(JSON wrong GET "${j}" field_relocalization wrong)
 if(NOT wrong EQUAL 0)
   message(FATAL_ERROR "JSON: ${LOG_NAME}: ${wrong} field relocalizations restarted the localizer at a wrong pose")
+endif()
+string(JSON resyncWrong GET "${j}" scan_matching resync_wrong)
+if(NOT resyncWrong EQUAL 0)
+  message(FATAL_ERROR "JSON: ${LOG_NAME}: ${resyncWrong} resyncs reset the localizer to a wrong pose")
 endif()
 if(medPos GREATER_EQUAL 0.10 OR rmsPos GREATER_EQUAL 1.0)
   message(FATAL_ERROR "JSON: ${LOG_NAME}: on-map tracking median ${medPos} m / RMS ${rmsPos} m (regression bound 0.10 / 1.0 m)")

@@ -21,7 +21,7 @@ std::uint16_t sat16(std::size_t v) noexcept {
 }
 }  // namespace
 
-Localizer::Localizer(const LocalizerParams& params) noexcept : params_(params), ekf_(params.ekf) {}
+Localizer::Localizer(const LocalizerParams& params) noexcept : params_(params), ekf_(params.ekf), hyp_(params.ekf) {}
 
 Timestamp Localizer::stamp() const noexcept {
   if (history_.empty()) {
@@ -45,6 +45,8 @@ Status Localizer::reset(Timestamp stamp, const Pose2d& pose, const Eigen::Matrix
   e.deltaCov.setZero();
   e.pose = ekf_.pose();
   e.cov = ekf_.covariance();
+  e.odo = odo_;
+  e.odoCov = odoCov_;
   history_.clear();
   (void)history_.push(e);
   initialized_ = true;
@@ -72,12 +74,17 @@ Status Localizer::predict(const OdometryIncrement& inc) noexcept {
     pendingFlags_ |= bit(LocalizerFlag::OdometryRejected);
     return s;
   }
+  odo_ = odo_.compose(inc.delta);
+  odo_.theta = normalizeAngle(odo_.theta);
+  odoCov_ += inc.covariance;
   HistoryEntry e;
   e.stamp = inc.stamp;
   e.delta = inc.delta;
   e.deltaCov = inc.covariance;
   e.pose = ekf_.pose();
   e.cov = ekf_.covariance();
+  e.odo = odo_;
+  e.odoCov = odoCov_;
   (void)history_.push(e);  // when full, the oldest increment makes room
   return Status::Ok;
 }
@@ -376,7 +383,17 @@ const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const La
   return correctWith(scan, &beams, map, &field, &points);
 }
 
-void Localizer::matchScan(const LaserScan& beams, const MatchPoints* points,
+void Localizer::odometryAt(const Rewind& at, Pose2d& odo, Eigen::Matrix3d& odoCov) const noexcept {
+  const HistoryEntry& e = history_[at.k];
+  odo = e.odo;
+  odoCov = e.odoCov;
+  if (at.split) {
+    odo = odo.compose(at.part);
+    odoCov += at.f * history_[at.k + 1U].deltaCov;
+  }
+}
+
+void Localizer::matchScan(const Rewind& at, const LaserScan& beams, const MatchPoints* points,
                           const LikelihoodFieldBase& field) noexcept {
   ScanMatchHealth& h = health_.scanMatch;
   h.attempted = true;
@@ -398,9 +415,9 @@ void Localizer::matchScan(const LaserScan& beams, const MatchPoints* points,
     h.widened = true;
   }
   h.window = window.x > window.y ? window.x : window.y;
-  const ScanMatchResult m = points != nullptr
-                                ? matcher_.match(*points, params_.laser.mounting, ekf_.pose(), window, field)
-                                : matcher_.match(beams, params_.laser.mounting, ekf_.pose(), window, field);
+  const Pose2d before = ekf_.pose();
+  const ScanMatchResult m = points != nullptr ? matcher_.match(*points, params_.laser.mounting, before, window, field)
+                                              : matcher_.match(beams, params_.laser.mounting, before, window, field);
   // A cycle whose match is not fused adds to the run that widens the next search.
   failedRun_ = failedRun_ < 255U ? static_cast<std::uint8_t>(failedRun_ + 1U) : failedRun_;
   h.status = m.status;
@@ -410,7 +427,6 @@ void Localizer::matchScan(const LaserScan& beams, const MatchPoints* points,
   h.rmsResidual = m.rmsResidual;
   if (m.status == Status::Ok) {
     h.mahalanobis2 = ekf_.poseMahalanobis2(m.pose, m.covariance);
-    const Pose2d before = ekf_.pose();
     const Status u = ekf_.updatePose(m.pose, m.covariance, params_.scanMatchGate);
     if (u == Status::Ok) {
       h.fused = true;
@@ -420,29 +436,83 @@ void Localizer::matchScan(const LaserScan& beams, const MatchPoints* points,
       return;
     }
     h.status = u;
-    if (u == Status::Rejected && params_.scanMatch.resyncAfter > 0 && m.rmsResidual <= params_.scanMatch.resyncMaxRms) {
-      const Pose2d offset = between(before, m.pose);
-      const Pose2d change = between(gatedOffset_, offset);
-      const bool agrees = gatedRun_ > 0 && std::hypot(change.x, change.y) <= params_.scanMatch.resyncAgreement &&
-                          std::fabs(change.theta) <= params_.scanMatch.resyncAgreementAngle;
-      gatedRun_ = agrees ? static_cast<std::uint8_t>(gatedRun_ + 1U) : std::uint8_t{1};
-      gatedOffset_ = offset;
-      h.consecutiveGated = gatedRun_;
-      if (gatedRun_ >= params_.scanMatch.resyncAfter && ekf_.reset(m.pose, m.covariance) == Status::Ok) {
-        h.resynced = true;
-        h.fused = true;
-        h.correction = std::hypot(m.pose.x - before.x, m.pose.y - before.y);
-        health_.flags |= bit(LocalizerFlag::ScanMatchResync);
-        gatedRun_ = 0;
-        failedRun_ = 0;
-        return;
-      }
-    } else {
-      gatedRun_ = 0;
+  }
+  if (sp.resyncAfter > 0U) {
+    resync(m, before, at, beams, points, field);
+  }
+  if (!h.resynced) {
+    health_.flags |= bit(LocalizerFlag::ScanMatchRejected);
+  }
+}
+
+void Localizer::resync(const ScanMatchResult& m, const Pose2d& before, const Rewind& at, const LaserScan& beams,
+                       const MatchPoints* points, const LikelihoodFieldBase& field) noexcept {
+  const ScanMatchParams& sp = params_.scanMatch;
+  ScanMatchHealth& h = health_.scanMatch;
+  const bool gatedGood = h.status == Status::Rejected && m.rmsResidual <= sp.resyncMaxRms;
+  Pose2d odo;
+  Eigen::Matrix3d odoCov;
+  odometryAt(at, odo, odoCov);
+  bool confirmed = false;
+  if (gatedRun_ > 0U) {
+    // The hypothesis carried to this scan by the odometry since its last scan (not by the
+    // filter, whose corrections in between are no motion), with the odometry's own uncertainty.
+    OdometryIncrement inc;
+    inc.stamp = health_.stamp;
+    inc.delta = between(hypOdo_, odo);
+    inc.covariance = odoCov - hypOdoCov_;
+    inc.covariance = (0.5 * (inc.covariance + inc.covariance.transpose())).eval();
+    if (hyp_.predict(inc) != Status::Ok) {
+      gatedRun_ = 0U;
     }
   }
-  // A match the matcher itself refused says nothing about the prior: a run of gated ones goes on.
-  health_.flags |= bit(LocalizerFlag::ScanMatchRejected);
+  if (gatedRun_ > 0U) {
+    if (gatedGood && hyp_.updatePose(m.pose, m.covariance, params_.scanMatchGate) == Status::Ok) {
+      confirmed = true;
+      h.pose = hyp_.pose();
+    } else {
+      // The tracking search ran around the filter's estimate, which is off by the hypothesis'
+      // offset: look again where the hypothesis says the vehicle is, over its own window.
+      const Pose2d carried = hyp_.pose();
+      const SearchWindow window = matcher_.searchWindow(hyp_.covariance());
+      const ScanMatchResult c = points != nullptr
+                                    ? matcher_.match(*points, params_.laser.mounting, carried, window, field)
+                                    : matcher_.match(beams, params_.laser.mounting, carried, window, field);
+      h.hypothesisChecked = true;
+      if (c.status == Status::Ok && c.rmsResidual <= sp.resyncMaxRms &&
+          hyp_.updatePose(c.pose, c.covariance, params_.scanMatchGate) == Status::Ok) {
+        confirmed = true;
+        h.pose = c.pose;
+      } else if (c.status != Status::Ok && !gatedGood) {
+        // The matcher could not tell (too few points, a scan off the map): the hypothesis is
+        // neither confirmed nor contradicted; it is carried on to the next scan.
+        hypOdo_ = odo;
+        hypOdoCov_ = odoCov;
+        h.consecutiveGated = gatedRun_;
+        return;
+      }
+    }
+  }
+  if (confirmed) {
+    gatedRun_ = static_cast<std::uint8_t>(gatedRun_ < 255U ? gatedRun_ + 1U : gatedRun_);
+  } else if (gatedGood && hyp_.reset(m.pose, m.covariance) == Status::Ok) {
+    gatedRun_ = 1U;  // a new hypothesis
+  } else {
+    gatedRun_ = 0U;  // contradicted (or none), and no new one
+    return;
+  }
+  hypOdo_ = odo;
+  hypOdoCov_ = odoCov;
+  h.consecutiveGated = gatedRun_;
+  if (gatedRun_ >= sp.resyncAfter && ekf_.reset(hyp_.pose(), hyp_.covariance()) == Status::Ok) {
+    h.resynced = true;
+    h.fused = true;
+    h.pose = hyp_.pose();
+    h.correction = std::hypot(hyp_.pose().x - before.x, hyp_.pose().y - before.y);
+    health_.flags |= bit(LocalizerFlag::ScanMatchResync);
+    gatedRun_ = 0;
+    failedRun_ = 0;
+  }
 }
 
 const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map,
@@ -471,7 +541,7 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   const Pose2d prior = ekf_.pose();
   // The scan match first: it moves the prior the landmarks are associated against.
   if (field != nullptr && beams != nullptr) {
-    matchScan(*beams, points, *field);
+    matchScan(at, *beams, points, *field);
   }
   // Association against the prior at the scan time, and what the check expects to see.
   associate(scan, map);

@@ -250,15 +250,19 @@ struct SourceHealth {
 /// The scan-to-map match of one cycle (only when `correct` was given a likelihood field).
 struct ScanMatchHealth {
   bool attempted = false;
-  bool fused = false;                 ///< passed the matcher and the gate, used in the update
-  Status status = Status::NotFound;   ///< the matcher's status; `Rejected` when the gate refused it
-  std::uint16_t points = 0;           ///< scan points matched (after thinning)
-  std::uint16_t inliers = 0;          ///< of which on the map
-  double rmsResidual = 0.0;           ///< [m] of the inliers
-  double mahalanobis2 = 0.0;          ///< of the match against the prior (3 dof)
-  double correction = 0.0;            ///< [m] position change of the update (or of the resync)
-  std::uint8_t consecutiveGated = 0;  ///< refused by the gate in a row, agreeing with each other
-  bool resynced = false;              ///< this cycle reset the pose to the match
+  bool fused = false;                ///< passed the matcher and the gate, used in the update
+  Status status = Status::NotFound;  ///< the matcher's status; `Rejected` when the gate refused it
+  std::uint16_t points = 0;          ///< scan points matched (after thinning)
+  std::uint16_t inliers = 0;         ///< of which on the map
+  double rmsResidual = 0.0;          ///< [m] of the inliers
+  double mahalanobis2 = 0.0;         ///< of the match against the prior (3 dof)
+  double correction = 0.0;           ///< [m] position change of the update (or of the resync)
+  /// Confirmations of the re-synchronisation hypothesis so far (`ScanMatchParams::resyncAfter`).
+  std::uint8_t consecutiveGated = 0;
+  /// A second match ran at the hypothesis carried by the odometry (the tracking match did not
+  /// confirm it).
+  bool hypothesisChecked = false;
+  bool resynced = false;  ///< this cycle reset the pose to the match
   /// The search window was widened for recovery (`ScanMatchParams::widenAfter`).
   bool widened = false;
   double window = 0.0;  ///< [m] the larger translation half-width searched
@@ -363,6 +367,8 @@ class Localizer {
     Eigen::Matrix3d deltaCov = Eigen::Matrix3d::Zero();
     Pose2d pose{};  // posterior after it
     Eigen::Matrix3d cov = Eigen::Matrix3d::Identity();
+    Pose2d odo{};  // dead-reckoned pose after it (increments composed since construction)
+    Eigen::Matrix3d odoCov = Eigen::Matrix3d::Zero();  // sum of the increments' covariances so far
   };
   enum class Assoc : std::uint8_t {
     None,
@@ -408,7 +414,16 @@ class Localizer {
                                      const LikelihoodFieldBase* field, const MatchPoints* points) noexcept;
   /// Scan-to-map match at the rewound prior (of `points` when given, else of `beams`), fused when
   /// it passes (health_.scanMatch).
-  void matchScan(const LaserScan& beams, const MatchPoints* points, const LikelihoodFieldBase& field) noexcept;
+  void matchScan(const Rewind& at, const LaserScan& beams, const MatchPoints* points,
+                 const LikelihoodFieldBase& field) noexcept;
+  /// Re-synchronisation after a match that was not fused (`m`, taken at the prior `before`, the
+  /// scan at history position `at`): starts, confirms (if needed with a second match at the
+  /// hypothesis) or drops the hypothesis, and resets the filter to it after `resyncAfter`
+  /// confirmations.
+  void resync(const ScanMatchResult& m, const Pose2d& before, const Rewind& at, const LaserScan& beams,
+              const MatchPoints* points, const LikelihoodFieldBase& field) noexcept;
+  /// The dead-reckoned pose and the summed increment covariance at the scan instant `at`.
+  void odometryAt(const Rewind& at, Pose2d& odo, Eigen::Matrix3d& odoCov) const noexcept;
   /// Latency: moves the filter to the scan's time inside the history. False (health filled) when
   /// the scan is refused.
   bool rewindToScan(const ScanObservations& scan, Rewind& at) noexcept;
@@ -446,9 +461,17 @@ class Localizer {
   Scratch scratch_[kMaxObservations];
   std::uint16_t order_[kMaxObservations] = {};
   ScanMatcher matcher_{};
-  /// Offset of the last gate-refused match from the estimate (estimate^-1 ⊕ match); `gatedRun_`
-  /// counts the agreeing refusals in a row that led to it.
-  Pose2d gatedOffset_{};
+  /// Dead reckoning since construction (increments composed, their covariances summed): the
+  /// odometry between any two instants of the history, free of the filter's corrections.
+  Pose2d odo_{};
+  Eigen::Matrix3d odoCov_ = Eigen::Matrix3d::Zero();
+  /// The re-synchronisation hypothesis (`ScanMatchParams::resyncAfter`): a filter of its own,
+  /// started at a gate-refused match, carried by the odometry and updated by the matches that
+  /// confirm it; `hypOdo_` / `hypOdoCov_` is the odometry at its last scan. `gatedRun_` counts the
+  /// matches it holds.
+  PoseEkf hyp_{};
+  Pose2d hypOdo_{};
+  Eigen::Matrix3d hypOdoCov_ = Eigen::Matrix3d::Zero();
   LocalizerHealth health_{};
 };
 

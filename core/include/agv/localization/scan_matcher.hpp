@@ -91,18 +91,21 @@ struct ScanMatchParams {
   double searchStepRotation = 0.01;    ///< [rad] (a point at 10 m moves 10 cm)
   std::size_t maxSearchPoses = 20000;
   /// Re-synchronisation (used by the localizer): a match the gate refuses means the prior and the
-  /// map disagree. One such match may be wrong; `resyncAfter` consecutive refused matches that
-  /// agree with each other (each one's offset from the filter's estimate within `resyncAgreement`
-  /// [m] and `resyncAgreementAngle` [rad] of the previous one's: the vehicle has moved by what
-  /// odometry says and the map keeps placing it the same way off the estimate) mean the prior is
-  /// wrong (a slip the odometry model did not cover): the filter is reset to the latest match with
-  /// its covariance. 0 disables it. Three cycles, because a wrong match that repeats three times at
-  /// the same offset while the vehicle moves is a map that is locally ambiguous, which the gate
-  /// cannot tell either; 10 cm, because consecutive matches of real scans against a real map
-  /// scatter by a few centimetres (docs/localization.md, "Scan matching on real logs").
+  /// map disagree. One such match may be wrong, so it only starts a hypothesis: a pose filter of
+  /// its own, at the match with its covariance, carried to each later scan by the odometry with
+  /// the odometry's noise model (not by the main filter, whose corrections are no motion). A later
+  /// match confirms it when it passes the hypothesis' gate (`LocalizerParams::scanMatchGate`, the
+  /// vehicle has moved by what odometry says within what odometry can be wrong by, and the map
+  /// keeps placing it there); it is then fused into the hypothesis. When the tracking match,
+  /// searched around the main filter's estimate, does not confirm it, a second match is run at the
+  /// hypothesis over the window of its covariance. `resyncAfter` matches in a row (the first
+  /// included) mean the prior is wrong (a slip the odometry model did not cover): the main filter
+  /// is reset to the hypothesis. A scan the matcher cannot use (too few points, off the map)
+  /// carries the hypothesis on; a good match elsewhere replaces it; a match at the hypothesis that
+  /// fits badly or fails its gate ends it. 0 disables it. Three, because a wrong match that
+  /// repeats three times while the vehicle moves is a map that is locally ambiguous, which the
+  /// gate cannot tell either.
   std::uint8_t resyncAfter = 3;
-  double resyncAgreement = 0.10;
-  double resyncAgreementAngle = 0.02;
   /// [m] a match bypasses the gate only through the resync, and only when its inliers fit at
   /// least this well (RMS): far stricter than `maxRmsResidual`, which the gate backs up.
   double resyncMaxRms = 0.06;
