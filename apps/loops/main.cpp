@@ -90,6 +90,12 @@ int run(int argc, char** argv) {
   app.add_option("--revisit-distance", eval.revisitDistance,
                  "[m] a scan has a loop when an eligible reference scan was taken this close")
       ->check(CLI::PositiveNumber);
+  app.add_option("--falko-corner-ratio", selection.falko.minCornerResidualRatio,
+                 "FALKO straight-wall rejection ratio (0: off, the thesis' detector)")
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--falko-max-score", selection.falko.maxScore, "FALKO largest cornerness score")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--falko-beta", selection.falko.beta, "FALKO triangle test beta")->check(CLI::PositiveNumber);
   app.add_option("--json", jsonPath, "write the figures as JSON");
   app.add_option("--svg-dir", svgDir, "write loops-<dataset>.svg (PR curves) and map-<dataset>.svg here");
   app.add_flag("--pose-graph", poseGraph, "also run online pose-graph mapping on the corrected logs");
@@ -100,6 +106,13 @@ int run(int argc, char** argv) {
   app.add_option("--map-min-pairs", mapping.minPairs, "N_min of the loops accepted for mapping")
       ->check(CLI::Range(3, 64));
   app.add_option("--map-max-scans", mapping.maxScans, "map at most this many scans per log (0: all)");
+  app.add_option("--map-candidates", mapping.candidates, "GLAROT candidates per scan for mapping")
+      ->check(CLI::Range(1, 32));
+  app.add_option("--map-min-overlap", mapping.minOverlap,
+                 "fraction of a loop's scan points that must meet the reference scan's points")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--map-exclude-travel", mapping.excludeTravel, "[m] newest path not searched for loops")
+      ->check(CLI::NonNegativeNumber);
   CLI11_PARSE(app, argc, argv);
 
   agv::report::Json doc = agv::report::Json::object();

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 #include <set>
 #include <utility>
@@ -64,9 +65,10 @@ double whitenedSquared(const Edge& e, const std::vector<std::array<double, 3>>& 
   return r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
 }
 
-// Optimises the nodes 0..n-1 (node 0 fixed) over the edges between them.
-void optimise(const std::vector<Edge>& odometry, const std::vector<Edge>& loops, std::size_t n,
-              std::vector<std::array<double, 3>>& p) {
+// Optimises the nodes 0..n-1 (node 0 fixed) over the edges between them; `robust`: the loop edges
+// through a Cauchy loss.
+void optimiseOnce(const std::vector<Edge>& odometry, const std::vector<Edge>& loops, std::size_t n,
+                  std::vector<std::array<double, 3>>& p, bool robust) {
   ceres::Problem::Options po;
   po.loss_function_ownership = ceres::TAKE_OWNERSHIP;
   ceres::Problem problem(po);
@@ -76,7 +78,8 @@ void optimise(const std::vector<Edge>& odometry, const std::vector<Edge>& loops,
     }
     auto* cost = new ceres::AutoDiffCostFunction<RelativePoseError, 3, 3, 3>(
         new RelativePoseError(e.z, e.sigmaXY, e.sigmaTheta));
-    problem.AddResidualBlock(cost, e.robust ? new ceres::CauchyLoss(1.0) : nullptr, p[e.from].data(), p[e.to].data());
+    problem.AddResidualBlock(cost, robust && e.robust ? new ceres::CauchyLoss(1.0) : nullptr, p[e.from].data(),
+                             p[e.to].data());
   };
   for (const Edge& e : odometry) {
     add(e);
@@ -96,6 +99,15 @@ void optimise(const std::vector<Edge>& odometry, const std::vector<Edge>& loops,
   ceres::Solve(so, &problem, &summary);
 }
 
+// Least squares first: from the odometry's start a true loop closing a long cycle has a residual
+// of hundreds of sigmas, where the Cauchy loss would give it no weight; the loops reaching here
+// passed the consistency gates. Then the Cauchy loss from that solution.
+void optimise(const std::vector<Edge>& odometry, const std::vector<Edge>& loops, std::size_t n,
+              std::vector<std::array<double, 3>>& p) {
+  optimiseOnce(odometry, loops, n, p, false);
+  optimiseOnce(odometry, loops, n, p, true);
+}
+
 Pose2d toPose(const std::array<double, 3>& a) {
   return Pose2d{a[0], a[1], normalizeAngle(a[2])};
 }
@@ -105,10 +117,53 @@ bool wrongByTruth(const Pose2d& z, const Pose2d& truthFrom, const Pose2d& truthT
   return std::hypot(e.x, e.y) > 0.5 || std::fabs(normalizeAngle(e.theta)) > 0.17453292519943295;
 }
 
+// Valid beam endpoints of a scan in its laser frame.
+std::vector<Eigen::Vector2d> scanPoints(const datasets::LogScan& s) {
+  std::vector<Eigen::Vector2d> pts;
+  for (std::size_t b = 0; b < s.ranges.size(); ++b) {
+    const double range = static_cast<double>(s.ranges[b]);
+    if (!(range > 0.0) || range >= static_cast<double>(s.maxRange)) {
+      continue;
+    }
+    const double a = static_cast<double>(s.angleMin) + static_cast<double>(b) * static_cast<double>(s.angleIncrement);
+    pts.emplace_back(range * std::cos(a), range * std::sin(a));
+  }
+  return pts;
+}
+
+// Fraction of the second scan's points that land, moved by `t` (second laser pose in the first's
+// frame), within about `cell` of a point of the first scan (grid cells dilated by one).
+double overlap(const std::vector<Eigen::Vector2d>& first, const std::vector<Eigen::Vector2d>& second, const Pose2d& t,
+               double cell) {
+  if (second.empty()) {
+    return 0.0;
+  }
+  std::set<std::pair<long, long>> occupied;
+  for (const Eigen::Vector2d& p : first) {
+    const long cx = std::lround(p.x() / cell);
+    const long cy = std::lround(p.y() / cell);
+    for (long dx = -1; dx <= 1; ++dx) {
+      for (long dy = -1; dy <= 1; ++dy) {
+        occupied.insert({cx + dx, cy + dy});
+      }
+    }
+  }
+  const double c = std::cos(t.theta);
+  const double s = std::sin(t.theta);
+  std::size_t hits = 0;
+  for (const Eigen::Vector2d& p : second) {
+    const double x = t.x + c * p.x() - s * p.y();
+    const double y = t.y + s * p.x() + c * p.y();
+    hits += occupied.count({std::lround(x / cell), std::lround(y / cell)}) != 0 ? 1U : 0U;
+  }
+  return static_cast<double>(hits) / static_cast<double>(second.size());
+}
+
 // A loop found by the correspondence graph, waiting for a partner.
 struct Hypothesis {
   Edge edge;
   std::size_t pairs = 0;
+  double overlap = 0.0;
   bool paired = false;
 };
 
@@ -201,7 +256,13 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
           continue;
         }
         const std::size_t pairs = assoc->pairs.size();
-        if (assoc->rms <= o.maxRms && (pairs > best.pairs || (pairs == best.pairs && assoc->rms < bestRms))) {
+        if (assoc->rms > o.maxRms || pairs < best.pairs || (pairs == best.pairs && assoc->rms >= bestRms)) {
+          continue;
+        }
+        const double ov =
+            overlap(scanPoints(log.scans[c.index]), scanPoints(log.scans[i]), assoc->transform, o.overlapCell);
+        if (ov >= o.minOverlap) {
+          best.overlap = ov;
           best.pairs = pairs;
           bestRms = assoc->rms;
           best.edge.from = c.index;
@@ -212,13 +273,17 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
       }
       if (best.pairs >= o.minPairs) {
         ++r.hypotheses;
+        if (std::getenv("AGV_LOOPS_DEBUG") != nullptr) {
+          std::fprintf(stderr, "hyp %zu %zu pairs %zu overlap %.3f wrong %d\n", best.edge.from, i, best.pairs,
+                       best.overlap, wrongByTruth(best.edge.z, r.truth[best.edge.from], r.truth[i]) ? 1 : 0);
+        }
         best.edge.sigmaXY = o.loopSigmaXY;
         best.edge.sigmaTheta = o.loopSigmaTheta;
         best.edge.robust = true;
         r.hypothesesWrong += wrongByTruth(best.edge.z, r.truth[best.edge.from], r.truth[i]) ? 1U : 0U;
-        // Gate 1: agreement with the estimate within the uncertainty accumulated since the last
-        // loop (or along the chain from the reference scan).
-        const double d = anyLoop ? travel[i] - travel[lastLoopNode] : travel[i] - travel[best.edge.from];
+        // Gate 1: agreement with the estimate within the uncertainty the odometry accumulated along
+        // the chain from the reference scan.
+        const double d = travel[i] - travel[best.edge.from];
         const Pose2d e = between(between(toPose(est[best.edge.from]), toPose(est[i])), best.edge.z);
         const double sXY = o.gateXY + o.gateXYPerM * d;
         const double sTh = std::min(M_PI, o.gateTheta + o.gateThetaPerM * d);

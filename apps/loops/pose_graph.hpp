@@ -22,9 +22,13 @@ namespace loops {
 struct MappingOptions {
   std::size_t maxScans = 0;     ///< 0: every scan of the log
   std::size_t candidates = 10;  ///< GLAROT candidates per scan
-  std::size_t minPairs = 6;     ///< N_min: CG pairs a loop needs
+  std::size_t minPairs = 3;     ///< N_min: CG pairs a loop needs
   double maxRms = 0.10;         ///< [m] largest RMS residual of the CG fit
-  double excludeTravel = 5.0;   ///< [m] the newest path of this length is not searched for loops
+  /// Geometric check of a loop: at least this fraction of the query scan's points, moved by the
+  /// loop's transform, fall within about `overlapCell` of the reference scan's points.
+  double minOverlap = 0.5;
+  double overlapCell = 0.10;   ///< [m]
+  double excludeTravel = 5.0;  ///< [m] the newest path of this length is not searched for loops
   // Odometry edge standard deviations: constant plus a part per metre travelled / per radian turned.
   double odoSigmaXY = 0.02;           ///< [m]
   double odoSigmaXYPerM = 0.10;       ///< [m/m]
