@@ -8,6 +8,7 @@
 #include <exception>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "agv/datasets/carmen_log.hpp"
@@ -38,6 +39,12 @@ bool readLog(const std::string& path, agv::datasets::CarmenLog& log) {
     return false;
   }
   return true;
+}
+
+// A log's name in the output: its file name without the extensions.
+std::string logName(const std::string& path) {
+  std::string name = path.substr(path.find_last_of('/') == std::string::npos ? 0 : path.find_last_of('/') + 1);
+  return name.substr(0, name.find('.'));
 }
 
 void printCurves(const std::string& dataset, const char* mode, const agv::loops::ModeResult& r) {
@@ -76,6 +83,8 @@ int run(int argc, char** argv) {
   std::vector<std::string> mapDatasets{"fr079", "intel", "aces"};
   agv::loops::MappingOptions mapping;
 
+  std::vector<std::string> logFiles;
+  std::vector<std::string> mapLogFiles;
   CLI::App app{
       "agvnav-loops: GLAROT loop closure (CG / AH / RANSAC) precision-recall on the FLIRTLib logs, "
       "and Ceres pose-graph mapping on the corrected logs"};
@@ -83,6 +92,8 @@ int run(int argc, char** argv) {
   app.add_option("--datasets", datasets, "FLIRTLib logs to evaluate: intel, fr079, mit-csail")
       ->check(CLI::IsMember({"intel", "fr079", "mit-csail"}))
       ->delimiter(',');
+  app.add_option("--log", logFiles, "FLIRTLib log files to evaluate instead of --datasets (named by file name)");
+  app.add_option("--map-log", mapLogFiles, "corrected log files to map instead of --map-datasets");
   app.add_option("--mode", mode, "offline, online or both")->check(CLI::IsMember({"offline", "online", "both"}));
   app.add_option("--stride", selection.stride, "use every n-th scan")->check(CLI::Range(1, 1000));
   app.add_option("--max-scans", selection.maxScans, "use at most this many scans per log (0: all)");
@@ -119,9 +130,26 @@ int run(int argc, char** argv) {
   if (!skipLoops) {
     doc["loops"] = agv::report::Json::object();
     std::vector<std::vector<double>> timing(agv::loops::kMethods);
+    std::vector<std::pair<std::string, std::string>> inputs;
     for (const std::string& name : datasets) {
+      inputs.emplace_back(name, dataDir + "/" + kLoopLogs.at(name));
+    }
+    if (!logFiles.empty()) {
+      inputs.clear();
+      for (const std::string& path : logFiles) {
+        inputs.emplace_back(logName(path), path);
+      }
+    }
+    for (const auto& [name, path] : inputs) {
       agv::datasets::CarmenLog log;
-      if (!readLog(dataDir + "/" + kLoopLogs.at(name), log)) {
+      if (!readLog(path, log)) {
+        return 2;
+      }
+      if (log.vertices.empty()) {
+        std::fprintf(stderr,
+                     "agvnav-loops: %s: no VERTEX2 lines: not a FLIRTLib log with ground truth (the corrected "
+                     "logs go to --pose-graph)\n",
+                     path.c_str());
         return 2;
       }
       agv::loops::ScanFeatures features;
@@ -160,8 +188,8 @@ int run(int argc, char** argv) {
       }
       doc["loops"][name] = modes;
       if (!svgDir.empty()) {
-        const std::string path = svgDir + "/loops-" + name + ".svg";
-        if (!agv::report::writeTextFile(path, agv::loops::prSvg(name, results[0], results[1]), error)) {
+        const std::string svgPath = svgDir + "/loops-" + name + ".svg";
+        if (!agv::report::writeTextFile(svgPath, agv::loops::prSvg(name, results[0], results[1]), error)) {
           std::fprintf(stderr, "agvnav-loops: %s\n", error.c_str());
           return 2;
         }
@@ -181,9 +209,19 @@ int run(int argc, char** argv) {
 
   if (poseGraph) {
     doc["pose_graph"] = agv::report::Json::object();
+    std::vector<std::pair<std::string, std::string>> inputs;
     for (const std::string& name : mapDatasets) {
+      inputs.emplace_back(name, dataDir + "/" + kMappingLogs.at(name));
+    }
+    if (!mapLogFiles.empty()) {
+      inputs.clear();
+      for (const std::string& path : mapLogFiles) {
+        inputs.emplace_back(logName(path), path);
+      }
+    }
+    for (const auto& [name, path] : inputs) {
       agv::datasets::CarmenLog log;
-      if (!readLog(dataDir + "/" + kMappingLogs.at(name), log)) {
+      if (!readLog(path, log)) {
         return 2;
       }
       agv::loops::MappingResult r;
@@ -201,8 +239,8 @@ int run(int argc, char** argv) {
           r.odometryAteDeg, r.optimisedAteDeg);
       doc["pose_graph"][name] = agv::loops::mappingJson(r);
       if (!svgDir.empty()) {
-        const std::string path = svgDir + "/map-" + name + ".svg";
-        if (!agv::report::writeTextFile(path, agv::loops::mapSvg(name, log, r), error)) {
+        const std::string svgPath = svgDir + "/map-" + name + ".svg";
+        if (!agv::report::writeTextFile(svgPath, agv::loops::mapSvg(name, log, r), error)) {
           std::fprintf(stderr, "agvnav-loops: %s\n", error.c_str());
           return 2;
         }
