@@ -106,6 +106,8 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--falko-max-score", selection.falko.maxScore, "FALKO largest cornerness score")
       ->check(CLI::PositiveNumber);
+  app.add_option("--falko-neigh-a", selection.falko.neighA, "FALKO neighbourhood radius at the sensor [m]")
+      ->check(CLI::PositiveNumber);
   app.add_option("--falko-beta", selection.falko.beta, "FALKO triangle test beta")->check(CLI::PositiveNumber);
   app.add_option("--json", jsonPath, "write the figures as JSON");
   app.add_option("--svg-dir", svgDir, "write loops-<dataset>.svg (PR curves) and map-<dataset>.svg here");
@@ -117,6 +119,13 @@ int run(int argc, char** argv) {
   app.add_option("--map-min-pairs", mapping.minPairs, "N_min of the loops accepted for mapping")
       ->check(CLI::Range(3, 64));
   app.add_option("--map-max-scans", mapping.maxScans, "map at most this many scans per log (0: all)");
+  app.add_option("--map-submap", mapping.submapScans,
+                 "keypoints of this many consecutive scans (placed by odometry) per loop query")
+      ->check(CLI::Range(1, 50));
+  app.add_option("--map-pair-window", mapping.window,
+                 "[scans] a loop needs a consistent partner loop at most this many scans away")
+      ->check(CLI::Range(1, 1000));
+  app.add_flag("--map-trace", mapping.traceHypotheses, "print every loop hypothesis of the mapping on stderr");
   app.add_option("--map-candidates", mapping.candidates, "GLAROT candidates per scan for mapping")
       ->check(CLI::Range(1, 32));
   app.add_option("--map-min-overlap", mapping.minOverlap,

@@ -7,7 +7,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <memory>
 #include <set>
 #include <utility>
@@ -93,7 +92,7 @@ void optimiseOnce(const std::vector<Edge>& odometry, const std::vector<Edge>& lo
   problem.SetParameterBlockConstant(p[0].data());
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  so.max_num_iterations = 50;
+  so.max_num_iterations = 200;
   so.num_threads = 1;
   ceres::Solver::Summary summary;
   ceres::Solve(so, &problem, &summary);
@@ -198,12 +197,42 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
   r.laserX = log.frontLaserOffset;
   const Pose2d mount{log.frontLaserOffset, 0.0, 0.0};
   std::vector<Pose2d> inc;
-  (void)replay::odometryIncrements(log, n, inc);
+  r.zeroIncrements = replay::odometryIncrements(log, n, inc);
   std::vector<double> travel(n, 0.0);
   for (std::size_t i = 0; i < n; ++i) {
     r.truth.push_back(log.scans[i].robotPose);
     r.odometry.push_back(i == 0 ? r.truth[0] : r.odometry[i - 1].compose(inc[i]));
     travel[i] = i == 0 ? 0.0 : travel[i - 1] + std::hypot(inc[i].x, inc[i].y);
+  }
+  if (o.submapScans == 0) {
+    error = "the submap needs at least 1 scan";
+    return false;
+  }
+  // Keypoints (and signature) of each scan's submap: its own keypoints and those of the previous
+  // submapScans - 1 scans, moved into its laser frame by the odometry; newest first, one of each
+  // pair closer than the FALKO suppression radius, at most kMaxLoopPoints.
+  std::vector<std::vector<Eigen::Vector2f>> points(n);
+  std::vector<GlarotSignature> signatures(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Pose2d laserI = r.odometry[i].compose(mount);
+    for (std::size_t k = 0; k < o.submapScans && k <= i; ++k) {
+      const Pose2d t = between(laserI, r.odometry[i - k].compose(mount));
+      const double c = std::cos(t.theta);
+      const double sn = std::sin(t.theta);
+      for (const Eigen::Vector2f& q : features.points[i - k]) {
+        const Eigen::Vector2f p(
+            static_cast<float>(t.x + c * static_cast<double>(q.x()) - sn * static_cast<double>(q.y())),
+            static_cast<float>(t.y + sn * static_cast<double>(q.x()) + c * static_cast<double>(q.y())));
+        bool near = false;
+        for (const Eigen::Vector2f& e : points[i]) {
+          near = near || (e - p).norm() < selection.falko.nmsRadius;
+        }
+        if (!near && points[i].size() < kMaxLoopPoints) {
+          points[i].push_back(p);
+        }
+      }
+    }
+    (void)computeGlarot(Span<const Eigen::Vector2f>(points[i].data(), points[i].size()), GlarotParams{}, signatures[i]);
   }
 
   std::vector<Edge> odoEdges;
@@ -224,15 +253,11 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
   auto assoc = std::make_unique<PointAssociation>();
   GlarotCandidates found;
   std::vector<Hypothesis> pending;
-  std::size_t lastLoopNode = 0;
-  bool anyLoop = false;
   bool dirty = false;
   std::size_t lastOptimised = 0;
   const auto accept = [&](const Hypothesis& h) {
     loopEdges.push_back(h.edge);
     loopPairs.push_back(h.pairs);
-    lastLoopNode = std::max(lastLoopNode, h.edge.to);
-    anyLoop = true;
     dirty = true;
   };
 
@@ -245,12 +270,12 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
     GlarotQuery q;
     q.k = o.candidates;
     q.excludeRecentTravel = o.excludeTravel;
-    if (db->size() > 0 && db->query(features.signatures[i], q, found) == Status::Ok) {
+    if (db->size() > 0 && db->query(signatures[i], q, found) == Status::Ok) {
       Hypothesis best;
       double bestRms = 0.0;
       for (const GlarotCandidate& c : found) {
-        const auto& a = features.points[c.index];
-        const auto& b = features.points[i];
+        const auto& a = points[c.index];
+        const auto& b = points[i];
         if (cg->match(Span<const Eigen::Vector2f>(a.data(), a.size()), Span<const Eigen::Vector2f>(b.data(), b.size()),
                       *assoc) != Status::Ok) {
           continue;
@@ -273,9 +298,11 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
       }
       if (best.pairs >= o.minPairs) {
         ++r.hypotheses;
-        if (std::getenv("AGV_LOOPS_DEBUG") != nullptr) {
-          std::fprintf(stderr, "hyp %zu %zu pairs %zu overlap %.3f wrong %d\n", best.edge.from, i, best.pairs,
-                       best.overlap, wrongByTruth(best.edge.z, r.truth[best.edge.from], r.truth[i]) ? 1 : 0);
+        if (o.traceHypotheses) {
+          std::fprintf(stderr,
+                       "loop hypothesis: scan %zu -> %zu, %zu pairs, overlap %.3f, wrong by the corrected poses: %d\n",
+                       best.edge.from, i, best.pairs, best.overlap,
+                       wrongByTruth(best.edge.z, r.truth[best.edge.from], r.truth[i]) ? 1 : 0);
         }
         best.edge.sigmaXY = o.loopSigmaXY;
         best.edge.sigmaTheta = o.loopSigmaTheta;
@@ -295,7 +322,9 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
           for (Hypothesis& h : pending) {
             const Pose2d impliedH = toPose(est[h.edge.from]).compose(h.edge.z);
             const Pose2d d2 = between(between(impliedH, implied), between(toPose(est[h.edge.to]), toPose(est[i])));
-            if (std::hypot(d2.x, d2.y) < o.pairXY && std::fabs(normalizeAngle(d2.theta)) < o.pairTheta) {
+            const double dab = travel[i] - travel[h.edge.to];
+            if (std::hypot(d2.x, d2.y) < o.pairXY + o.pairXYPerM * dab &&
+                std::fabs(normalizeAngle(d2.theta)) < o.pairTheta + o.pairThetaPerM * dab) {
               if (!h.paired) {
                 h.paired = true;
                 accept(h);
@@ -325,7 +354,7 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
       lastOptimised = i;
       dirty = false;
     }
-    (void)db->insert(features.signatures[i], r.odometry[i]);
+    (void)db->insert(signatures[i], r.odometry[i]);
   }
   for (const Hypothesis& h : pending) {
     r.rejectedUnpaired += h.paired ? 0U : 1U;
@@ -378,6 +407,7 @@ report::Json mappingJson(const MappingResult& r) {
   j["loops_accepted"] = r.loopsAccepted;
   j["loops_rejected"] = r.loopsRejected;
   j["scans"] = r.scans;
+  j["zero_odometry_increments"] = r.zeroIncrements;
   j["hypotheses"] = r.hypotheses;
   j["hypotheses_wrong"] = r.hypothesesWrong;
   j["accepted_wrong"] = r.acceptedWrong;

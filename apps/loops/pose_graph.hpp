@@ -22,8 +22,11 @@ namespace loops {
 struct MappingOptions {
   std::size_t maxScans = 0;     ///< 0: every scan of the log
   std::size_t candidates = 10;  ///< GLAROT candidates per scan
-  std::size_t minPairs = 3;     ///< N_min: CG pairs a loop needs
-  double maxRms = 0.10;         ///< [m] largest RMS residual of the CG fit
+  /// Keypoints of this many scans (the scan and the ones before it, placed by odometry) form the
+  /// set a scan's signature and associations use; 1: the scan's own keypoints (the thesis).
+  std::size_t submapScans = 1;
+  std::size_t minPairs = 3;  ///< N_min: CG pairs a loop needs
+  double maxRms = 0.10;      ///< [m] largest RMS residual of the CG fit
   /// Geometric check of a loop: at least this fraction of the query scan's points, moved by the
   /// loop's transform, fall within about `overlapCell` of the reference scan's points.
   double minOverlap = 0.5;
@@ -39,17 +42,21 @@ struct MappingOptions {
   double loopSigmaXY = 0.10;      ///< [m]
   double loopSigmaTheta = 0.035;  ///< [rad]
   // Gate 1: a loop's relative pose must agree with the current estimate within 3 sigma, sigma
-  // growing with the path driven since the last accepted loop (or from the reference scan).
+  // growing with the odometry path driven from the reference scan to the query scan.
   double gateXY = 0.30;         ///< [m] sigma at zero distance
   double gateXYPerM = 0.15;     ///< [m/m]
   double gateTheta = 0.10;      ///< [rad]
   double gateThetaPerM = 0.07;  ///< [rad/m]
   // Gate 2: a loop is accepted only with a partner loop from another query scan at most `window`
-  // scans away whose implied pose of the robot agrees with the odometry between the two scans.
-  std::size_t window = 10;
+  // scans away whose implied pose of the robot agrees with the odometry between the two scans,
+  // within a tolerance that grows with the path between them.
+  std::size_t window = 30;
   double pairXY = 0.30;            ///< [m]
   double pairTheta = 0.087;        ///< [rad] (5 deg)
+  double pairXYPerM = 0.05;        ///< [m/m] of odometry path between the two scans
+  double pairThetaPerM = 0.02;     ///< [rad/m]
   std::size_t optimiseEvery = 25;  ///< [scans] at most one optimisation this often (if loops were added)
+  bool traceHypotheses = false;    ///< one stderr line per loop hypothesis (pairs, overlap, truth check)
   double chi2Final = 11.34;        ///< final check: whitened squared residual above this drops the loop (chi2(3) 99 %)
 };
 
@@ -64,12 +71,13 @@ struct LoopEdge {
 
 struct MappingResult {
   std::size_t scans = 0;
-  double laserX = 0.0;            ///< [m] laser ahead of the robot centre (log PARAM)
-  std::vector<Pose2d> truth;      ///< corrected robot poses
-  std::vector<Pose2d> odometry;   ///< raw odometry chained from truth[0]
-  std::vector<Pose2d> optimised;  ///< pose graph, first pose fixed at truth[0]
-  std::vector<LoopEdge> loops;    ///< accepted, in the final graph
-  std::size_t hypotheses = 0;     ///< CG loops with at least minPairs pairs
+  std::size_t zeroIncrements = 0;  ///< scans with no timestamped ODOM line since the previous one
+  double laserX = 0.0;             ///< [m] laser ahead of the robot centre (log PARAM)
+  std::vector<Pose2d> truth;       ///< corrected robot poses
+  std::vector<Pose2d> odometry;    ///< raw odometry chained from truth[0]
+  std::vector<Pose2d> optimised;   ///< pose graph, first pose fixed at truth[0]
+  std::vector<LoopEdge> loops;     ///< accepted, in the final graph
+  std::size_t hypotheses = 0;      ///< CG loops with at least minPairs pairs
   std::size_t loopsAccepted = 0;
   std::size_t loopsRejected = 0;  ///< gate 1 + gate 2 + final check
   std::size_t rejectedGate = 0;
