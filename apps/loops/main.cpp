@@ -47,6 +47,24 @@ std::string logName(const std::string& path) {
   return name.substr(0, name.find('.'));
 }
 
+// (name, path) of each log: the named datasets under the data folder, or the files given instead.
+std::vector<std::pair<std::string, std::string>> inputsOf(const std::vector<std::string>& names,
+                                                          const std::map<std::string, std::string>& table,
+                                                          const std::vector<std::string>& files,
+                                                          const std::string& dataDir) {
+  std::vector<std::pair<std::string, std::string>> inputs;
+  if (!files.empty()) {
+    for (const std::string& path : files) {
+      inputs.emplace_back(logName(path), path);
+    }
+    return inputs;
+  }
+  for (const std::string& name : names) {
+    inputs.emplace_back(name, dataDir + "/" + table.at(name));
+  }
+  return inputs;
+}
+
 void printCurves(const std::string& dataset, const char* mode, const agv::loops::ModeResult& r) {
   std::printf("\n%s %s: %zu scans queried, %zu with a loop in reference\n", dataset.c_str(), mode, r.scans, r.withLoop);
   std::printf("N_min");
@@ -139,17 +157,7 @@ int run(int argc, char** argv) {
   if (!skipLoops) {
     doc["loops"] = agv::report::Json::object();
     std::vector<std::vector<double>> timing(agv::loops::kMethods);
-    std::vector<std::pair<std::string, std::string>> inputs;
-    for (const std::string& name : datasets) {
-      inputs.emplace_back(name, dataDir + "/" + kLoopLogs.at(name));
-    }
-    if (!logFiles.empty()) {
-      inputs.clear();
-      for (const std::string& path : logFiles) {
-        inputs.emplace_back(logName(path), path);
-      }
-    }
-    for (const auto& [name, path] : inputs) {
+    for (const auto& [name, path] : inputsOf(datasets, kLoopLogs, logFiles, dataDir)) {
       agv::datasets::CarmenLog log;
       if (!readLog(path, log)) {
         return 2;
@@ -218,17 +226,7 @@ int run(int argc, char** argv) {
 
   if (poseGraph) {
     doc["pose_graph"] = agv::report::Json::object();
-    std::vector<std::pair<std::string, std::string>> inputs;
-    for (const std::string& name : mapDatasets) {
-      inputs.emplace_back(name, dataDir + "/" + kMappingLogs.at(name));
-    }
-    if (!mapLogFiles.empty()) {
-      inputs.clear();
-      for (const std::string& path : mapLogFiles) {
-        inputs.emplace_back(logName(path), path);
-      }
-    }
-    for (const auto& [name, path] : inputs) {
+    for (const auto& [name, path] : inputsOf(mapDatasets, kMappingLogs, mapLogFiles, dataDir)) {
       agv::datasets::CarmenLog log;
       if (!readLog(path, log)) {
         return 2;
