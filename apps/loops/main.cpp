@@ -152,6 +152,10 @@ int run(int argc, char** argv) {
   app.add_option("--map-exclude-travel", mapping.excludeTravel, "[m] newest path not searched for loops")
       ->check(CLI::NonNegativeNumber);
   CLI11_PARSE(app, argc, argv);
+  if (skipLoops && !poseGraph) {
+    std::fprintf(stderr, "agvnav-loops: --no-loops without --pose-graph leaves nothing to do\n");
+    return 2;
+  }
 
   agv::report::Json doc = agv::report::Json::object();
   if (!skipLoops) {
