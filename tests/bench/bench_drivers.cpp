@@ -9,9 +9,11 @@
 #include <vector>
 
 #include "agv/drivers/protocol/canopen/canopen_encoders.hpp"
+#include "agv/drivers/protocol/canopen/cia402_drive.hpp"
 #include "agv/drivers/protocol/sick/cola_a_scan.hpp"
 #include "agv/drivers/protocol/sick/nav350.hpp"
 #include "agv/drivers/protocol/sick/telegram_framer.hpp"
+#include "agv/sim/sim_cia402_node.hpp"
 
 namespace {
 /// 541 beams: LMS1xx, 0.5 deg from -45 deg; more: LMS5xx-like, 0.1667 deg (1141 beams = 190 deg).
@@ -140,4 +142,67 @@ void BM_CanopenPdoPair(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_CanopenPdoPair);
+
+/// One 10 ms control cycle of the CiA 402 drive controller, enabled and commanded: the TPDOs and
+/// heartbeats of both drives in, a set-point, poll (supervision, the set-point handshake, two RPDOs,
+/// its heartbeat when due), the outbox taken. The controller is brought up against two simulated
+/// drives first; the cycle then replays the frames the drives sent in one enabled cycle (the drives
+/// themselves are not timed).
+void BM_Cia402ControllerCycle(benchmark::State& state) {
+  using namespace agv::drivers::canopen;
+  Cia402DriveController ctl{Cia402DriveConfig{}};
+  agv::sim::SimCia402NodeParams tp;
+  tp.nodeId = 1;
+  agv::sim::SimCia402NodeParams sp;
+  sp.nodeId = 3;
+  agv::sim::SimCia402Node traction(tp);
+  agv::sim::SimCia402Node steering(sp);
+  agv::Timestamp now{1000000000};
+  (void)ctl.start(now);
+  agv::drivers::CanFrame buf[64];
+  std::vector<agv::drivers::CanFrame> replay;
+  for (int i = 0; i < 300; ++i) {
+    now = now + agv::Duration::fromMilliseconds(10);
+    const bool enabled = ctl.state() == DriveControllerState::Enabled;
+    for (agv::sim::SimCia402Node* n : {&traction, &steering}) {
+      const std::size_t k = n->step(now, agv::Span<agv::drivers::CanFrame>(buf));
+      for (std::size_t j = 0; j < k; ++j) {
+        ctl.onFrame(buf[j]);
+        if (enabled && i >= 290) {
+          replay.push_back(buf[j]);  // the last 10 enabled cycles: TPDOs and the heartbeats
+        }
+      }
+    }
+    agv::hal::DriveCommand c;
+    (void)ctl.command(c);
+    ctl.poll(now);
+    const std::size_t k = ctl.takeFrames(agv::Span<agv::drivers::CanFrame>(buf));
+    for (std::size_t j = 0; j < k; ++j) {
+      traction.receive(buf[j], now);
+      steering.receive(buf[j], now);
+    }
+  }
+  if (ctl.state() != DriveControllerState::Enabled || replay.empty()) {
+    state.SkipWithError("the controller did not come up against the simulated drives");
+    return;
+  }
+  agv::hal::DriveCommand cmd;
+  cmd.speed = 0.3;
+  std::size_t r = 0;
+  const std::size_t perCycle = (replay.size() + 9) / 10;
+  for (auto _ : state) {
+    now = now + agv::Duration::fromMilliseconds(10);
+    for (std::size_t j = 0; j < perCycle; ++j) {
+      ctl.onFrame(replay[r]);
+      r = r + 1 < replay.size() ? r + 1 : 0;
+    }
+    benchmark::DoNotOptimize(ctl.command(cmd));
+    ctl.poll(now);
+    benchmark::DoNotOptimize(ctl.takeFrames(agv::Span<agv::drivers::CanFrame>(buf)));
+  }
+  if (ctl.state() != DriveControllerState::Enabled) {
+    state.SkipWithError("the controller left Enabled during the run");
+  }
+}
+BENCHMARK(BM_Cia402ControllerCycle);
 }  // namespace

@@ -15,10 +15,7 @@ using namespace agv::drivers::canopen;
 
 namespace {
 using agv::fuzz::check;
-
-std::uint16_t u16(const std::uint8_t* p) {
-  return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
-}
+using agv::fuzz::u16le;
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -28,14 +25,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   CanopenEncodersConfig cfg;
   cfg.drive.nodeId = static_cast<std::uint8_t>(data[0] & 0x7F);
   cfg.steering.nodeId = static_cast<std::uint8_t>(data[1] & 0x7F);
-  cfg.drive.pdo = {static_cast<std::uint16_t>(u16(data + 2) & 0x7FF), static_cast<std::uint8_t>(data[4] % 8),
+  cfg.drive.pdo = {static_cast<std::uint16_t>(u16le(data + 2) & 0x7FF), static_cast<std::uint8_t>(data[4] % 8),
                    static_cast<std::uint8_t>(data[5] % 5)};
-  cfg.steering.pdo = {static_cast<std::uint16_t>(u16(data + 6) & 0x7FF), static_cast<std::uint8_t>(data[8] % 8),
+  cfg.steering.pdo = {static_cast<std::uint16_t>(u16le(data + 6) & 0x7FF), static_cast<std::uint8_t>(data[8] % 8),
                       static_cast<std::uint8_t>(data[9] % 5)};
   cfg.drive.direction = (data[10] & 1) ? 1 : -1;
   cfg.steering.direction = (data[10] & 2) ? 1 : -1;
   cfg.steering.countsPerRevolution = (data[10] & 4) ? (1U << (data[11] % 17)) : 0U;
-  cfg.steering.zeroCount = u16(data + 12);
+  cfg.steering.zeroCount = u16le(data + 12);
   cfg.steering.radiansPerCount = 1e-4;
   cfg.trigger = (data[10] & 8) ? SampleTrigger::BothUpdated : SampleTrigger::DriveUpdated;
   cfg.syncPeriod = agv::Duration::fromMicroseconds(data[14] * 100);
@@ -49,15 +46,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   agv::Timestamp now{};
   for (std::size_t pos = 16; pos + 14 <= size; pos += 14) {
     const std::uint8_t* p = data + pos;
-    CanFrame f;
-    f.id = u16(p) & 0x7FF;
-    f.dlc = static_cast<std::uint8_t>(p[2] % 9);
-    f.extended = (p[3] & 1) != 0;
-    f.rtr = (p[3] & 2) != 0;
-    f.error = (p[3] & 4) != 0;
-    for (int i = 0; i < 8; ++i)
-      f.data[i] = i < f.dlc ? p[4 + i] : 0;
-    now = now + agv::Duration::fromMicroseconds(u16(p + 12));
+    CanFrame f = agv::fuzz::canFrameFromBytes(p);
+    now = now + agv::Duration::fromMicroseconds(u16le(p + 12));
     f.stamp = now;
     (void)dec->onFrame(f);
     const std::size_t n = dec->service(now, agv::Span<CanFrame>(out, 1 + (p[3] >> 6)));

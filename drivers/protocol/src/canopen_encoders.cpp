@@ -75,6 +75,25 @@ bool pdoValid(const PdoMapping& m) noexcept {
 }
 }  // namespace
 
+Status decodeEmcy(const CanFrame& f, EmcyRecord& record) noexcept {
+  if (f.extended || f.rtr || f.error || f.id <= kEmcyBase || f.id > kEmcyBase + 127U) {
+    return Status::NotFound;
+  }
+  if (f.dlc < 3U) {
+    return Status::Truncated;
+  }
+  EmcyRecord r;
+  r.nodeId = static_cast<std::uint8_t>(f.id - kEmcyBase);
+  r.errorCode = static_cast<std::uint16_t>(f.data[0] | (f.data[1] << 8U));
+  r.errorRegister = f.data[2];
+  for (unsigned i = 0; i < 5U; ++i) {
+    r.vendor[i] = 3U + i < f.dlc ? f.data[3 + i] : 0U;  // bytes past dlc are unspecified
+  }
+  r.stamp = f.stamp;
+  record = r;
+  return Status::Ok;
+}
+
 CanFrame encodeNmt(NmtCommand command, std::uint8_t nodeId) noexcept {
   CanFrame f;
   f.id = kNmtId;
@@ -224,13 +243,8 @@ void CanopenEncoders::onHeartbeat(NodeHealth& h, const CanFrame& f, bool& needSt
 
 void CanopenEncoders::onEmcy(NodeHealth& h, std::uint8_t node, const CanFrame& f) noexcept {
   EmcyRecord r;
+  (void)decodeEmcy(f, r);  // the caller checked the identifier and the length
   r.nodeId = node;
-  r.errorCode = static_cast<std::uint16_t>(f.data[0] | (f.data[1] << 8U));
-  r.errorRegister = f.data[2];
-  for (unsigned i = 0; i < 5U; ++i) {
-    r.vendor[i] = 3U + i < f.dlc ? f.data[3 + i] : 0U;  // bytes past dlc are unspecified
-  }
-  r.stamp = f.stamp;
   ++h.emcyCount;
   h.emcyActive = r.errorCode != 0U;
   if (emcy_.tryPush(r) != Status::Ok) {

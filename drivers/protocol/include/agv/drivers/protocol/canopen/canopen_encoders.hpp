@@ -127,6 +127,11 @@ CanFrame encodeSync(Timestamp stamp) noexcept;
 CanFrame encodeHeartbeat(std::uint8_t nodeId, NmtState state, Timestamp stamp) noexcept;
 /// EMCY of `nodeId` (0x080 + node, 8 bytes).
 CanFrame encodeEmcy(std::uint8_t nodeId, std::uint16_t errorCode, std::uint8_t errorRegister, Timestamp stamp) noexcept;
+/// Decodes an EMCY frame (0x080 + node, node 1..127): error code, error register, vendor bytes
+/// (those past `dlc` read as 0), stamp. `NotFound`: not an EMCY identifier (or an extended, remote or
+/// error frame); `Truncated`: fewer than 3 data bytes (no error register). `record` is written only
+/// on `Ok`.
+Status decodeEmcy(const CanFrame& frame, EmcyRecord& record) noexcept;
 /// Drive TPDO carrying the position for `trueTicks` (wrapped into the mapped size, direction applied).
 CanFrame encodeDrivePdo(const DriveEncoderConfig& config, std::int64_t trueTicks, Timestamp stamp) noexcept;
 /// Steering TPDO carrying the position for `angle` [rad] (rounded to a count, wrapped).
