@@ -154,6 +154,8 @@ int main(int argc, char** argv) {
   addLocalizerOptions(app, cli.options);
   addExperimentOptions(app, cli.options);
   addCheckOptions(app, cli);
+  app.add_flag("--fit-odometry-noise", cli.options.fitOdometryNoise,
+               "with --map-fraction: fit the odometry noise model on the mapping run (replaces --odo-*)");
   CLI11_PARSE(app, argc, argv);
 
   agv::datasets::CarmenLog log;

@@ -4,9 +4,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <sstream>
 #include <unordered_map>
+
+#include <Eigen/QR>
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_detector.hpp"
@@ -273,6 +276,88 @@ AbsoluteError absoluteErrorOf(const std::vector<Pose2d>& truth, const std::vecto
   return AbsoluteError{stats(pos), stats(head)};
 }
 
+namespace {
+
+/// Non-negative least squares y = X c over every subset of X's columns (X has at most 3: the
+/// subsets are few): the subset fit with all coefficients >= 0 and the smallest residual.
+Eigen::Vector3d fitNonNegative(const std::vector<Eigen::Vector3d>& rows, const std::vector<double>& y, int columns) {
+  Eigen::Vector3d best = Eigen::Vector3d::Zero();
+  double bestCost = std::numeric_limits<double>::infinity();
+  for (int mask = 1; mask < (1 << columns); ++mask) {
+    std::vector<int> cols;
+    for (int c = 0; c < columns; ++c) {
+      if ((mask & (1 << c)) != 0) {
+        cols.push_back(c);
+      }
+    }
+    Eigen::MatrixXd X(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(cols.size()));
+    Eigen::VectorXd Y(static_cast<Eigen::Index>(rows.size()));
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      for (std::size_t k = 0; k < cols.size(); ++k) {
+        X(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(k)) = rows[i](cols[k]);
+      }
+      Y(static_cast<Eigen::Index>(i)) = y[i];
+    }
+    const Eigen::VectorXd c = X.colPivHouseholderQr().solve(Y);
+    if ((c.array() < 0.0).any() || !c.allFinite()) {
+      continue;
+    }
+    const double cost = (X * c - Y).squaredNorm();
+    if (cost < bestCost) {
+      bestCost = cost;
+      best.setZero();
+      for (std::size_t k = 0; k < cols.size(); ++k) {
+        best(cols[k]) = c(static_cast<Eigen::Index>(k));
+      }
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+UnicycleNoiseParams fitOdometryNoise(const datasets::CarmenLog& log, const std::vector<Pose2d>& inc, std::size_t begin,
+                                     std::size_t end, const UnicycleNoiseParams& fallback, std::size_t& steps) {
+  std::vector<Eigen::Vector3d> heading;   // [1, |turn|, d] -> e_theta^2
+  std::vector<Eigen::Vector3d> position;  // [1, d, 0] -> (e_x^2 + e_y^2) / 2
+  std::vector<double> yHeading;
+  std::vector<double> yPosition;
+  for (std::size_t i = std::max<std::size_t>(begin, 1); i < end && i < inc.size(); ++i) {
+    const Pose2d& u = inc[i];
+    if (std::hypot(u.x, u.y) < 1e-6 && std::fabs(u.theta) < 1e-6) {
+      continue;  // no odometry for this step
+    }
+    // The regressors from the corrected step: the odometry's own turn carries its error, and a
+    // noisy regressor would bias the fit low.
+    const Pose2d t = between(log.scans[i - 1].robotPose, log.scans[i].robotPose);
+    const double d = std::hypot(t.x, t.y);
+    const double turn = std::fabs(normalizeAngle(t.theta));
+    const Pose2d e = between(u, t);
+    const double eth = normalizeAngle(e.theta);
+    if (std::hypot(e.x, e.y) > 1.0 || std::fabs(eth) > 0.5) {
+      continue;
+    }
+    heading.emplace_back(1.0, turn, d);
+    yHeading.push_back(eth * eth);
+    position.emplace_back(1.0, d, 0.0);
+    yPosition.push_back(0.5 * (e.x * e.x + e.y * e.y));
+  }
+  steps = heading.size();
+  if (steps < 20) {
+    steps = 0;
+    return fallback;
+  }
+  // The intercepts are the per-step scatter of the corrected poses themselves (a SLAM estimate
+  // jitters by centimetres from scan to scan whatever the motion): fitted, then left out.
+  const Eigen::Vector3d h = fitNonNegative(heading, yHeading, 3);
+  const Eigen::Vector3d p = fitNonNegative(position, yPosition, 2);
+  UnicycleNoiseParams n = fallback;
+  n.translationVariancePerMetre = p(1);
+  n.rotationVariancePerRadian = h(1);
+  n.rotationVariancePerMetre = h(2);
+  return n;
+}
+
 std::size_t odometryIncrements(const datasets::CarmenLog& log, std::size_t scans, std::vector<Pose2d>& increments) {
   increments.assign(scans, Pose2d{});
   std::size_t zero = 0;
@@ -402,7 +487,7 @@ class ScanReplay {
       std::fputs(
           "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
           "map,match,match_inliers,match_rms,match_d2,correction,heading_correction,match_err_xy,match_err_theta,"
-          "window\n",
+          "window,hypothesis,hypothesis_checked\n",
           trace_);
     }
     return true;
@@ -627,15 +712,17 @@ class ScanReplay {
     }
     const Pose2d& e = r_.localizer.back();
     const Pose2d& t = log_.scans[i].robotPose;
-    std::fprintf(trace_,
-                 "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f,%.4f,%.5f,%.4f,%.4f,%.2f\n", i,
-                 obs_->points.size(), unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched},
-                 unsigned{h.rejectedGate}, unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma,
-                 h.headingSigma, std::hypot(e.x - t.x, e.y - t.y), normalizeAngle(e.theta - t.theta), map_->size(),
-                 h.scanMatch.attempted ? toString(h.scanMatch.status) : "-", unsigned{h.scanMatch.inliers},
-                 h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2, h.correction, h.headingCorrection,
-                 std::hypot(h.scanMatch.pose.x - t.x, h.scanMatch.pose.y - t.y),
-                 normalizeAngle(h.scanMatch.pose.theta - t.theta), h.scanMatch.window);
+    std::fprintf(
+        trace_,
+        "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f,%.4f,%.5f,%.4f,%.4f,%.2f,%u,%d\n", i,
+        obs_->points.size(), unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched},
+        unsigned{h.rejectedGate}, unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma, h.headingSigma,
+        std::hypot(e.x - t.x, e.y - t.y), normalizeAngle(e.theta - t.theta), map_->size(),
+        h.scanMatch.attempted ? toString(h.scanMatch.status) : "-", unsigned{h.scanMatch.inliers},
+        h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2, h.correction, h.headingCorrection,
+        std::hypot(h.scanMatch.pose.x - t.x, h.scanMatch.pose.y - t.y),
+        normalizeAngle(h.scanMatch.pose.theta - t.theta), h.scanMatch.window, unsigned{h.scanMatch.consecutiveGated},
+        h.scanMatch.hypothesisChecked ? 1 : 0);
   }
 
   const datasets::CarmenLog& log_;
@@ -703,7 +790,12 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
   r.zeroIncrements = odometryIncrements(log, n, inc);
   recordTracks(log, start, n, inc, r);
 
-  ScanReplay replay(log, options, inc, r);
+  ReplayOptions used = options;
+  if (start > 0 && options.fitOdometryNoise) {
+    used.odometryNoise = fitOdometryNoise(log, inc, 1, start, options.odometryNoise, r.odometryNoiseSteps);
+  }
+  r.odometryNoise = used.odometryNoise;
+  ScanReplay replay(log, used, inc, r);
   if (!replay.begin(start, n, error)) {
     return false;
   }
@@ -734,6 +826,12 @@ std::string resultText(const ReplayResult& r) {
     << " ahead of the robot centre ("
     << (r.laserXLine > 0 ? "log line " + std::to_string(r.laserXLine) : std::string("not in the log: 0 or --laser-x"))
     << ")\n";
+  o << "odometry noise model"
+    << (r.odometryNoiseSteps > 0 ? " (fitted on " + std::to_string(r.odometryNoiseSteps) + " mapping-run steps)"
+                                 : std::string(" (given)"))
+    << fmt(": position %.4f m^2/m, heading %.5f rad^2/m + %.5f rad^2/rad\n",
+           r.odometryNoise.translationVariancePerMetre, r.odometryNoise.rotationVariancePerMetre,
+           r.odometryNoise.rotationVariancePerRadian);
   o << "relative error per metre of path (" << r.odometryRelative.position.count << " segments)\n";
   o << "                 position mean / median [m]   heading mean / median [deg]\n";
   o << fmt("  raw odometry   %.4f / %.4f              %.2f / %.2f\n", r.odometryRelative.position.mean,
@@ -829,6 +927,11 @@ report::Json resultJson(const ReplayResult& r) {
                 {"unconfirmed", r.relocUnconfirmed},
                 {"seconds", r.relocSeconds}}},
               {"laser_x_m", r.laserX},
+              {"odometry_noise",
+               {{"fitted_steps", r.odometryNoiseSteps},
+                {"translation_variance_per_m", r.odometryNoise.translationVariancePerMetre},
+                {"rotation_variance_per_m", r.odometryNoise.rotationVariancePerMetre},
+                {"rotation_variance_per_rad", r.odometryNoise.rotationVariancePerRadian}}},
               {"localizer",
                {{"keypoints", r.keypoints},
                 {"used", r.used},

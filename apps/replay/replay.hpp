@@ -31,6 +31,11 @@ struct ReplayOptions {
   bool laserFromLog = true;
   /// Odometry noise of the unicycle input (variances grow with distance and rotation).
   UnicycleNoiseParams odometryNoise{};
+  /// With `mapFraction`: replace `odometryNoise` by the model fitted on the mapping run (raw
+  /// odometry against the corrected poses, `fitOdometryNoise`), as a commissioning would measure
+  /// a vehicle's odometry. Off by default: on the shared logs it did not beat the fr079 model
+  /// (docs/localization.md, "Odometry noise fitted on the mapping run").
+  bool fitOdometryNoise = false;
   LocalizerParams localizer{};
   LandmarkMapParams map{};
   FalkoParams falko{};
@@ -165,15 +170,17 @@ struct ReplayResult {
   std::size_t mappingScans = 0;   ///< scans of the mapping run (not localized)
   std::size_t staticCorners = 0;  ///< corners of the static map
   std::size_t fieldSurfaceCells = 0;
-  double fieldWidth = 0.0;        ///< [m]
-  double fieldHeight = 0.0;       ///< [m]
-  std::size_t matchAttempts = 0;  ///< scans matched against the field
-  std::size_t matchFused = 0;     ///< matches used in the update
-  std::size_t matchGated = 0;     ///< refused by the gate against the prior
-  std::size_t matchRefused = 0;   ///< refused by the matcher (too few inliers, unobservable, ...)
-  std::size_t matchResyncs = 0;   ///< resets of the filter to a confirmed hypothesis (`resyncAfter`)
-  std::size_t resyncWrong = 0;    ///< of which more than 0.3 m / 5 deg from the corrected pose
-  std::size_t lostCycles = 0;     ///< cycles whose health said lost
+  double fieldWidth = 0.0;              ///< [m]
+  double fieldHeight = 0.0;             ///< [m]
+  std::size_t matchAttempts = 0;        ///< scans matched against the field
+  std::size_t matchFused = 0;           ///< matches used in the update
+  std::size_t matchGated = 0;           ///< refused by the gate against the prior
+  std::size_t matchRefused = 0;         ///< refused by the matcher (too few inliers, unobservable, ...)
+  std::size_t matchResyncs = 0;         ///< resets of the filter to a confirmed hypothesis (`resyncAfter`)
+  std::size_t resyncWrong = 0;          ///< of which more than 0.3 m / 5 deg from the corrected pose
+  std::size_t lostCycles = 0;           ///< cycles whose health said lost
+  UnicycleNoiseParams odometryNoise{};  ///< the model used (fitted on the mapping run, or given)
+  std::size_t odometryNoiseSteps = 0;   ///< mapping-run steps it was fitted on (0: given, not fitted)
   // Field relocalization (`ReplayOptions::fieldRelocalization`).
   std::size_t relocSearches = 0;     ///< scans searched on the whole field
   std::size_t relocFound = 0;        ///< searches that found one pose
@@ -194,6 +201,17 @@ struct ReplayResult {
   double meanTestRatio = 0.0;   ///< over cycles with used observations
   double seconds = 0.0;         ///< wall time of the replay loop
 };
+
+/// The unicycle noise model of the odometry increments `inc[i]` of scans [begin, end) against
+/// the corrected poses: per step, the odometry's error in the frame it ends in, e = inc^-1 ⊕
+/// truth increment; the heading variance fitted as a * |turn| + b * distance (turn and distance of
+/// the corrected step: the odometry's own carry its error and would bias the fit) and the position
+/// variance per axis as c * distance (non-negative least squares on the squared errors, each with
+/// an intercept: the corrected poses' own per-step scatter, fitted and left out). Steps with no motion, and steps whose
+/// error exceeds 1 m or 0.5 rad (a corrected pose that jumped, not odometry), are left out. `fallback` when fewer than
+/// 20 steps remain. `steps` receives the number of steps used.
+UnicycleNoiseParams fitOdometryNoise(const datasets::CarmenLog& log, const std::vector<Pose2d>& inc, std::size_t begin,
+                                     std::size_t end, const UnicycleNoiseParams& fallback, std::size_t& steps);
 
 /// Rebuilds the raw odometry increments of a corrected log: for scan i, inverse(corrected_{i-1})
 /// composed with the last timestamped ODOM pose between FLASER_{i-1} and FLASER_i (zero if none).

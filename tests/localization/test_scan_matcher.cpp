@@ -522,6 +522,14 @@ TEST_CASE(
     }
   }
   CHECK(resyncAt == run.params.scanMatch.resyncAfter - 2);
+  // The hypothesis blends its matches (each with the matcher's real-world scatter,
+  // `resyncMatchSigma*`) with the odometry that carried it, which under-reports: within a
+  // centimetre and half a degree at the reset, and the tracking takes over from there.
+  CHECK(std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y) < 0.01);
+  CHECK(std::fabs(normalizeAngle(run.loc->pose().theta - run.truth.theta)) < 0.5 * kPiD / 180.0);
+  for (int c = 0; c < 3; ++c) {
+    CHECK(run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0}).scanMatch.fused);
+  }
   CHECK(std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y) < 0.02);
   CHECK(std::fabs(normalizeAngle(run.loc->pose().theta - run.truth.theta)) < 0.1 * kPiD / 180.0);
 }

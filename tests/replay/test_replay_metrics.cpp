@@ -1,5 +1,6 @@
 // Error metrics and odometry rebuild of agvnav-replay on synthetic trajectories with known error.
 #include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -130,7 +131,8 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   CHECK(keys == std::vector<std::string>{"log", "scans", "path_length_m", "duration_s", "zero_increments",
                                          "odometry_per_metre", "localizer_per_metre", "odometry_absolute",
                                          "localizer_absolute", "static_map", "mapping_run", "on_map", "scan_matching",
-                                         "field_relocalization", "laser_x_m", "localizer", "replay_seconds"});
+                                         "field_relocalization", "laser_x_m", "odometry_noise", "localizer",
+                                         "replay_seconds"});
   CHECK(j.at("log") == res.log);
   CHECK(j.at("scans") == 3);
   CHECK(j.at("path_length_m") == 2.5);
@@ -191,4 +193,52 @@ TEST_CASE("checkReplayLog: a FLIRTLib log, a missing odometry and pose jumps bey
   const std::string odoJump = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(500.0, 2.0) + flaser(0.5, 2.0);
   CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(odoJump), error));
   CHECK(error.find("line 3: the odometry jumps") != std::string::npos);
+}
+
+TEST_CASE("replay odometry noise fit: recovers the variances a simulated odometry was drawn with", "[replay]") {
+  // A path of random steps (0.1..1 m, turns up to 0.5 rad); the odometry of each step is the true
+  // increment with an error drawn from the unicycle model (heading variance a |turn| + b d,
+  // position variance c d per axis); the "corrected" poses jitter by 1 cm / 0.2 deg per scan
+  // (a SLAM estimate's own scatter), which the fit must not take for odometry noise.
+  const double a = 0.008;   // [rad^2/rad]
+  const double b = 0.002;   // [rad^2/m]
+  const double c = 0.0015;  // [m^2/m]
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> dist(0.1, 1.0);
+  std::uniform_real_distribution<double> turnDist(-0.5, 0.5);
+  std::normal_distribution<double> unit(0.0, 1.0);
+  const std::size_t n = 20000;
+  agv::datasets::CarmenLog log;
+  log.scans.resize(n);
+  std::vector<Pose2d> inc(n);
+  Pose2d truth{};
+  Pose2d jittered{};
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i > 0) {
+      const double d = dist(rng);
+      const double turn = turnDist(rng);
+      const Pose2d step{d * std::cos(turn / 2.0), d * std::sin(turn / 2.0), turn};
+      const Pose2d noise{std::sqrt(c * d) * unit(rng), std::sqrt(c * d) * unit(rng),
+                         std::sqrt(a * std::fabs(turn) + b * d) * unit(rng)};
+      truth = truth.compose(step);
+      jittered = truth.compose(Pose2d{0.01 * unit(rng), 0.01 * unit(rng), 0.0035 * unit(rng)});
+      // The odometry step that lands `noise` away from the true step: inc ⊕ noise = step.
+      inc[i] = step.compose(noise.inverse());
+    } else {
+      jittered = truth;
+    }
+    log.scans[i].robotPose = jittered;
+  }
+  std::size_t steps = 0;
+  const agv::UnicycleNoiseParams fallback{};
+  const agv::UnicycleNoiseParams fit = r::fitOdometryNoise(log, inc, 1, n, fallback, steps);
+  CHECK(steps == n - 1);
+  // 20 000 squared Gaussian errors: each coefficient within 10 %.
+  CHECK(fit.rotationVariancePerRadian == Approx(a).epsilon(0.10));
+  CHECK(fit.rotationVariancePerMetre == Approx(b).epsilon(0.10));
+  CHECK(fit.translationVariancePerMetre == Approx(c).epsilon(0.10));
+  // Too few steps: the fallback, and no steps reported.
+  const agv::UnicycleNoiseParams few = r::fitOdometryNoise(log, inc, 1, 10, fallback, steps);
+  CHECK(steps == 0);
+  CHECK(few.translationVariancePerMetre == fallback.translationVariancePerMetre);
 }

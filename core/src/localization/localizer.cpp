@@ -453,6 +453,11 @@ void Localizer::resync(const ScanMatchResult& m, const Pose2d& before, const Rew
   Pose2d odo;
   Eigen::Matrix3d odoCov;
   odometryAt(at, odo, odoCov);
+  // A match's covariance says how well its points fit the map, not how well the map fits the
+  // world: real matches scatter around the truth by more (`resyncMatchSigma*`).
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  scatter.diagonal() << sp.resyncMatchSigma * sp.resyncMatchSigma, sp.resyncMatchSigma * sp.resyncMatchSigma,
+      sp.resyncMatchSigmaAngle * sp.resyncMatchSigmaAngle;
   bool confirmed = false;
   if (gatedRun_ > 0U) {
     // The hypothesis carried to this scan by the odometry since its last scan (not by the
@@ -467,7 +472,7 @@ void Localizer::resync(const ScanMatchResult& m, const Pose2d& before, const Rew
     }
   }
   if (gatedRun_ > 0U) {
-    if (gatedGood && hyp_.updatePose(m.pose, m.covariance, params_.scanMatchGate) == Status::Ok) {
+    if (gatedGood && hyp_.updatePose(m.pose, m.covariance + scatter, params_.scanMatchGate) == Status::Ok) {
       confirmed = true;
       h.pose = hyp_.pose();
     } else {
@@ -479,13 +484,16 @@ void Localizer::resync(const ScanMatchResult& m, const Pose2d& before, const Rew
                                     ? matcher_.match(*points, params_.laser.mounting, carried, window, field)
                                     : matcher_.match(beams, params_.laser.mounting, carried, window, field);
       h.hypothesisChecked = true;
-      if (c.status == Status::Ok && c.rmsResidual <= sp.resyncMaxRms &&
-          hyp_.updatePose(c.pose, c.covariance, params_.scanMatchGate) == Status::Ok) {
+      const bool consistent =
+          c.status == Status::Ok && hyp_.poseMahalanobis2(c.pose, c.covariance + scatter) <= params_.scanMatchGate;
+      if (consistent && c.rmsResidual <= sp.resyncMaxRms &&
+          hyp_.updatePose(c.pose, c.covariance + scatter, params_.scanMatchGate) == Status::Ok) {
         confirmed = true;
         h.pose = c.pose;
-      } else if (c.status != Status::Ok && !gatedGood) {
-        // The matcher could not tell (too few points, a scan off the map): the hypothesis is
-        // neither confirmed nor contradicted; it is carried on to the next scan.
+      } else if ((c.status != Status::Ok || consistent) && !gatedGood) {
+        // The matcher could not tell (too few points, a scan off the map), or the match agrees
+        // but fits too loosely to count: the hypothesis is neither confirmed nor contradicted;
+        // it is carried on to the next scan.
         hypOdo_ = odo;
         hypOdoCov_ = odoCov;
         h.consecutiveGated = gatedRun_;
@@ -495,7 +503,7 @@ void Localizer::resync(const ScanMatchResult& m, const Pose2d& before, const Rew
   }
   if (confirmed) {
     gatedRun_ = static_cast<std::uint8_t>(gatedRun_ < 255U ? gatedRun_ + 1U : gatedRun_);
-  } else if (gatedGood && hyp_.reset(m.pose, m.covariance) == Status::Ok) {
+  } else if (gatedGood && hyp_.reset(m.pose, m.covariance + scatter) == Status::Ok) {
     gatedRun_ = 1U;  // a new hypothesis
   } else {
     gatedRun_ = 0U;  // contradicted (or none), and no new one

@@ -24,6 +24,8 @@ Status ScanMatchParams::validate() const noexcept {
                            searchStepRotation,
                            maxRmsResidual,
                            resyncMaxRms,
+                           resyncMatchSigma,
+                           resyncMatchSigmaAngle,
                            recoveryTranslation,
                            recoveryRotation,
                            maxRecoveryTranslation,
@@ -36,10 +38,10 @@ Status ScanMatchParams::validate() const noexcept {
   if (maxIterations == 0 || pointSpacing < 0.0 || !(inlierDistance > 0.0) || !(huber > 0.0) || !(sigmaFloor > 0.0) ||
       !(covarianceInflation > 0.0) || !(stepTranslation > 0.0) || !(stepRotation > 0.0) || !(maxCorrection > 0.0) ||
       !(maxRotation > 0.0) || searchSigmas < 0.0 || !(maxRmsResidual > 0.0) || !(resyncMaxRms > 0.0) ||
-      maxSearchTranslation < 0.0 || maxSearchRotation < 0.0 || !(searchStepTranslation > 0.0) ||
-      !(searchStepRotation > 0.0) || maxSearchPoses == 0 || minInlierFraction < 0.0 || minInlierFraction > 1.0 ||
-      recoveryTranslation < 0.0 || recoveryRotation < 0.0 || maxRecoveryTranslation < recoveryTranslation ||
-      maxRecoveryRotation < recoveryRotation) {
+      resyncMatchSigma < 0.0 || resyncMatchSigmaAngle < 0.0 || maxSearchTranslation < 0.0 || maxSearchRotation < 0.0 ||
+      !(searchStepTranslation > 0.0) || !(searchStepRotation > 0.0) || maxSearchPoses == 0 || minInlierFraction < 0.0 ||
+      minInlierFraction > 1.0 || recoveryTranslation < 0.0 || recoveryRotation < 0.0 ||
+      maxRecoveryTranslation < recoveryTranslation || maxRecoveryRotation < recoveryRotation) {
     return Status::InvalidArgument;
   }
   return Status::Ok;

@@ -106,6 +106,13 @@ struct ScanMatchParams {
   /// repeats three times while the vehicle moves is a map that is locally ambiguous, which the
   /// gate cannot tell either.
   std::uint8_t resyncAfter = 3;
+  /// [m], [rad] 1-sigma scatter of a real match around the true pose beyond its covariance (the
+  /// covariance says how well the points fit the map, not how well the map fits the world), added
+  /// to each match the hypothesis takes: the matcher's median error against the corrected poses
+  /// of the real logs is 3-6 cm and 0.2-0.5 deg (docs/localization.md, "Scan matching on real
+  /// logs").
+  double resyncMatchSigma = 0.04;
+  double resyncMatchSigmaAngle = 0.008;
   /// [m] a match bypasses the gate only through the resync, and only when its inliers fit at
   /// least this well (RMS): far stricter than `maxRmsResidual`, which the gate backs up.
   double resyncMaxRms = 0.06;
