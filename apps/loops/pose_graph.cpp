@@ -12,11 +12,11 @@
 #include <utility>
 
 #include "agv/core/angle.hpp"
+#include "agv/datasets/trajectory_error.hpp"
 #include "agv/loop/correspondence_graph.hpp"
 #include "agv/loop/glarot_database.hpp"
 #include "agv/report/svg.hpp"
 #include "loops.hpp"
-#include "replay.hpp"
 
 namespace agv {
 namespace loops {
@@ -170,7 +170,7 @@ struct Hypothesis {
 
 bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingResult& r, std::string& error) {
   r = MappingResult{};
-  if (!replay::checkReplayLog(log, error)) {
+  if (!datasets::checkCorrectedLog(log, error)) {
     return false;
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -197,7 +197,7 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
   r.laserX = log.frontLaserOffset;
   const Pose2d mount{log.frontLaserOffset, 0.0, 0.0};
   std::vector<Pose2d> inc;
-  r.zeroIncrements = replay::odometryIncrements(log, n, inc);
+  r.zeroIncrements = datasets::odometryIncrements(log, n, inc);
   std::vector<double> travel(n, 0.0);
   for (std::size_t i = 0; i < n; ++i) {
     r.truth.push_back(log.scans[i].robotPose);
@@ -388,8 +388,8 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
     r.optimised.push_back(toPose(p));
   }
   // First poses coincide (odometry starts at truth[0], node 0 is fixed there): no further alignment.
-  const replay::AbsoluteError odo = replay::absoluteError(r.truth, r.odometry);
-  const replay::AbsoluteError opt = replay::absoluteError(r.truth, r.optimised);
+  const datasets::AbsoluteError odo = datasets::absoluteError(r.truth, r.odometry);
+  const datasets::AbsoluteError opt = datasets::absoluteError(r.truth, r.optimised);
   r.odometryAteM = odo.position.rms;
   r.optimisedAteM = opt.position.rms;
   r.odometryAteDeg = odo.heading.rms * 180.0 / M_PI;

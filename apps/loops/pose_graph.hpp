@@ -1,6 +1,6 @@
 #pragma once
 // Online pose-graph mapping on a gmapping-corrected CARMEN log: raw odometry rebuilt from the ODOM
-// lines (agvnav-replay's odometryIncrements), loops found online by GLAROT + correspondence graph,
+// lines (datasets::odometryIncrements), loops found online by GLAROT + correspondence graph,
 // screened against false loops (a gate from the odometry's accumulated uncertainty, then pairwise
 // consistency of two loops within a few scans), a pose graph optimised with Ceres (Cauchy loss on
 // the loop edges) after each batch of accepted loops, and a final residual check. The absolute

@@ -24,31 +24,6 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = 180.0 / kPi;
 
-ErrorStats stats(std::vector<double> v) {
-  ErrorStats s;
-  s.count = v.size();
-  if (v.empty()) {
-    return s;
-  }
-  double sum = 0.0;
-  double sq = 0.0;
-  for (double x : v) {
-    sum += x;
-    sq += x * x;
-    s.max = std::max(s.max, x);
-  }
-  s.mean = sum / static_cast<double>(v.size());
-  s.rms = std::sqrt(sq / static_cast<double>(v.size()));
-  const std::size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  s.median = v[mid];
-  if (v.size() % 2 == 0) {
-    const double lower = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid));
-    s.median = 0.5 * (s.median + lower);
-  }
-  return s;
-}
-
 std::string fmt(const char* f, double a, double b = 0.0, double c = 0.0, double d = 0.0) {
   char buf[256];
   std::snprintf(buf, sizeof buf, f, a, b, c, d);
@@ -220,62 +195,6 @@ ReplayOptions fr079Defaults() {
   return o;
 }
 
-RelativeError relativeError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate, double length) {
-  const std::size_t n = std::min(truth.size(), estimate.size());
-  std::vector<double> cum(n, 0.0);
-  for (std::size_t i = 1; i < n; ++i) {
-    cum[i] = cum[i - 1] + std::hypot(truth[i].x - truth[i - 1].x, truth[i].y - truth[i - 1].y);
-  }
-  std::vector<double> pos;
-  std::vector<double> head;
-  std::size_t j = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    j = std::max(j, i);
-    while (j < n && cum[j] - cum[i] < length) {
-      ++j;
-    }
-    if (j >= n) {
-      break;
-    }
-    const Pose2d gt = between(truth[i], truth[j]);
-    const Pose2d est = between(estimate[i], estimate[j]);
-    const Pose2d e = between(gt, est);
-    pos.push_back(std::hypot(e.x, e.y));
-    head.push_back(std::fabs(normalizeAngle(e.theta)));
-  }
-  return RelativeError{stats(pos), stats(head)};
-}
-
-AbsoluteError absoluteError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate) {
-  const std::size_t n = std::min(truth.size(), estimate.size());
-  std::vector<double> pos;
-  std::vector<double> head;
-  if (n == 0) {
-    return {};
-  }
-  const Pose2d align = truth[0].compose(estimate[0].inverse());
-  for (std::size_t i = 0; i < n; ++i) {
-    const Pose2d e = align.compose(estimate[i]);
-    pos.push_back(std::hypot(e.x - truth[i].x, e.y - truth[i].y));
-    head.push_back(std::fabs(normalizeAngle(e.theta - truth[i].theta)));
-  }
-  return AbsoluteError{stats(pos), stats(head)};
-}
-
-AbsoluteError absoluteErrorOf(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate,
-                              const std::vector<bool>& select) {
-  std::vector<double> pos;
-  std::vector<double> head;
-  const std::size_t n = std::min({truth.size(), estimate.size(), select.size()});
-  for (std::size_t i = 0; i < n; ++i) {
-    if (select[i]) {
-      pos.push_back(std::hypot(estimate[i].x - truth[i].x, estimate[i].y - truth[i].y));
-      head.push_back(std::fabs(normalizeAngle(estimate[i].theta - truth[i].theta)));
-    }
-  }
-  return AbsoluteError{stats(pos), stats(head)};
-}
-
 namespace {
 
 /// Non-negative least squares y = X c over every subset of X's columns (X has at most 3: the
@@ -356,66 +275,6 @@ UnicycleNoiseParams fitOdometryNoise(const datasets::CarmenLog& log, const std::
   n.rotationVariancePerRadian = h(1);
   n.rotationVariancePerMetre = h(2);
   return n;
-}
-
-std::size_t odometryIncrements(const datasets::CarmenLog& log, std::size_t scans, std::vector<Pose2d>& increments) {
-  increments.assign(scans, Pose2d{});
-  std::size_t zero = 0;
-  std::size_t k = 0;  // next ODOM line
-  for (std::size_t i = 0; i < scans; ++i) {
-    const std::size_t line = log.scans[i].line;
-    const datasets::LogOdometry* last = nullptr;
-    for (; k < log.odometry.size() && log.odometry[k].line < line; ++k) {
-      // Timestamp 0: the repeated corrected pose written after each FLASER line (not odometry).
-      if (log.odometry[k].timestamp != 0.0) {
-        last = &log.odometry[k];
-      }
-    }
-    if (i == 0) {
-      continue;
-    }
-    if (last == nullptr) {
-      ++zero;
-      continue;
-    }
-    increments[i] = between(log.scans[i - 1].robotPose, last->pose);
-  }
-  return zero;
-}
-
-bool checkReplayLog(const datasets::CarmenLog& log, std::string& error) {
-  if (!log.vertices.empty() || (!log.scans.empty() && log.scans.front().vertexId >= 0)) {
-    const std::size_t line = log.vertices.empty() ? log.scans.front().line : log.vertices.front().line;
-    error = "line " + std::to_string(line) +
-            ": a FLIRTLib log (ROBOTLASER1 + VERTEX2), not a gmapping-corrected CARMEN log (FLASER + ODOM)";
-    return false;
-  }
-  if (log.odometry.empty()) {
-    error = "no ODOM line: not a gmapping-corrected CARMEN log (FLASER + ODOM)";
-    return false;
-  }
-  // The first step beyond physics (over 10 m and over 20 m/s) in a sequence of timestamped poses.
-  const auto firstJump = [&error](const auto& records, const auto& poseOf, const char* what) {
-    for (std::size_t i = 1; i < records.size(); ++i) {
-      const Pose2d& a = poseOf(records[i - 1]);
-      const Pose2d& b = poseOf(records[i]);
-      const double step = std::hypot(b.x - a.x, b.y - a.y);
-      const double dt = std::max(0.0, records[i].timestamp - records[i - 1].timestamp);
-      if (step > kMaxPlausibleStep && step > kMaxPlausibleSpeed * dt) {
-        error = "line " + std::to_string(records[i].line) + ": " + what + " jumps " + fmt("%.1f m", step) +
-                " from line " + std::to_string(records[i - 1].line) + " (beyond physics)";
-        return true;
-      }
-    }
-    return false;
-  };
-  if (firstJump(
-          log.scans, [](const datasets::LogScan& s) -> const Pose2d& { return s.robotPose; }, "the corrected pose") ||
-      firstJump(
-          log.odometry, [](const datasets::LogOdometry& o) -> const Pose2d& { return o.pose; }, "the odometry")) {
-    return false;
-  }
-  return true;
 }
 
 namespace {
@@ -754,7 +613,7 @@ class ScanReplay {
 }  // namespace
 
 bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, ReplayResult& r, std::string& error) {
-  if (!checkReplayLog(log, error)) {
+  if (!datasets::checkCorrectedLog(log, error)) {
     return false;
   }
   ReplayOptions options = optionsIn;
@@ -787,7 +646,7 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
   r.scans = n - start;
   r.duration = log.scans[n - 1].timestamp - log.scans[start].timestamp;
   std::vector<Pose2d> inc;
-  r.zeroIncrements = odometryIncrements(log, n, inc);
+  r.zeroIncrements = datasets::odometryIncrements(log, n, inc);
   recordTracks(log, start, n, inc, r);
 
   ReplayOptions used = options;
@@ -808,13 +667,13 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
   replay.closeTrace();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   replay.finish();
-  r.odometryRelative = relativeError(r.truth, r.odometry, options.segmentLength);
-  r.localizerRelative = relativeError(r.truth, r.localizer, options.segmentLength);
-  r.odometryAbsolute = absoluteError(r.truth, r.odometry);
-  r.localizerAbsolute = absoluteError(r.truth, r.localizer);
+  r.odometryRelative = datasets::relativeError(r.truth, r.odometry, options.segmentLength);
+  r.localizerRelative = datasets::relativeError(r.truth, r.localizer, options.segmentLength);
+  r.odometryAbsolute = datasets::absoluteError(r.truth, r.odometry);
+  r.localizerAbsolute = datasets::absoluteError(r.truth, r.localizer);
   if (!r.onMap.empty()) {
-    r.localizerOnMap = absoluteErrorOf(r.truth, r.localizer, r.onMap);
-    r.odometryOnMap = absoluteErrorOf(r.truth, r.odometry, r.onMap);
+    r.localizerOnMap = datasets::absoluteErrorOf(r.truth, r.localizer, r.onMap);
+    r.odometryOnMap = datasets::absoluteErrorOf(r.truth, r.odometry, r.onMap);
   }
   return true;
 }

@@ -10,6 +10,7 @@
 
 #include "agv/core/pose2.hpp"
 #include "agv/datasets/carmen_log.hpp"
+#include "agv/datasets/trajectory_error.hpp"
 #include "agv/falko/falko_params.hpp"
 #include "agv/localization/field_relocalizer.hpp"
 #include "agv/localization/likelihood_field.hpp"
@@ -19,6 +20,11 @@
 
 namespace agv {
 namespace replay {
+
+// The trajectory error figures of a replay (agv/datasets/trajectory_error.hpp).
+using datasets::AbsoluteError;
+using datasets::ErrorStats;
+using datasets::RelativeError;
 
 /// Settings of one replay (defaults: the fr079 run documented in docs/localization.md).
 struct ReplayOptions {
@@ -87,51 +93,8 @@ struct ReplayOptions {
   std::string tracePath;
 };
 
-/// Longest plausible step of the robot between two consecutive scans of a log, unless the time
-/// between them allows more at `kMaxPlausibleSpeed` [m]: five times the longest step of the shared
-/// corrected logs (1.8 m, mit-csail).
-inline constexpr double kMaxPlausibleStep = 10.0;
-/// [m/s] faster than any indoor robot or forklift.
-inline constexpr double kMaxPlausibleSpeed = 20.0;
-
-/// Whether `log` can be replayed: a gmapping-corrected CARMEN log (FLASER lines with corrected
-/// poses, ODOM lines with the raw odometry), not a FLIRTLib log (ROBOTLASER1 + VERTEX2), with no
-/// robot step beyond physics (`kMaxPlausibleStep` and `kMaxPlausibleSpeed`) between consecutive
-/// scans, in the corrected poses or the raw odometry. False with `error` naming the line.
-bool checkReplayLog(const datasets::CarmenLog& log, std::string& error);
-
 /// Defaults for the fr079 run (see the docs for the derivation).
 ReplayOptions fr079Defaults();
-
-/// Mean / median / max of a set of errors.
-struct ErrorStats {
-  std::size_t count = 0;
-  double mean = 0.0;
-  double median = 0.0;
-  double rms = 0.0;
-  double max = 0.0;
-};
-
-/// Relative pose error over segments of `segmentLength` of ground-truth path, starting at every scan.
-struct RelativeError {
-  ErrorStats position;  ///< [m] per segment
-  ErrorStats heading;   ///< [rad] per segment
-};
-
-/// Absolute trajectory error (estimate and ground truth start at the same pose).
-struct AbsoluteError {
-  ErrorStats position;  ///< [m]
-  ErrorStats heading;   ///< [rad]
-};
-
-/// Absolute error of the scans flagged in `select` (no alignment: both in the map's frame).
-AbsoluteError absoluteErrorOf(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate,
-                              const std::vector<bool>& select);
-
-/// Relative error per segment of ground-truth path length `length`.
-RelativeError relativeError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate, double length);
-/// Absolute error after aligning the first poses (estimate moved rigidly onto truth[0]).
-AbsoluteError absoluteError(const std::vector<Pose2d>& truth, const std::vector<Pose2d>& estimate);
 
 /// Everything measured by one replay.
 struct ReplayResult {
@@ -212,11 +175,6 @@ struct ReplayResult {
 /// 20 steps remain. `steps` receives the number of steps used.
 UnicycleNoiseParams fitOdometryNoise(const datasets::CarmenLog& log, const std::vector<Pose2d>& inc, std::size_t begin,
                                      std::size_t end, const UnicycleNoiseParams& fallback, std::size_t& steps);
-
-/// Rebuilds the raw odometry increments of a corrected log: for scan i, inverse(corrected_{i-1})
-/// composed with the last timestamped ODOM pose between FLASER_{i-1} and FLASER_i (zero if none).
-/// `increments[0]` is zero. Returns the number of zero increments.
-std::size_t odometryIncrements(const datasets::CarmenLog& log, std::size_t scans, std::vector<Pose2d>& increments);
 
 /// Replays `log`; false with `error` when the log has no usable scans.
 bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& options, ReplayResult& result, std::string& error);

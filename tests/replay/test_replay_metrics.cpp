@@ -4,11 +4,14 @@
 #include <string>
 #include <vector>
 
+#include "agv/datasets/carmen_log.hpp"
+#include "agv/datasets/trajectory_error.hpp"
 #include "agv/report/json.hpp"
 #include "agv_test.hpp"
 #include "replay.hpp"
 
 namespace r = agv::replay;
+namespace d = agv::datasets;  // the metrics and the odometry rebuild live in agv_datasets
 using agv::Pose2d;
 using agv::report::Json;
 
@@ -28,11 +31,11 @@ std::vector<Pose2d> line(std::size_t n, double step) {
 TEST_CASE("replay metrics: a scale error gives its per-metre figure, a perfect estimate zero", "[replay]") {
   const auto truth = line(81, 0.125);  // 10 m, steps exact in binary
   SECTION("identical") {
-    const auto e = r::relativeError(truth, truth, 1.0);
+    const auto e = d::relativeError(truth, truth, 1.0);
     CHECK(e.position.count == 73U);  // segments from scans 0..72 reach 1 m
     CHECK(e.position.max < 1e-12);
     CHECK(e.heading.max < 1e-12);
-    const auto a = r::absoluteError(truth, truth);
+    const auto a = d::absoluteError(truth, truth);
     CHECK(a.position.max < 1e-12);
   }
   SECTION("5 % scale error") {
@@ -40,11 +43,11 @@ TEST_CASE("replay metrics: a scale error gives its per-metre figure, a perfect e
     for (auto& p : est) {
       p.x *= 1.05;
     }
-    const auto e = r::relativeError(truth, est, 1.0);
+    const auto e = d::relativeError(truth, est, 1.0);
     CHECK(e.position.mean == Approx(0.05).epsilon(1e-9));
     CHECK(e.position.median == Approx(0.05).epsilon(1e-9));
     CHECK(e.heading.max < 1e-12);
-    const auto a = r::absoluteError(truth, est);
+    const auto a = d::absoluteError(truth, est);
     CHECK(a.position.max == Approx(0.5).epsilon(1e-9));  // 5 % of 10 m at the end
   }
   SECTION("constant heading drift: 1 deg per step of 0.125 m") {
@@ -53,7 +56,7 @@ TEST_CASE("replay metrics: a scale error gives its per-metre figure, a perfect e
     for (std::size_t i = 1; i < truth.size(); ++i) {
       est.push_back(est.back().compose(Pose2d{0.125, 0.0, d}));
     }
-    const auto e = r::relativeError(truth, est, 1.0);
+    const auto e = d::relativeError(truth, est, 1.0);
     CHECK(e.heading.mean == Approx(8.0 * d).epsilon(1e-9));  // 8 steps per metre
     CHECK(e.heading.median == Approx(8.0 * d).epsilon(1e-9));
   }
@@ -66,10 +69,10 @@ TEST_CASE("replay metrics: the start is aligned before the absolute error", "[re
   for (const auto& p : truth) {
     est.push_back(offset.compose(p));
   }
-  const auto a = r::absoluteError(truth, est);
+  const auto a = d::absoluteError(truth, est);
   CHECK(a.position.max < 1e-9);
   CHECK(a.heading.max < 1e-9);
-  const auto e = r::relativeError(truth, est, 1.0);
+  const auto e = d::relativeError(truth, est, 1.0);
   CHECK(e.position.max < 1e-9);
 }
 
@@ -88,7 +91,7 @@ TEST_CASE("replay odometry rebuild follows the data README's rule", "[replay]") 
   const auto log = agv::datasets::parseCarmenLog(text);
   REQUIRE(log.scans.size() == 3U);
   std::vector<Pose2d> inc;
-  CHECK(r::odometryIncrements(log, 3, inc) == 1U);
+  CHECK(d::odometryIncrements(log, 3, inc) == 1U);
   REQUIRE(inc.size() == 3U);
   const Pose2d expected = agv::between(Pose2d{1.0, 2.0, 0.5}, Pose2d{1.6, 2.1, 0.6});
   CHECK(inc[1].x == Approx(expected.x));
@@ -115,10 +118,10 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   res.truth = line(3, 1.0);
   res.odometry = line(3, 1.1);
   res.localizer = line(3, 1.0);
-  res.odometryRelative = r::relativeError(res.truth, res.odometry, 1.0);
-  res.localizerRelative = r::relativeError(res.truth, res.localizer, 1.0);
-  res.odometryAbsolute = r::absoluteError(res.truth, res.odometry);
-  res.localizerAbsolute = r::absoluteError(res.truth, res.localizer);
+  res.odometryRelative = d::relativeError(res.truth, res.odometry, 1.0);
+  res.localizerRelative = d::relativeError(res.truth, res.localizer, 1.0);
+  res.odometryAbsolute = d::absoluteError(res.truth, res.odometry);
+  res.localizerAbsolute = d::absoluteError(res.truth, res.localizer);
   res.keypoints = 7;
   res.mapDeleted = 2;
   res.staticMap = true;
@@ -161,9 +164,11 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   CHECK(svg.find("<1>") == std::string::npos);
 }
 
-TEST_CASE("checkReplayLog: a FLIRTLib log, a missing odometry and pose jumps beyond physics are refused with the line",
-          "[replay]") {
+TEST_CASE(
+    "checkCorrectedLog: a FLIRTLib log, a missing odometry and pose jumps beyond physics are refused with the line",
+    "[replay]") {
   namespace r = agv::replay;
+  namespace d = agv::datasets;  // the metrics and the odometry rebuild live in agv_datasets
   // FLASER n r1..rn x y th odom_x odom_y odom_th ts host logger_ts
   const auto flaser = [](double x, double ts) {
     return "FLASER 3 1.0 2.0 3.0 " + std::to_string(x) + " 0 0 " + std::to_string(x) + " 0 0 " + std::to_string(ts) +
@@ -174,24 +179,24 @@ TEST_CASE("checkReplayLog: a FLIRTLib log, a missing odometry and pose jumps bey
   };
   std::string error;
   const std::string good = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(0.5, 2.0) + flaser(0.5, 2.0);
-  CHECK(r::checkReplayLog(agv::datasets::parseCarmenLog(good), error));
+  CHECK(d::checkCorrectedLog(agv::datasets::parseCarmenLog(good), error));
 
   const std::string flirt = "VERTEX2 7 1.0 2.0 0.5\n" + good;
-  CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(flirt), error));
+  CHECK_FALSE(d::checkCorrectedLog(agv::datasets::parseCarmenLog(flirt), error));
   CHECK(error.find("line 1: a FLIRTLib log") != std::string::npos);
 
-  CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(flaser(0.0, 1.0) + flaser(0.5, 2.0)), error));
+  CHECK_FALSE(d::checkCorrectedLog(agv::datasets::parseCarmenLog(flaser(0.0, 1.0) + flaser(0.5, 2.0)), error));
   CHECK(error.find("no ODOM line") != std::string::npos);
 
   // 2000 km in one second (line 4) is beyond physics; 12 m in one second is over the 10 m step but
   // below 20 m/s: a fast robot, accepted.
   const std::string jump = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(0.5, 2.0) + flaser(2.0e6, 2.0);
-  CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(jump), error));
+  CHECK_FALSE(d::checkCorrectedLog(agv::datasets::parseCarmenLog(jump), error));
   CHECK(error.find("line 4: the corrected pose jumps") != std::string::npos);
   const std::string fast = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(12.0, 2.0) + flaser(12.0, 2.0);
-  CHECK(r::checkReplayLog(agv::datasets::parseCarmenLog(fast), error));  // 12 m/s: a fast robot, not a jump
+  CHECK(d::checkCorrectedLog(agv::datasets::parseCarmenLog(fast), error));  // 12 m/s: a fast robot, not a jump
   const std::string odoJump = odom(0.0, 1.0) + flaser(0.0, 1.0) + odom(500.0, 2.0) + flaser(0.5, 2.0);
-  CHECK_FALSE(r::checkReplayLog(agv::datasets::parseCarmenLog(odoJump), error));
+  CHECK_FALSE(d::checkCorrectedLog(agv::datasets::parseCarmenLog(odoJump), error));
   CHECK(error.find("line 3: the odometry jumps") != std::string::npos);
 }
 

@@ -2,7 +2,9 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <string_view>
 
@@ -12,6 +14,13 @@ namespace agv {
 namespace datasets {
 
 namespace {
+
+/// `x` with one decimal ("%.1f").
+std::string oneDecimal(double x) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.1f", x);
+  return buf;
+}
 
 /// Whitespace tokenizer over one line, with numeric conversions that report failure.
 class Tokens {
@@ -322,6 +331,66 @@ bool readCarmenLog(const std::string& path, CarmenLog& log, std::string& error, 
   gzclose(f);
   log = std::move(p.log);
   return ok;
+}
+
+bool checkCorrectedLog(const CarmenLog& log, std::string& error) {
+  if (!log.vertices.empty() || (!log.scans.empty() && log.scans.front().vertexId >= 0)) {
+    const std::size_t line = log.vertices.empty() ? log.scans.front().line : log.vertices.front().line;
+    error = "line " + std::to_string(line) +
+            ": a FLIRTLib log (ROBOTLASER1 + VERTEX2), not a gmapping-corrected CARMEN log (FLASER + ODOM)";
+    return false;
+  }
+  if (log.odometry.empty()) {
+    error = "no ODOM line: not a gmapping-corrected CARMEN log (FLASER + ODOM)";
+    return false;
+  }
+  // The first step beyond physics (over 10 m and over 20 m/s) in a sequence of timestamped poses.
+  const auto firstJump = [&error](const auto& records, const auto& poseOf, const char* what) {
+    for (std::size_t i = 1; i < records.size(); ++i) {
+      const Pose2d& a = poseOf(records[i - 1]);
+      const Pose2d& b = poseOf(records[i]);
+      const double step = std::hypot(b.x - a.x, b.y - a.y);
+      const double dt = std::max(0.0, records[i].timestamp - records[i - 1].timestamp);
+      if (step > kMaxPlausibleStep && step > kMaxPlausibleSpeed * dt) {
+        error = "line " + std::to_string(records[i].line) + ": " + what + " jumps " + oneDecimal(step) + " m" +
+                " from line " + std::to_string(records[i - 1].line) + " (beyond physics)";
+        return true;
+      }
+    }
+    return false;
+  };
+  if (firstJump(
+          log.scans, [](const LogScan& s) -> const Pose2d& { return s.robotPose; }, "the corrected pose") ||
+      firstJump(
+          log.odometry, [](const LogOdometry& o) -> const Pose2d& { return o.pose; }, "the odometry")) {
+    return false;
+  }
+  return true;
+}
+
+std::size_t odometryIncrements(const CarmenLog& log, std::size_t scans, std::vector<Pose2d>& increments) {
+  increments.assign(scans, Pose2d{});
+  std::size_t zero = 0;
+  std::size_t k = 0;  // next ODOM line
+  for (std::size_t i = 0; i < scans; ++i) {
+    const std::size_t line = log.scans[i].line;
+    const LogOdometry* last = nullptr;
+    for (; k < log.odometry.size() && log.odometry[k].line < line; ++k) {
+      // Timestamp 0: the repeated corrected pose written after each FLASER line (not odometry).
+      if (log.odometry[k].timestamp != 0.0) {
+        last = &log.odometry[k];
+      }
+    }
+    if (i == 0) {
+      continue;
+    }
+    if (last == nullptr) {
+      ++zero;
+      continue;
+    }
+    increments[i] = between(log.scans[i - 1].robotPose, last->pose);
+  }
+  return zero;
 }
 
 }  // namespace datasets

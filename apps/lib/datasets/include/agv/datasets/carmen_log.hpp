@@ -84,5 +84,23 @@ CarmenLog parseCarmenLog(const std::string& text, const CarmenReadOptions& optio
 bool readCarmenLog(const std::string& path, CarmenLog& log, std::string& error,
                    const CarmenReadOptions& options = CarmenReadOptions{});
 
+/// Longest plausible step of the robot between two consecutive scans of a log, unless the time
+/// between them allows more at `kMaxPlausibleSpeed` [m]: five times the longest step of the shared
+/// corrected logs (1.8 m, mit-csail).
+inline constexpr double kMaxPlausibleStep = 10.0;
+/// [m/s] faster than any indoor robot or forklift.
+inline constexpr double kMaxPlausibleSpeed = 20.0;
+
+/// Whether `log` can be replayed or mapped as odometry + corrected poses: a gmapping-corrected CARMEN log (FLASER lines
+/// with corrected poses, ODOM lines with the raw odometry), not a FLIRTLib log (ROBOTLASER1 + VERTEX2), with no robot
+/// step beyond physics (`kMaxPlausibleStep` and `kMaxPlausibleSpeed`) between consecutive scans, in the corrected poses
+/// or the raw odometry. False with `error` naming the line.
+bool checkCorrectedLog(const CarmenLog& log, std::string& error);
+
+/// Rebuilds the raw odometry increments of a corrected log: for scan i, inverse(corrected_{i-1})
+/// composed with the last timestamped ODOM pose between FLASER_{i-1} and FLASER_i (zero if none).
+/// `increments[0]` is zero. Returns the number of zero increments.
+std::size_t odometryIncrements(const CarmenLog& log, std::size_t scans, std::vector<Pose2d>& increments);
+
 }  // namespace datasets
 }  // namespace agv
