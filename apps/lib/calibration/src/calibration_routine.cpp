@@ -291,6 +291,25 @@ void summarize(const Alignments& al, CalibrationOutcome& out) {
 
 }  // namespace
 
+double refinementVarianceFactor(const CalibrationOutcome& r) noexcept {
+  const double dof = 3.0 * r.segmentsUsed - static_cast<double>(kCalibParamCount);
+  return dof > 0.0 ? std::fmax(1.0, r.refined.finalCost / dof) : 1.0;
+}
+
+VehicleCalibration calibrationToWrite(const CalibrationOutcome& r) noexcept {
+  const bool refined = r.refinedStatus == Status::Ok;
+  VehicleCalibration cal;
+  cal.params = refined ? r.refined.params : r.result.params;
+  cal.laserPose = refined ? r.refined.laserPose : r.result.laserPose;
+  if (refined) {
+    const double factor = refinementVarianceFactor(r);
+    const auto sd = [&](int i) { return std::sqrt(factor * r.refined.covariance(i, i)); };
+    cal.sigmas = CalibrationSigmas{sd(kParamDriveScale), sd(kParamOffsetForward), sd(kParamOffsetBackward),
+                                   sd(kParamLaserX),     sd(kParamLaserY),        sd(kParamLaserTheta)};
+  }
+  return cal;
+}
+
 const char* routineStateName(RoutineState state) noexcept {
   switch (state) {
     case RoutineState::Idle:

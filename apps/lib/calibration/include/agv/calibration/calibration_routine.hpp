@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "agv/calib/calibration.hpp"
+#include "agv/calib/calibration_file.hpp"
 #include "agv/calib/refinement.hpp"
 #include "agv/core/angle.hpp"
 #include "agv/core/pose2.hpp"
@@ -162,6 +163,16 @@ struct CalibrationOutcome {
   double meanAlignmentRms = 0.0;  ///< [m] alignment residual (reflectors or keypoints)
   double meanMatches = 0.0;       ///< reflector pairs / keypoint inliers per aligned segment
 };
+
+/// The refinement's a posteriori variance factor: max(1, final cost / (3 N - 6)) with N the
+/// segments used (1 without degrees of freedom), so residuals larger than the noise model (wheel
+/// slip, keypoint noise) widen the written sigmas.
+double refinementVarianceFactor(const CalibrationOutcome& outcome) noexcept;
+
+/// The values to write: the refined ones with their 1-sigma (covariance scaled by
+/// `refinementVarianceFactor`) when the refinement succeeded, else the closed-form ATC values
+/// (sigmas 0 = not known).
+VehicleCalibration calibrationToWrite(const CalibrationOutcome& outcome) noexcept;
 
 /// State of a `CalibrationRun`. The numeric values are published on the PLC (docs/plc-link.md,
 /// register 46) and stay stable.
