@@ -83,6 +83,10 @@ class CalibrationSession {
   /// A fault the owner saw (heartbeat loss, bus-off): quick stop and abort with `why`.
   void abortOnFault(Status why, const char* reason, Timestamp now);
 
+  /// A refusal decided by the owner (e.g. the drives did not come up): published as
+  /// `progress().lastRefusal` and logged.
+  void reportRefusal(Status why, const std::string& message) { refuse(why, message); }
+
   void onEncoderSample(const hal::EncoderSample& sample) noexcept;
   void onSweep(const hal::LaserMeasurement& sweep);
 
