@@ -44,7 +44,7 @@ class SocketCanDrives final : public VehicleDrives {
       case canopen::DriveControllerState::SafeStop:
         why = canopen::toString(c.safeStopReason());
         return c.safeStopReason() == canopen::SafeStopReason::DriveHeartbeatLost ? Status::Timeout
-                                                                                  : Status::DeviceFault;
+                                                                                 : Status::DeviceFault;
       case canopen::DriveControllerState::Failed:
         why = "the drives' bring-up failed";
         return Status::DeviceFault;
@@ -196,9 +196,7 @@ struct VehicleCalibrationRoutine::Impl {
     const Status h = drives->health(why);
     if (h == Status::Ok) {
       pending = false;
-      const Pose2d start = pipeline != nullptr && pipeline->localizing() ? pipeline->localizer().pose()
-                                                                          : Pose2d{kNaN, kNaN, kNaN};
-      if (session->requestCalibrate(start, now) != Status::Ok) {
+      if (session->begin(now) != Status::Ok) {
         commandRefused = true;
       }
     } else if (h != Status::NotInitialized || now - pendingSince > Duration::fromSeconds(5.0)) {
@@ -217,9 +215,16 @@ struct VehicleCalibrationRoutine::Impl {
       if (session->running() || pending) {
         refuse(Status::Rejected, "calibrate refused: the routine is already running");
       } else {
-        pending = true;
-        pendingSince = now;
-        drives->bringUp(now);
+        // The plan is checked before the drives are brought up: a refusal moves nothing.
+        const Pose2d start =
+            pipeline != nullptr && pipeline->localizing() ? pipeline->localizer().pose() : Pose2d{kNaN, kNaN, kNaN};
+        if (session->prepare(start) != Status::Ok) {
+          commandRefused = true;
+        } else {
+          pending = true;
+          pendingSince = now;
+          drives->bringUp(now);
+        }
       }
     }
     if (now < next) {
@@ -234,7 +239,15 @@ struct VehicleCalibrationRoutine::Impl {
       const char* why = "";
       const Status h = drives->health(why);
       if (h != Status::Ok) {
-        session->abortOnFault(h, (std::string("the drives stopped (") + why + ")").c_str(), now);
+        char reason[160];
+        const std::uint32_t code = drives->faultCode();
+        if (code != 0U) {
+          std::snprintf(reason, sizeof reason, "the drives stopped (%s, drive fault code 0x%04X)", why,
+                        static_cast<unsigned>(code));
+        } else {
+          std::snprintf(reason, sizeof reason, "the drives stopped (%s)", why);
+        }
+        session->abortOnFault(h, reason, now);
       } else {
         wrote = session->step(now);
       }
@@ -242,8 +255,8 @@ struct VehicleCalibrationRoutine::Impl {
     drives->cycle(now);
     if (wrote) {
       calibration = session->lastCalibration();
-      if (pipeline != nullptr &&
-          pipeline->recalibrate(calibration.params, calibration.laserPose) != Status::Ok && log) {
+      if (pipeline != nullptr && pipeline->recalibrate(calibration.params, calibration.laserPose) != Status::Ok &&
+          log) {
         log("the new calibration was written but the navigation refused to reload it (restart to use it)");
       }
     }

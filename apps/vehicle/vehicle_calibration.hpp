@@ -53,9 +53,9 @@ class VehicleCalibrationRoutine {
   /// `drives` may be null (no `drives.enabled`): Calibrate is then left to the pipeline, which
   /// refuses it (health bit 8, `unsupported`), as without `calibration.area`. The devices must
   /// outlive this object. `log` gets one line per event (may be empty).
-  VehicleCalibrationRoutine(const VehicleConfig& config, const VehicleCalibration& current, hal::EncoderSource& encoders,
-                            hal::LaserSource& laser, hal::PlcLink& plc, VehicleDrives* drives,
-                            std::function<void(const std::string&)> log);
+  VehicleCalibrationRoutine(const VehicleConfig& config, const VehicleCalibration& current,
+                            hal::EncoderSource& encoders, hal::LaserSource& laser, hal::PlcLink& plc,
+                            VehicleDrives* drives, std::function<void(const std::string&)> log);
   ~VehicleCalibrationRoutine();
   VehicleCalibrationRoutine(const VehicleCalibrationRoutine&) = delete;
   VehicleCalibrationRoutine& operator=(const VehicleCalibrationRoutine&) = delete;

@@ -351,8 +351,7 @@ void addDrivesKeys(Specs& specs, ConfigDraft& d) {
   specs["drives.enabled"] = choice(false, {"false", "true"}, [&c](std::size_t i) { c.drivesEnabled = i == 1; });
   specs["drives.traction.node"] =
       integer(false, 1, 127, [&t](long long x) { t.nodeId = static_cast<std::uint8_t>(x); });
-  specs["drives.traction.counts_per_metre"] =
-      number(false, 1e-3, 1e9, "", [&t](double x) { t.countsPerMetre = x; });
+  specs["drives.traction.counts_per_metre"] = number(false, 1e-3, 1e9, "", [&t](double x) { t.countsPerMetre = x; });
   specs["drives.traction.velocity_units_per_mps"] = number(false, 1e-3, 1e9, "", [&d, &t](double x) {
     t.velocityUnitsPerMps = x;
     d.velocityUnitsGiven = true;
@@ -364,8 +363,8 @@ void addDrivesKeys(Specs& specs, ConfigDraft& d) {
       integer(false, 1, 127, [&st](long long x) { st.nodeId = static_cast<std::uint8_t>(x); });
   specs["drives.steering.counts_per_radian"] =
       number(false, 1e-3, 1e9, "", [&st](double x) { st.countsPerRadian = x; });
-  specs["drives.steering.zero_count"] = integer(false, -2147483647LL, 2147483647LL,
-                                                [&st](long long x) { st.zeroCount = static_cast<std::int32_t>(x); });
+  specs["drives.steering.zero_count"] =
+      integer(false, -2147483647LL, 2147483647LL, [&st](long long x) { st.zeroCount = static_cast<std::int32_t>(x); });
   specs["drives.steering.direction"] = direction(st.direction);
   specs["drives.steering.max_angle"] = number(false, 0.01, 1.5, "rad", [&st](double x) { st.maxAngle = x; });
 }
@@ -381,9 +380,10 @@ void addCalibrationKeys(Specs& specs, VehicleConfig& c) {
                                           ok = parseDouble(w[i], a[i]) && std::fabs(a[i]) <= 1e6;
                                         }
                                         if (!ok || !(a[0] < a[2]) || !(a[1] < a[3])) {
-                                          why = "expected 'xmin ymin xmax ymax' in m with xmin < xmax, ymin < ymax, "
-                                                "got '" +
-                                                v + "'";
+                                          why =
+                                              "expected 'xmin ymin xmax ymax' in m with xmin < xmax, ymin < ymax, "
+                                              "got '" +
+                                              v + "'";
                                           return false;
                                         }
                                         p.area = calibration::FreeArea{a[0], a[1], a[2], a[3]};

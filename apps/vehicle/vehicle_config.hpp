@@ -11,10 +11,10 @@
 
 #include "agv/calibration/calibration_routine.hpp"
 #include "agv/core/pose2.hpp"
-#include "agv/drivers/protocol/canopen/cia402_drive.hpp"
 #include "agv/drivers/linux/canopen_encoder_source.hpp"
 #include "agv/drivers/linux/modbus_plc_link.hpp"
 #include "agv/drivers/linux/sick_laser_source.hpp"
+#include "agv/drivers/protocol/canopen/cia402_drive.hpp"
 #include "agv/localization/landmark_map.hpp"
 
 namespace agv::vehicle {

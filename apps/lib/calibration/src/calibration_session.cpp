@@ -163,6 +163,12 @@ void CalibrationSession::refuse(Status why, const std::string& message) {
 }
 
 Status CalibrationSession::requestCalibrate(const Pose2d& start, Timestamp now) {
+  const Status s = prepare(start);
+  return s == Status::Ok ? begin(now) : s;
+}
+
+Status CalibrationSession::prepare(const Pose2d& start) {
+  prepared_ = false;
   if (running()) {
     refuse(Status::Rejected, "calibrate refused: the routine is already running");
     return Status::Rejected;
@@ -179,6 +185,19 @@ Status CalibrationSession::requestCalibrate(const Pose2d& start, Timestamp now) 
     refuse(planned, "calibrate refused before any motion: " + error);
     return planned;
   }
+  prepared_ = true;
+  return Status::Ok;
+}
+
+Status CalibrationSession::begin(Timestamp now) {
+  if (!prepared_) {
+    return Status::NotInitialized;
+  }
+  if (running()) {
+    refuse(Status::Rejected, "calibrate refused: the routine is already running");
+    return Status::Rejected;
+  }
+  prepared_ = false;
   const Status started = run_.start(plan_, now);
   if (started != Status::Ok) {
     refuse(started, std::string("calibrate refused: the routine did not start (") + toString(started) + ")");
@@ -190,6 +209,7 @@ Status CalibrationSession::requestCalibrate(const Pose2d& start, Timestamp now) 
   progress_.phase = run_.phase();
   message_.clear();
   if (log_) {
+    const Pose2d& start = plan_.request.start;
     char line[200];
     std::snprintf(line, sizeof line, "calibration started: %d segments from (%.2f, %.2f, %.1f deg)", run_.total(),
                   start.x, start.y, rad2deg(start.theta));

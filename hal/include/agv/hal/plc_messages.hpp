@@ -50,10 +50,11 @@ constexpr bool hasBit(std::uint16_t bits, HealthBit bit) noexcept {
 /// Progress of the on-vehicle calibration routine, as the PLC reads it (registers 44-48 of the
 /// Modbus map). All zero when no routine ever ran.
 struct CalibrationProgress {
-  std::uint8_t state = 0;    ///< `calibration::RoutineState` value: 0 idle .. 7 done, 8 aborted
-  std::uint8_t phase = 0;    ///< `calibration::Phase` of `segment`: 0 forward left, 1 forward right, 2 backward left, 3 backward right
-  std::uint16_t segment = 0;  ///< segment being driven, 1-based (0: none)
-  std::uint16_t total = 0;    ///< segments of the plan (0: none)
+  std::uint8_t state = 0;  ///< `calibration::RoutineState` value: 0 idle .. 7 done, 8 aborted
+  std::uint8_t phase =
+      0;  ///< `calibration::Phase` of `segment`: 0 forward left, 1 forward right, 2 backward left, 3 backward right
+  std::uint16_t segment = 0;        ///< segment being driven, 1-based (0: none)
+  std::uint16_t total = 0;          ///< segments of the plan (0: none)
   Status lastRefusal = Status::Ok;  ///< why the last Calibrate was refused or the last run aborted or failed
 };
 

@@ -76,6 +76,13 @@ class CalibrationSession {
   /// `InvalidArgument` for a bad plan request or `NotInitialized` when `start` is not finite (no
   /// pose known).
   Status requestCalibrate(const Pose2d& start, Timestamp now);
+  /// The first half of `requestCalibrate`: plans from `start` and keeps the plan, with the same
+  /// refusals, without starting (an owner that must bring its drives up first checks the plan
+  /// before). `begin()` then starts it.
+  Status prepare(const Pose2d& start);
+  /// Starts the plan of the last successful `prepare()`: `NotInitialized` without one, `Rejected`
+  /// while running.
+  Status begin(Timestamp now);
   /// The PLC's Stop: quick stop (`DriveHooks::quickStop`, and `stop()`) and abort of a run in
   /// progress in this call: state `Aborted` with `lastRefusal` Ok (stopped on request, no fault),
   /// calibration file untouched. Nothing when no run is in progress.
@@ -111,6 +118,7 @@ class CalibrationSession {
   SessionLog log_;
   CalibrationRun run_;
   CalibrationPlan plan_;
+  bool prepared_ = false;
   SessionProgress progress_;
   VehicleCalibration written_;
   std::string message_;

@@ -1,0 +1,362 @@
+// agvnav-vehicle's calibration routine in-process: the navigation pipeline on the simulated
+// vehicle (encoders over CANopen, laser with reflectors, a reflector map of the world), the
+// `VehicleCalibrationRoutine` taps between them, a scripted PLC link and simulated drives. The
+// PLC's Calibrate runs the routine through all its states with the progress in the published
+// reports, writes the file (old one as .bak) and reloads it; a Stop mid-segment quick-stops in the
+// cycle that reads it; a drive fault and a heartbeat loss abort with the reason on the registers;
+// a plan that does not fit and a Calibrate without a pose are refused before the drives move.
+#include <cmath>
+#include <deque>
+#include <fstream>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "agv/calib/calibration_file.hpp"
+#include "agv/calibration/sim_calibration_vehicle.hpp"
+#include "agv/nav/pipeline.hpp"
+#include "agv/sim/ray_caster.hpp"
+#include "agv/sim/sim_clock.hpp"
+#include "agv/sim/world.hpp"
+#include "agv_test.hpp"
+#include "vehicle_calibration.hpp"
+
+using agv::Duration;
+using agv::Pose2d;
+using agv::Status;
+using agv::Timestamp;
+namespace cal = agv::calibration;
+namespace hal = agv::hal;
+
+namespace {
+
+std::string work(const char* name) {
+  return std::string(AGV_TEST_WORK_DIR) + "/" + name;
+}
+
+std::string readFile(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+/// The PLC: commands queued by the test, every report kept.
+class ScriptedPlc final : public hal::PlcLink {
+ public:
+  Status publish(const hal::PoseReport& report) noexcept override {
+    last = report;
+    ++reports;
+    if (report.health.mode == hal::NavMode::Calibrating) {
+      ++calibratingReports;
+    }
+    seen.insert(report.health.calibration.state);
+    return Status::Ok;
+  }
+  Status readCommand(hal::PlcCommand& out) noexcept override {
+    if (queue.empty()) {
+      return Status::NotFound;
+    }
+    out = queue.front();
+    queue.pop_front();
+    return Status::Ok;
+  }
+  void send(hal::PlcCommandKind kind, const Pose2d& pose = Pose2d{}) {
+    hal::PlcCommand c;
+    c.kind = kind;
+    c.initialPose = pose;
+    queue.push_back(c);
+  }
+  std::deque<hal::PlcCommand> queue;
+  hal::PoseReport last;
+  int reports = 0;
+  int calibratingReports = 0;
+  std::set<std::uint8_t> seen;
+};
+
+/// The simulated vehicle's drive as the vehicle's drives, with a switchable fault.
+class SimDrives final : public agv::vehicle::VehicleDrives, public hal::DriveControl {
+ public:
+  explicit SimDrives(hal::DriveControl& inner) : inner_(inner) {}
+  hal::DriveControl& control() noexcept override { return *this; }
+  void bringUp(Timestamp) noexcept override { ++bringUps; }
+  Status health(const char*& why) const noexcept override {
+    why = health_ == Status::Ok ? "enabled" : reason;
+    return health_;
+  }
+  void quickStop() noexcept override {
+    ++quickStops;
+    static_cast<void>(inner_.stop());
+  }
+  std::uint32_t faultCode() const noexcept override { return code; }
+  void cycle(Timestamp) noexcept override {}
+  Status command(const hal::DriveCommand& cmd) noexcept override {
+    ++commands;
+    return health_ == Status::Ok ? inner_.command(cmd) : Status::DeviceFault;
+  }
+  Status stop() noexcept override { return inner_.stop(); }
+  bool isStandstill() const noexcept override { return inner_.isStandstill(); }
+
+  /// The drive stops by itself (fault reaction / heartbeat consumer).
+  void fail(Status h, const char* why, std::uint32_t faultCode) {
+    health_ = h;
+    reason = why;
+    code = faultCode;
+    static_cast<void>(inner_.stop());
+  }
+
+  int bringUps = 0;
+  int quickStops = 0;
+  int commands = 0;
+  const char* reason = "";
+  std::uint32_t code = 0;
+
+ private:
+  hal::DriveControl& inner_;
+  Status health_ = Status::Ok;
+};
+
+const Pose2d kStart{10.0, 12.5, 0.0};
+const char* kOld = "the calibration file before the routine\n";
+
+struct VehicleBench {
+  explicit VehicleBench(const std::string& file, cal::FreeArea area = cal::FreeArea{2.5, 0.5, 24.0, 23.0}) {
+    {
+      std::ofstream f(file, std::ios::trunc);
+      f << kOld;
+    }
+    agv::sim::WorldParseError perr;
+    REQUIRE(agv::sim::parseWorld(agv::sim::defaultWorldText(), world, perr) == Status::Ok);
+    caster = std::make_unique<agv::sim::RayCaster>(world, 1.0);
+    sim = std::make_unique<cal::SimCalibrationVehicle>(*caster, truth, laserParams, 1, kStart, &can);
+    REQUIRE(sim->status() == Status::Ok);
+    drives = std::make_unique<SimDrives>(sim->drive());
+    map = std::make_unique<agv::LandmarkMap>();
+    std::uint32_t id = 1;
+    for (const agv::sim::Circle& c : world.circles) {
+      if (c.kind == agv::sim::ObstacleKind::Reflector) {
+        REQUIRE(map->addSurveyed(agv::LandmarkKind::Reflector, c.centre.x, c.centre.y, 0.005, id++).ok());
+      }
+    }
+    map->setMode(agv::MapMode::Static);
+    current.params = agv::TricycleParams{1.5, 1.0e-4, 0.0, 0.0};  // the drawing's values
+    current.laserPose = Pose2d{1.6, 0.0, 0.0};
+    config.drivesEnabled = true;
+    config.calibrationAreaSet = true;
+    config.calibrationPlan.area = area;
+    config.calibrationPlan.segmentsPerPhase = 2;
+    config.drives.traction.acceleration = truth.acceleration;
+    config.calibrationFile = file;
+    routine = std::make_unique<agv::vehicle::VehicleCalibrationRoutine>(
+        config, current, sim->encoders(), sim->laser(), plc, drives.get(),
+        [this](const std::string& line) { log.push_back(line); });
+    agv::nav::PipelineParams p;
+    p.kinematics = current.params;
+    p.localizer.laser.mounting = current.laserPose;
+    p.localizer.laser.rangeMax = 30.0;
+    pipeline = std::make_unique<agv::nav::Pipeline>(
+        p, *map, agv::nav::PipelineDevices{routine->encoders(), routine->laser(), routine->plc(), clock});
+    REQUIRE(pipeline->configure() == Status::Ok);
+    REQUIRE(pipeline->activate() == Status::Ok);
+    routine->attach(*pipeline);
+  }
+
+  /// One vehicle cycle of 10 ms: the pipeline (devices through the taps), then the routine.
+  bool cycle() {
+    sim->wait(Duration::fromMilliseconds(10));
+    clock.set(sim->now());
+    static_cast<void>(pipeline->cycle());
+    const bool w = routine->step(sim->now());
+    states.insert(routine->progress().state);
+    if (routine->progress().segment > maxSegment) {
+      maxSegment = routine->progress().segment;
+    }
+    wrote = wrote || w;
+    return w;
+  }
+
+  template <typename F>
+  bool cycleUntil(F done, int limit = 300000) {
+    for (int i = 0; i < limit; ++i) {
+      if (done()) {
+        return true;
+      }
+      cycle();
+    }
+    return done();
+  }
+
+  /// Localize at the true start, then a few cycles.
+  void localize() {
+    plc.send(hal::PlcCommandKind::Localize, kStart);
+    for (int i = 0; i < 20; ++i) {
+      cycle();
+    }
+    REQUIRE(pipeline->localizing());
+  }
+
+  agv::sim::World world;
+  std::unique_ptr<agv::sim::RayCaster> caster;
+  agv::sim::SimVehicleParams truth;
+  agv::sim::SimLaserParams laserParams;
+  agv::sim::SimCanEncodersParams can = agv::sim::defaultSimCanEncoders(1U << 14U);
+  std::unique_ptr<cal::SimCalibrationVehicle> sim;
+  std::unique_ptr<SimDrives> drives;
+  std::unique_ptr<agv::LandmarkMap> map;
+  agv::VehicleCalibration current;
+  agv::vehicle::VehicleConfig config;
+  ScriptedPlc plc;
+  agv::sim::SimClock clock;
+  std::unique_ptr<agv::vehicle::VehicleCalibrationRoutine> routine;
+  std::unique_ptr<agv::nav::Pipeline> pipeline;
+  std::vector<std::string> log;
+  std::set<cal::RoutineState> states;
+  int maxSegment = 0;
+  bool wrote = false;
+};
+
+}  // namespace
+
+TEST_CASE("vehicle.calibration: the PLC's Calibrate runs the routine, writes and reloads the file",
+          "[vehicle][calibrate]") {
+  const std::string file = work("vehicle_cal.txt");
+  VehicleBench b(file);
+  b.localize();
+  b.plc.send(hal::PlcCommandKind::Calibrate);
+  REQUIRE(b.cycleUntil([&] { return b.routine->running(); }, 10));
+  CHECK(b.drives->bringUps == 1);
+  REQUIRE(b.cycleUntil([&] { return !b.routine->running(); }));
+  INFO(b.routine->session()->lastMessage());
+  CHECK(b.routine->progress().state == cal::RoutineState::Done);
+  REQUIRE(b.wrote);
+  CHECK(b.maxSegment == 8);
+  // Published: mode Calibrating during the run, the states on register 44 in the reports.
+  CHECK(b.plc.calibratingReports > 100);
+  for (int i = 0; i < 5; ++i) {
+    b.cycle();
+  }
+  for (cal::RoutineState s : {cal::RoutineState::Settling, cal::RoutineState::Steering, cal::RoutineState::Driving,
+                              cal::RoutineState::Stopping, cal::RoutineState::Observing, cal::RoutineState::Done}) {
+    CHECK(b.plc.seen.count(static_cast<std::uint8_t>(s)) == 1);
+  }
+  CHECK(b.plc.last.health.calibration.state == static_cast<std::uint8_t>(cal::RoutineState::Done));
+  CHECK(b.plc.last.health.calibration.total == 8);
+  CHECK(b.plc.last.health.calibration.lastRefusal == Status::Ok);
+  CHECK(b.plc.last.health.mode != hal::NavMode::Calibrating);
+  // The file: parsed back, within the calibrate.app tolerance of the truth; the old one as .bak.
+  CHECK(readFile(file + ".bak") == kOld);
+  const std::string text = readFile(file);
+  agv::VehicleCalibration got;
+  REQUIRE(agv::parseCalibrationFile(agv::Span<const char>(text.data(), text.size()), got) == Status::Ok);
+  const agv::TricycleParams& t = b.truth.truth;
+  std::printf(
+      "vehicle routine: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, ly %+.2f mm, "
+      "ltheta %+.4f deg (refined - truth)\n",
+      1e6 * (got.params.driveScale / t.driveScale - 1.0),
+      agv::rad2deg(got.params.steerOffsetForward - t.steerOffsetForward),
+      agv::rad2deg(got.params.steerOffsetBackward - t.steerOffsetBackward),
+      1e3 * (got.laserPose.x - b.truth.laserMount.x), 1e3 * (got.laserPose.y - b.truth.laserMount.y),
+      agv::rad2deg(got.laserPose.theta - b.truth.laserMount.theta));
+  CHECK(std::fabs(got.params.driveScale / t.driveScale - 1.0) < 2000e-6);
+  CHECK(std::fabs(got.params.steerOffsetForward - t.steerOffsetForward) < agv::deg2rad(0.1));
+  CHECK(std::fabs(got.params.steerOffsetBackward - t.steerOffsetBackward) < agv::deg2rad(0.1));
+  CHECK(std::fabs(got.laserPose.x - b.truth.laserMount.x) < 0.008);
+  CHECK(std::fabs(got.laserPose.y - b.truth.laserMount.y) < 0.008);
+  CHECK(std::fabs(got.laserPose.theta - b.truth.laserMount.theta) < agv::deg2rad(0.3));
+  // Reloaded: the vehicle's calibration is the file's, and the pipeline goes on localizing with it.
+  CHECK(b.routine->calibration().params.driveScale == Approx(got.params.driveScale).epsilon(1e-6));
+  CHECK(b.pipeline->localizing());
+  const Pose2d truePose = b.sim->vehicle().truePose();
+  const Pose2d est = b.pipeline->localizer().pose();
+  CHECK(std::hypot(est.x - truePose.x, est.y - truePose.y) < 0.1);
+}
+
+TEST_CASE("vehicle.calibration: a PLC Stop mid-segment quick-stops in the cycle that reads it",
+          "[vehicle][calibrate]") {
+  const std::string file = work("vehicle_cal_stop.txt");
+  VehicleBench b(file);
+  b.localize();
+  b.plc.send(hal::PlcCommandKind::Calibrate);
+  REQUIRE(b.cycleUntil([&] {
+    return b.routine->progress().segment == 2 && b.routine->progress().state == cal::RoutineState::Driving &&
+           !b.sim->drive().isStandstill();
+  }));
+  b.plc.send(hal::PlcCommandKind::Stop);
+  b.sim->wait(Duration::fromMilliseconds(10));
+  b.clock.set(b.sim->now());
+  static_cast<void>(b.pipeline->cycle());  // reads the Stop: the quick stop happens here
+  CHECK(b.drives->quickStops == 1);
+  CHECK(b.routine->progress().state == cal::RoutineState::Aborted);
+  const int commands = b.drives->commands;
+  REQUIRE(b.cycleUntil([&] { return b.sim->drive().isStandstill(); }, 500));
+  for (int i = 0; i < 100; ++i) {
+    b.cycle();
+  }
+  CHECK(b.drives->commands == commands);
+  CHECK(b.plc.last.health.calibration.state == static_cast<std::uint8_t>(cal::RoutineState::Aborted));
+  CHECK(b.plc.last.health.calibration.lastRefusal == Status::Ok);
+  CHECK(b.plc.last.health.mode == hal::NavMode::Idle);  // the Stop reached the pipeline too
+  CHECK(readFile(file) == kOld);
+}
+
+TEST_CASE("vehicle.calibration: a drive fault and a heartbeat loss abort with the reason on the registers",
+          "[vehicle][calibrate]") {
+  struct Case {
+    Status health;
+    const char* why;
+    std::uint32_t code;
+    const char* expect;
+  };
+  for (const Case& k : {Case{Status::DeviceFault, "drive fault", 0x2310, "0x2310"},
+                        Case{Status::Timeout, "drive heartbeat lost", 0, "heartbeat"}}) {
+    const std::string file = work("vehicle_cal_fault.txt");
+    VehicleBench b(file);
+    b.localize();
+    b.plc.send(hal::PlcCommandKind::Calibrate);
+    REQUIRE(b.cycleUntil([&] {
+      return b.routine->progress().segment == 3 && b.routine->progress().state == cal::RoutineState::Driving;
+    }));
+    b.drives->fail(k.health, k.why, k.code);
+    for (int i = 0; i < 5; ++i) {  // the abort in the first, then at least one publication (20 ms)
+      b.cycle();
+    }
+    CHECK(b.routine->progress().state == cal::RoutineState::Aborted);
+    CHECK(b.plc.last.health.calibration.lastRefusal == k.health);
+    CHECK(b.drives->quickStops >= 1);
+    REQUIRE_FALSE(b.log.empty());
+    CHECK(b.log.back().find(k.expect) != std::string::npos);
+    CHECK(readFile(file) == kOld);
+  }
+}
+
+TEST_CASE("vehicle.calibration: refused before the drives move", "[vehicle][calibrate]") {
+  const std::string file = work("vehicle_cal_refused.txt");
+  {
+    VehicleBench b(file, cal::FreeArea{4.0, 6.0, 16.0, 19.0});
+    b.localize();
+    b.plc.send(hal::PlcCommandKind::Calibrate);
+    for (int i = 0; i < 50; ++i) {
+      b.cycle();
+    }
+    CHECK(b.drives->bringUps == 0);
+    CHECK(b.drives->commands == 0);
+    CHECK(b.plc.last.health.calibration.lastRefusal == Status::OutOfRange);
+    CHECK(hal::hasBit(b.plc.last.health.bits, hal::HealthBit::CommandRejected));
+    CHECK(b.plc.last.health.mode == hal::NavMode::Localizing);
+    REQUIRE_FALSE(b.log.empty());
+    CHECK(b.log.back().find("leaves the free area") != std::string::npos);
+    CHECK(readFile(file) == kOld);
+  }
+  {
+    VehicleBench b(file);  // not localizing: no start pose
+    b.plc.send(hal::PlcCommandKind::Calibrate);
+    for (int i = 0; i < 50; ++i) {
+      b.cycle();
+    }
+    CHECK(b.drives->bringUps == 0);
+    CHECK(b.drives->commands == 0);
+    CHECK(b.plc.last.health.calibration.lastRefusal == Status::NotInitialized);
+  }
+}
