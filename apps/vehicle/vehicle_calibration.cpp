@@ -31,34 +31,11 @@ class SocketCanDrives final : public VehicleDrives {
     }
   }
 
-  Status health(const char*& why) const noexcept override {
-    const canopen::Cia402DriveController& c = drives_.controller();
-    switch (c.state()) {
-      case canopen::DriveControllerState::Enabled:
-        why = "enabled";
-        return Status::Ok;
-      case canopen::DriveControllerState::Idle:
-      case canopen::DriveControllerState::BringingUp:
-        why = "coming up";
-        return Status::NotInitialized;
-      case canopen::DriveControllerState::SafeStop:
-        why = canopen::toString(c.safeStopReason());
-        return c.safeStopReason() == canopen::SafeStopReason::DriveHeartbeatLost ? Status::Timeout
-                                                                                 : Status::DeviceFault;
-      case canopen::DriveControllerState::Failed:
-        why = "the drives' bring-up failed";
-        return Status::DeviceFault;
-    }
-    why = "?";
-    return Status::DeviceFault;
-  }
+  Status health(const char*& why) const noexcept override { return drivesHealth(drives_.controller(), why); }
 
   void quickStop() noexcept override { drives_.quickStop(canopen::SafeStopReason::PlcStop); }
 
-  std::uint32_t faultCode() const noexcept override {
-    const canopen::Cia402DriveController& c = drives_.controller();
-    return c.traction().errorCode() != 0U ? c.traction().errorCode() : c.steering().errorCode();
-  }
+  std::uint32_t faultCode() const noexcept override { return drivesFaultCode(drives_.controller()); }
 
   void cycle(Timestamp now) noexcept override {
     if (opened_) {
@@ -82,6 +59,30 @@ class SocketCanDrives final : public VehicleDrives {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 }  // namespace
+
+Status drivesHealth(const canopen::Cia402DriveController& c, const char*& why) noexcept {
+  switch (c.state()) {
+    case canopen::DriveControllerState::Enabled:
+      why = "enabled";
+      return Status::Ok;
+    case canopen::DriveControllerState::Idle:
+    case canopen::DriveControllerState::BringingUp:
+      why = "coming up";
+      return Status::NotInitialized;
+    case canopen::DriveControllerState::SafeStop:
+      why = canopen::toString(c.safeStopReason());
+      return c.safeStopReason() == canopen::SafeStopReason::DriveHeartbeatLost ? Status::Timeout : Status::DeviceFault;
+    case canopen::DriveControllerState::Failed:
+      why = "the drives' bring-up failed";
+      return Status::DeviceFault;
+  }
+  why = "?";
+  return Status::DeviceFault;
+}
+
+std::uint32_t drivesFaultCode(const canopen::Cia402DriveController& c) noexcept {
+  return c.traction().errorCode() != 0U ? c.traction().errorCode() : c.steering().errorCode();
+}
 
 std::unique_ptr<VehicleDrives> makeSocketCanDrives(const VehicleConfig& config) {
   return std::make_unique<SocketCanDrives>(config);
@@ -158,6 +159,7 @@ struct VehicleCalibrationRoutine::Impl {
       sc.routine.speed = config.calibrationSpeed;
       sc.routine.deceleration = config.drives.traction.acceleration;
       sc.routine.egomotion = config.calibrationEgomotion;
+      sc.routine.controlPeriod = Duration::fromMilliseconds(10);  // the drive controller's cycle
       sc.calibrationFile = config.calibrationFile;
       calibration::DriveHooks hooks;
       hooks.quickStop = [this] { drives->quickStop(); };

@@ -44,6 +44,13 @@ class VehicleDrives {
   virtual void cycle(Timestamp now) noexcept = 0;
 };
 
+/// The CiA 402 drive controller's state as the routine sees it: `Ok` enabled; `NotInitialized`
+/// idle or coming up; `Timeout` quick-stopped for a lost drive heartbeat; `DeviceFault` any other
+/// safe stop (drive fault, bus-off, PLC Stop, stale set-point) or a failed bring-up; `why` names it.
+Status drivesHealth(const drivers::canopen::Cia402DriveController& controller, const char*& why) noexcept;
+/// The error code (0x603F / EMCY) of the traction drive, else of the steering drive (0: none).
+std::uint32_t drivesFaultCode(const drivers::canopen::Cia402DriveController& controller) noexcept;
+
 /// The drives on SocketCAN (`drivers::SocketCanDriveControl`, the interface of `config`).
 std::unique_ptr<VehicleDrives> makeSocketCanDrives(const VehicleConfig& config);
 
@@ -68,7 +75,7 @@ class VehicleCalibrationRoutine {
   /// The pipeline whose pose starts the plan and which reloads the new calibration.
   void attach(nav::Pipeline& pipeline) noexcept;
 
-  /// Call after each pipeline cycle. Every `controlPeriod` (the routine's, 20 ms) it checks the
+  /// Call after each pipeline cycle. Every 10 ms (the drive controller's cycle) it checks the
   /// drives (a fault or heartbeat loss during a run aborts it), steps the run, and cycles the drives.
   /// True in the call where a new calibration was written and reloaded (`calibration()`).
   bool step(Timestamp now);

@@ -21,6 +21,7 @@
 #include "agv/sim/sim_clock.hpp"
 #include "agv/sim/world.hpp"
 #include "agv_test.hpp"
+#include "sim_drives.hpp"
 #include "vehicle_calibration.hpp"
 
 using agv::Duration;
@@ -118,11 +119,60 @@ class SimDrives final : public agv::vehicle::VehicleDrives, public hal::DriveCon
   Status health_ = Status::Ok;
 };
 
+/// The drives as on the vehicle: the CiA 402 drive controller and the two simulated CiA 402 nodes
+/// of agvnav-sim-drives exchanging frames in-process; the nodes' actual velocity and position drive
+/// the simulated tricycle (its encoders and laser are the vehicle's).
+class Cia402Drives final : public agv::vehicle::VehicleDrives {
+ public:
+  explicit Cia402Drives(hal::DriveControl& physics)
+      : physics_(physics), nodes_(agv::simdrives::SimDrivesOptions{}, nullptr), ctl_(config_) {}
+  hal::DriveControl& control() noexcept override { return ctl_; }
+  void bringUp(Timestamp now) noexcept override {
+    if (ctl_.state() != agv::drivers::canopen::DriveControllerState::Enabled) {
+      static_cast<void>(ctl_.start(now));
+    }
+    ++bringUps;
+  }
+  Status health(const char*& why) const noexcept override { return agv::vehicle::drivesHealth(ctl_, why); }
+  void quickStop() noexcept override {
+    ++quickStops;
+    ctl_.quickStop(agv::drivers::canopen::SafeStopReason::PlcStop);
+  }
+  std::uint32_t faultCode() const noexcept override { return agv::vehicle::drivesFaultCode(ctl_); }
+  void cycle(Timestamp now) noexcept override {
+    agv::drivers::CanFrame buf[agv::simdrives::SimDrives::kMaxFrames];
+    const std::size_t n = nodes_.step(now, agv::Span<agv::drivers::CanFrame>(buf));
+    for (std::size_t k = 0; k < n; ++k) {
+      ctl_.onFrame(buf[k]);
+    }
+    ctl_.poll(now);
+    const std::size_t m = ctl_.takeFrames(agv::Span<agv::drivers::CanFrame>(buf));
+    for (std::size_t k = 0; k < m; ++k) {
+      nodes_.receive(buf[k], now);
+    }
+    // The motors move the vehicle: traction velocity [velocity units] and steering position.
+    const double speed = nodes_.traction().velocity() / config_.traction.velocityUnitsPerMps;
+    const double steer = (nodes_.steering().position() - config_.steering.zeroCount) / config_.steering.countsPerRadian;
+    static_cast<void>(physics_.command(hal::DriveCommand{now, speed, steer}));
+  }
+  agv::simdrives::SimDrives& nodes() noexcept { return nodes_; }
+  const agv::drivers::canopen::Cia402DriveController& controller() const noexcept { return ctl_; }
+  int bringUps = 0;
+  int quickStops = 0;
+
+ private:
+  hal::DriveControl& physics_;
+  agv::drivers::canopen::Cia402DriveConfig config_{};
+  agv::simdrives::SimDrives nodes_;
+  agv::drivers::canopen::Cia402DriveController ctl_;
+};
+
 const Pose2d kStart{10.0, 12.5, 0.0};
 const char* kOld = "the calibration file before the routine\n";
 
 struct VehicleBench {
-  explicit VehicleBench(const std::string& file, cal::FreeArea area = cal::FreeArea{2.5, 0.5, 24.0, 23.0}) {
+  explicit VehicleBench(const std::string& file, cal::FreeArea area = cal::FreeArea{2.5, 0.5, 24.0, 23.0},
+                        bool cia402 = false) {
     {
       std::ofstream f(file, std::ios::trunc);
       f << kOld;
@@ -133,6 +183,9 @@ struct VehicleBench {
     sim = std::make_unique<cal::SimCalibrationVehicle>(*caster, truth, laserParams, 1, kStart, &can);
     REQUIRE(sim->status() == Status::Ok);
     drives = std::make_unique<SimDrives>(sim->drive());
+    if (cia402) {
+      cia = std::make_unique<Cia402Drives>(sim->drive());
+    }
     map = std::make_unique<agv::LandmarkMap>();
     std::uint32_t id = 1;
     for (const agv::sim::Circle& c : world.circles) {
@@ -150,7 +203,8 @@ struct VehicleBench {
     config.drives.traction.acceleration = truth.acceleration;
     config.calibrationFile = file;
     routine = std::make_unique<agv::vehicle::VehicleCalibrationRoutine>(
-        config, current, sim->encoders(), sim->laser(), plc, drives.get(),
+        config, current, sim->encoders(), sim->laser(), plc,
+        cia ? static_cast<agv::vehicle::VehicleDrives*>(cia.get()) : drives.get(),
         [this](const std::string& line) { log.push_back(line); });
     agv::nav::PipelineParams p;
     p.kinematics = current.params;
@@ -204,6 +258,7 @@ struct VehicleBench {
   agv::sim::SimCanEncodersParams can = agv::sim::defaultSimCanEncoders(1U << 14U);
   std::unique_ptr<cal::SimCalibrationVehicle> sim;
   std::unique_ptr<SimDrives> drives;
+  std::unique_ptr<Cia402Drives> cia;
   std::unique_ptr<agv::LandmarkMap> map;
   agv::VehicleCalibration current;
   agv::vehicle::VehicleConfig config;
@@ -358,5 +413,64 @@ TEST_CASE("vehicle.calibration: refused before the drives move", "[vehicle][cali
     CHECK(b.drives->bringUps == 0);
     CHECK(b.drives->commands == 0);
     CHECK(b.plc.last.health.calibration.lastRefusal == Status::NotInitialized);
+  }
+}
+
+TEST_CASE("vehicle.calibration: through the CiA 402 controller and simulated drive nodes", "[vehicle][calibrate]") {
+  SECTION("the whole routine") {
+    const std::string file = work("vehicle_cal_cia402.txt");
+    VehicleBench b(file, cal::FreeArea{2.5, 0.5, 24.0, 23.0}, true);
+    b.localize();
+    b.plc.send(hal::PlcCommandKind::Calibrate);
+    // The drives come up first (SDO configuration, NMT start, power state machine).
+    REQUIRE(b.cycleUntil([&] { return b.routine->progress().state == cal::RoutineState::Settling; }, 500));
+    CHECK(b.cia->controller().state() == agv::drivers::canopen::DriveControllerState::Enabled);
+    REQUIRE(b.cycleUntil([&] { return !b.routine->running(); }));
+    INFO(b.routine->session()->lastMessage());
+    CHECK(b.routine->progress().state == cal::RoutineState::Done);
+    REQUIRE(b.wrote);
+    const std::string text = readFile(file);
+    agv::VehicleCalibration got;
+    REQUIRE(agv::parseCalibrationFile(agv::Span<const char>(text.data(), text.size()), got) == Status::Ok);
+    const agv::TricycleParams& t = b.truth.truth;
+    std::printf(
+        "vehicle routine through CiA 402: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, "
+        "ly %+.2f mm, ltheta %+.4f deg (refined - truth)\n",
+        1e6 * (got.params.driveScale / t.driveScale - 1.0),
+        agv::rad2deg(got.params.steerOffsetForward - t.steerOffsetForward),
+        agv::rad2deg(got.params.steerOffsetBackward - t.steerOffsetBackward),
+        1e3 * (got.laserPose.x - b.truth.laserMount.x), 1e3 * (got.laserPose.y - b.truth.laserMount.y),
+        agv::rad2deg(got.laserPose.theta - b.truth.laserMount.theta));
+    CHECK(std::fabs(got.params.driveScale / t.driveScale - 1.0) < 2000e-6);
+    CHECK(std::fabs(got.params.steerOffsetForward - t.steerOffsetForward) < agv::deg2rad(0.1));
+    CHECK(std::fabs(got.params.steerOffsetBackward - t.steerOffsetBackward) < agv::deg2rad(0.1));
+    CHECK(std::fabs(got.laserPose.x - b.truth.laserMount.x) < 0.008);
+    CHECK(std::fabs(got.laserPose.y - b.truth.laserMount.y) < 0.008);
+    CHECK(std::fabs(got.laserPose.theta - b.truth.laserMount.theta) < agv::deg2rad(0.3));
+  }
+  SECTION("heartbeat loss of the traction node, and a traction fault") {
+    for (int k = 0; k < 2; ++k) {
+      const std::string file = work("vehicle_cal_cia402_fault.txt");
+      VehicleBench b(file, cal::FreeArea{2.5, 0.5, 24.0, 23.0}, true);
+      b.localize();
+      b.plc.send(hal::PlcCommandKind::Calibrate);
+      REQUIRE(b.cycleUntil([&] {
+        return b.routine->progress().segment == 2 && b.routine->progress().state == cal::RoutineState::Driving &&
+               !b.sim->drive().isStandstill();
+      }));
+      if (k == 0) {
+        b.cia->nodes().node(1).setSilent(true);
+      } else {
+        b.cia->nodes().node(1).injectFault(0x2310);
+      }
+      REQUIRE(b.cycleUntil([&] { return !b.routine->running(); }, 100));  // 150 ms heartbeat timeout, 1 s bound
+      CHECK(b.routine->progress().state == cal::RoutineState::Aborted);
+      CHECK(b.routine->progress().lastRefusal == (k == 0 ? Status::Timeout : Status::DeviceFault));
+      REQUIRE_FALSE(b.log.empty());
+      CHECK(b.log.back().find(k == 0 ? "heartbeat" : "0x2310") != std::string::npos);
+      CHECK(b.cia->quickStops >= 1);
+      REQUIRE(b.cycleUntil([&] { return b.sim->drive().isStandstill(); }, 1000));
+      CHECK(readFile(file) == kOld);
+    }
   }
 }
