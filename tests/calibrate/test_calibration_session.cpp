@@ -18,6 +18,7 @@
 #include "agv/sim/ray_caster.hpp"
 #include "agv/sim/world.hpp"
 #include "agv_test.hpp"
+#include "calibration_check.hpp"
 
 using agv::deg2rad;
 using agv::Duration;
@@ -30,18 +31,6 @@ namespace {
 
 std::string work(const char* name) {
   return std::string(AGV_TEST_WORK_DIR) + "/" + name;
-}
-
-std::string readFile(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-bool exists(const std::string& path) {
-  std::ifstream f(path);
-  return f.good();
 }
 
 void writeText(const std::string& path, const std::string& text) {
@@ -118,12 +107,12 @@ struct Bench {
     while (vehicle->laser().read(*scan) == Status::Ok) {
       session->onSweep(*scan);
     }
-    const bool wrote = session->step(vehicle->now());
+    const bool written = session->step(vehicle->now());
     states.insert(session->progress().state);
     if (session->progress().segment > maxSegment) {
       maxSegment = session->progress().segment;
     }
-    return wrote;
+    return written;
   }
 
   /// Cycles until `done` or `limit` cycles; true when `done` held.
@@ -175,26 +164,9 @@ TEST_CASE("calibrate.session: the whole routine writes a calibration within the 
   // The old file is the backup; the new one parses and agrees with the simulator's truth within the
   // tolerance of calibrate.app (5 standard deviations of the Monte-Carlo figures scaled to 8
   // segments, docs/calibration.md: s_w 2000 ppm, offsets 0.1 deg, lx/ly 8 mm, ltheta 0.3 deg).
-  CHECK(readFile(file + ".bak") == kOldFile);
-  CHECK_FALSE(exists(file + ".tmp"));
-  const std::string text = readFile(file);
-  agv::VehicleCalibration got;
-  REQUIRE(agv::parseCalibrationFile(agv::Span<const char>(text.data(), text.size()), got) == Status::Ok);
-  const agv::TricycleParams& t = b.truth.truth;
-  std::printf(
-      "session routine: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, ly %+.2f mm, "
-      "ltheta %+.4f deg (refined - truth)\n",
-      1e6 * (got.params.driveScale / t.driveScale - 1.0),
-      agv::rad2deg(got.params.steerOffsetForward - t.steerOffsetForward),
-      agv::rad2deg(got.params.steerOffsetBackward - t.steerOffsetBackward),
-      1e3 * (got.laserPose.x - b.truth.laserMount.x), 1e3 * (got.laserPose.y - b.truth.laserMount.y),
-      agv::rad2deg(got.laserPose.theta - b.truth.laserMount.theta));
-  CHECK(std::fabs(got.params.driveScale / t.driveScale - 1.0) < 2000e-6);
-  CHECK(std::fabs(got.params.steerOffsetForward - t.steerOffsetForward) < deg2rad(0.1));
-  CHECK(std::fabs(got.params.steerOffsetBackward - t.steerOffsetBackward) < deg2rad(0.1));
-  CHECK(std::fabs(got.laserPose.x - b.truth.laserMount.x) < 0.008);
-  CHECK(std::fabs(got.laserPose.y - b.truth.laserMount.y) < 0.008);
-  CHECK(std::fabs(got.laserPose.theta - b.truth.laserMount.theta) < deg2rad(0.3));
+  CHECK(agv::test::readFile(file + ".bak") == kOldFile);
+  CHECK_FALSE(agv::test::fileExists(file + ".tmp"));
+  const agv::VehicleCalibration got = agv::test::checkCalibrationFile(file, b.truth, "session routine");
   // The values the vehicle reloads are the ones written.
   CHECK(b.session->lastCalibration().params.driveScale == Approx(got.params.driveScale).epsilon(1e-6));
   // The vehicle is back near its start (each backward segment retraces its forward one).
@@ -226,9 +198,9 @@ TEST_CASE("calibrate.session: a PLC Stop mid-segment quick-stops in the same cyc
   }
   CHECK(b.drive->commands == commandsBefore);  // no set-point after the stop
   CHECK(b.drive->isStandstill());
-  CHECK(readFile(file) == kOldFile);
-  CHECK_FALSE(exists(file + ".bak"));
-  CHECK_FALSE(exists(file + ".tmp"));
+  CHECK(agv::test::readFile(file) == kOldFile);
+  CHECK_FALSE(agv::test::fileExists(file + ".bak"));
+  CHECK_FALSE(agv::test::fileExists(file + ".tmp"));
 }
 
 TEST_CASE("calibrate.session: a drive fault aborts with its code, file untouched", "[calibrate]") {
@@ -248,7 +220,7 @@ TEST_CASE("calibrate.session: a drive fault aborts with its code, file untouched
   CHECK(b.session->lastMessage().find("segment 2 of 8") != std::string::npos);
   REQUIRE_FALSE(b.log.empty());
   CHECK(b.log.back() == b.session->lastMessage());
-  CHECK(readFile(file) == kOldFile);
+  CHECK(agv::test::readFile(file) == kOldFile);
   CHECK_FALSE(b.wrote);
 }
 
@@ -268,7 +240,7 @@ TEST_CASE("calibrate.session: a heartbeat loss seen by the owner aborts the rout
     b.cycle();
   }
   CHECK(b.drive->commands == commands);
-  CHECK(readFile(file) == kOldFile);
+  CHECK(agv::test::readFile(file) == kOldFile);
 }
 
 TEST_CASE("calibrate.session: a plan that does not fit is refused before any motion", "[calibrate]") {
@@ -289,7 +261,7 @@ TEST_CASE("calibrate.session: a plan that does not fit is refused before any mot
   const Pose2d p = b.vehicle->vehicle().truePose();
   CHECK(p.x == kStart.x);
   CHECK(p.y == kStart.y);
-  CHECK(readFile(file) == kOldFile);
+  CHECK(agv::test::readFile(file) == kOldFile);
   // No pose known: refused as well.
   CHECK(b.session->requestCalibrate(Pose2d{NAN, 0.0, 0.0}, b.vehicle->now()) == Status::NotInitialized);
   CHECK(b.drive->commands == 0);
@@ -304,12 +276,12 @@ TEST_CASE("calibrate.session: the atomic write keeps the old file on a failure b
   const Status s = cal::writeFileAtomically(file, "B\n", error, [] { return Status::DeviceFault; });
   CHECK(s == Status::DeviceFault);
   CHECK_FALSE(error.empty());
-  CHECK(readFile(file) == "A\n");
-  CHECK_FALSE(exists(file + ".tmp"));
+  CHECK(agv::test::readFile(file) == "A\n");
+  CHECK_FALSE(agv::test::fileExists(file + ".tmp"));
   // A successful write: the new content, the old one as the backup.
   REQUIRE(cal::writeFileAtomically(file, "C\n", error) == Status::Ok);
-  CHECK(readFile(file) == "C\n");
-  CHECK(readFile(file + ".bak") == "A\n");
+  CHECK(agv::test::readFile(file) == "C\n");
+  CHECK(agv::test::readFile(file + ".bak") == "A\n");
   // The temporary cannot be created (a folder in its place): refused, file intact.
   const std::string blocked = work("atomic_blocked.txt");
   writeText(blocked, "D\n");
@@ -317,12 +289,12 @@ TEST_CASE("calibrate.session: the atomic write keeps the old file on a failure b
   REQUIRE(std::system(("mkdir -p '" + blocked + ".tmp'").c_str()) == 0);
   CHECK(cal::writeFileAtomically(blocked, "E\n", error) == Status::DeviceFault);
   CHECK(error.find(".tmp") != std::string::npos);
-  CHECK(readFile(blocked) == "D\n");
+  CHECK(agv::test::readFile(blocked) == "D\n");
   // A first file has no backup.
   const std::string fresh = work("atomic_fresh.txt");
   std::remove(fresh.c_str());
   std::remove((fresh + ".bak").c_str());
   REQUIRE(cal::writeFileAtomically(fresh, "F\n", error) == Status::Ok);
-  CHECK(readFile(fresh) == "F\n");
-  CHECK_FALSE(exists(fresh + ".bak"));
+  CHECK(agv::test::readFile(fresh) == "F\n");
+  CHECK_FALSE(agv::test::fileExists(fresh + ".bak"));
 }

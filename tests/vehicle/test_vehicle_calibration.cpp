@@ -21,6 +21,7 @@
 #include "agv/sim/sim_clock.hpp"
 #include "agv/sim/world.hpp"
 #include "agv_test.hpp"
+#include "calibration_check.hpp"
 #include "sim_drives.hpp"
 #include "vehicle_calibration.hpp"
 
@@ -35,13 +36,6 @@ namespace {
 
 std::string work(const char* name) {
   return std::string(AGV_TEST_WORK_DIR) + "/" + name;
-}
-
-std::string readFile(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
 }
 
 /// The PLC: commands queued by the test, every report kept.
@@ -301,25 +295,8 @@ TEST_CASE("vehicle.calibration: the PLC's Calibrate runs the routine, writes and
   CHECK(b.plc.last.health.calibration.lastRefusal == Status::Ok);
   CHECK(b.plc.last.health.mode != hal::NavMode::Calibrating);
   // The file: parsed back, within the calibrate.app tolerance of the truth; the old one as .bak.
-  CHECK(readFile(file + ".bak") == kOld);
-  const std::string text = readFile(file);
-  agv::VehicleCalibration got;
-  REQUIRE(agv::parseCalibrationFile(agv::Span<const char>(text.data(), text.size()), got) == Status::Ok);
-  const agv::TricycleParams& t = b.truth.truth;
-  std::printf(
-      "vehicle routine: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, ly %+.2f mm, "
-      "ltheta %+.4f deg (refined - truth)\n",
-      1e6 * (got.params.driveScale / t.driveScale - 1.0),
-      agv::rad2deg(got.params.steerOffsetForward - t.steerOffsetForward),
-      agv::rad2deg(got.params.steerOffsetBackward - t.steerOffsetBackward),
-      1e3 * (got.laserPose.x - b.truth.laserMount.x), 1e3 * (got.laserPose.y - b.truth.laserMount.y),
-      agv::rad2deg(got.laserPose.theta - b.truth.laserMount.theta));
-  CHECK(std::fabs(got.params.driveScale / t.driveScale - 1.0) < 2000e-6);
-  CHECK(std::fabs(got.params.steerOffsetForward - t.steerOffsetForward) < agv::deg2rad(0.1));
-  CHECK(std::fabs(got.params.steerOffsetBackward - t.steerOffsetBackward) < agv::deg2rad(0.1));
-  CHECK(std::fabs(got.laserPose.x - b.truth.laserMount.x) < 0.008);
-  CHECK(std::fabs(got.laserPose.y - b.truth.laserMount.y) < 0.008);
-  CHECK(std::fabs(got.laserPose.theta - b.truth.laserMount.theta) < agv::deg2rad(0.3));
+  CHECK(agv::test::readFile(file + ".bak") == kOld);
+  const agv::VehicleCalibration got = agv::test::checkCalibrationFile(file, b.truth, "vehicle routine");
   // Reloaded: the vehicle's calibration is the file's, and the pipeline goes on localizing with it.
   CHECK(b.routine->calibration().params.driveScale == Approx(got.params.driveScale).epsilon(1e-6));
   CHECK(b.pipeline->localizing());
@@ -353,7 +330,7 @@ TEST_CASE("vehicle.calibration: a PLC Stop mid-segment quick-stops in the cycle 
   CHECK(b.plc.last.health.calibration.state == static_cast<std::uint8_t>(cal::RoutineState::Aborted));
   CHECK(b.plc.last.health.calibration.lastRefusal == Status::Ok);
   CHECK(b.plc.last.health.mode == hal::NavMode::Idle);  // the Stop reached the pipeline too
-  CHECK(readFile(file) == kOld);
+  CHECK(agv::test::readFile(file) == kOld);
 }
 
 TEST_CASE("vehicle.calibration: a drive fault and a heartbeat loss abort with the reason on the registers",
@@ -382,7 +359,7 @@ TEST_CASE("vehicle.calibration: a drive fault and a heartbeat loss abort with th
     CHECK(b.drives->quickStops >= 1);
     REQUIRE_FALSE(b.log.empty());
     CHECK(b.log.back().find(k.expect) != std::string::npos);
-    CHECK(readFile(file) == kOld);
+    CHECK(agv::test::readFile(file) == kOld);
   }
 }
 
@@ -402,7 +379,7 @@ TEST_CASE("vehicle.calibration: refused before the drives move", "[vehicle][cali
     CHECK(b.plc.last.health.mode == hal::NavMode::Localizing);
     REQUIRE_FALSE(b.log.empty());
     CHECK(b.log.back().find("leaves the free area") != std::string::npos);
-    CHECK(readFile(file) == kOld);
+    CHECK(agv::test::readFile(file) == kOld);
   }
   {
     VehicleBench b(file);  // not localizing: no start pose
@@ -429,24 +406,7 @@ TEST_CASE("vehicle.calibration: through the CiA 402 controller and simulated dri
     INFO(b.routine->session()->lastMessage());
     CHECK(b.routine->progress().state == cal::RoutineState::Done);
     REQUIRE(b.wrote);
-    const std::string text = readFile(file);
-    agv::VehicleCalibration got;
-    REQUIRE(agv::parseCalibrationFile(agv::Span<const char>(text.data(), text.size()), got) == Status::Ok);
-    const agv::TricycleParams& t = b.truth.truth;
-    std::printf(
-        "vehicle routine through CiA 402: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, "
-        "ly %+.2f mm, ltheta %+.4f deg (refined - truth)\n",
-        1e6 * (got.params.driveScale / t.driveScale - 1.0),
-        agv::rad2deg(got.params.steerOffsetForward - t.steerOffsetForward),
-        agv::rad2deg(got.params.steerOffsetBackward - t.steerOffsetBackward),
-        1e3 * (got.laserPose.x - b.truth.laserMount.x), 1e3 * (got.laserPose.y - b.truth.laserMount.y),
-        agv::rad2deg(got.laserPose.theta - b.truth.laserMount.theta));
-    CHECK(std::fabs(got.params.driveScale / t.driveScale - 1.0) < 2000e-6);
-    CHECK(std::fabs(got.params.steerOffsetForward - t.steerOffsetForward) < agv::deg2rad(0.1));
-    CHECK(std::fabs(got.params.steerOffsetBackward - t.steerOffsetBackward) < agv::deg2rad(0.1));
-    CHECK(std::fabs(got.laserPose.x - b.truth.laserMount.x) < 0.008);
-    CHECK(std::fabs(got.laserPose.y - b.truth.laserMount.y) < 0.008);
-    CHECK(std::fabs(got.laserPose.theta - b.truth.laserMount.theta) < agv::deg2rad(0.3));
+    static_cast<void>(agv::test::checkCalibrationFile(file, b.truth, "vehicle routine through CiA 402"));
   }
   SECTION("heartbeat loss of the traction node, and a traction fault") {
     for (int k = 0; k < 2; ++k) {
@@ -470,7 +430,7 @@ TEST_CASE("vehicle.calibration: through the CiA 402 controller and simulated dri
       CHECK(b.log.back().find(k == 0 ? "heartbeat" : "0x2310") != std::string::npos);
       CHECK(b.cia->quickStops >= 1);
       REQUIRE(b.cycleUntil([&] { return b.sim->drive().isStandstill(); }, 1000));
-      CHECK(readFile(file) == kOld);
+      CHECK(agv::test::readFile(file) == kOld);
     }
   }
 }
