@@ -175,7 +175,7 @@ double refinementVarianceFactor(const CalibrationOutcome& outcome) noexcept;
 VehicleCalibration calibrationToWrite(const CalibrationOutcome& outcome) noexcept;
 
 /// State of a `CalibrationRun`. The numeric values are published on the PLC (docs/plc-link.md,
-/// register 46) and stay stable.
+/// register 44) and stay stable.
 enum class RoutineState : std::uint8_t {
   Idle = 0,       ///< not started
   Settling = 1,   ///< at rest before the first observation, steering straight ahead, `settle` long
