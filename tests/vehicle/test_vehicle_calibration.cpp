@@ -115,11 +115,19 @@ class SimDrives final : public agv::vehicle::VehicleDrives, public hal::DriveCon
 
 /// The drives as on the vehicle: the CiA 402 drive controller and the two simulated CiA 402 nodes
 /// of agvnav-sim-drives exchanging frames in-process; the nodes' actual velocity and position drive
-/// the simulated tricycle (its encoders and laser are the vehicle's).
-class Cia402Drives final : public agv::vehicle::VehicleDrives {
+/// the simulated tricycle. With `wheel` (the simulated vehicle's own encoder measurements) the loop
+/// is closed through the traction drive: the node reports the wheel's counts as its position
+/// actual value, and the vehicle's encoder decoder reads them from its TPDO1 at {0x181, 2, 4}
+/// (statusword first), with the steering encoder (node 2) on the same frames' path.
+class Cia402Drives final : public agv::vehicle::VehicleDrives, public hal::EncoderSource {
  public:
-  explicit Cia402Drives(hal::DriveControl& physics)
-      : physics_(physics), nodes_(agv::simdrives::SimDrivesOptions{}, nullptr), ctl_(config_) {}
+  Cia402Drives(hal::DriveControl& physics, hal::EncoderSource* wheel, double trueDriveScale)
+      : physics_(physics),
+        wheel_(wheel),
+        trueDriveScale_(trueDriveScale),
+        nodes_(agv::simdrives::SimDrivesOptions{}, nullptr),
+        ctl_(config_),
+        decoder_(decoderConfig()) {}
   hal::DriveControl& control() noexcept override { return ctl_; }
   void bringUp(Timestamp now) noexcept override {
     if (ctl_.state() != agv::drivers::canopen::DriveControllerState::Enabled) {
@@ -134,39 +142,97 @@ class Cia402Drives final : public agv::vehicle::VehicleDrives {
   }
   std::uint32_t faultCode() const noexcept override { return agv::vehicle::drivesFaultCode(ctl_); }
   void cycle(Timestamp now) noexcept override {
-    agv::drivers::CanFrame buf[agv::simdrives::SimDrives::kMaxFrames];
-    const std::size_t n = nodes_.step(now, agv::Span<agv::drivers::CanFrame>(buf));
+    using agv::drivers::CanFrame;
+    if (wheel_ != nullptr) {  // the wheel's measured counts and steering angle
+      hal::EncoderSample m;
+      while (wheel_->read(m) == Status::Ok) {
+        wheelTicks_ = m.driveTicks;
+        wheelSteer_ = m.steeringAngle;
+      }
+      nodes_.node(1).setPositionFeedback(static_cast<std::int32_t>(wheelTicks_));
+    }
+    CanFrame buf[agv::simdrives::SimDrives::kMaxFrames];
+    const std::size_t n = nodes_.step(now, agv::Span<CanFrame>(buf));
     for (std::size_t k = 0; k < n; ++k) {
       ctl_.onFrame(buf[k]);
+      buf[k].stamp = now;
+      static_cast<void>(decoder_.onFrame(buf[k]));  // the encoder decoder on the same bus
+    }
+    if (wheel_ != nullptr) {  // the CiA 406 steering encoder, node 2: heartbeat and TPDO1
+      CanFrame hb;
+      hb.id = 0x702;
+      hb.dlc = 1;
+      hb.data[0] = 0x05;
+      hb.stamp = now;
+      static_cast<void>(decoder_.onFrame(hb));
+      CanFrame st;
+      st.id = 0x182;
+      st.dlc = 4;
+      const auto counts = static_cast<std::int32_t>(std::lround(wheelSteer_ / kSteerRadPerCount));
+      for (int b = 0; b < 4; ++b) {
+        st.data[b] = static_cast<std::uint8_t>((static_cast<std::uint32_t>(counts) >> (8 * b)) & 0xFFU);
+      }
+      st.stamp = now;
+      static_cast<void>(decoder_.onFrame(st));
     }
     ctl_.poll(now);
-    const std::size_t m = ctl_.takeFrames(agv::Span<agv::drivers::CanFrame>(buf));
+    const std::size_t m = ctl_.takeFrames(agv::Span<CanFrame>(buf));
     for (std::size_t k = 0; k < m; ++k) {
       nodes_.receive(buf[k], now);
     }
     // The motors move the vehicle: traction velocity [velocity units] and steering position.
-    const double speed = nodes_.traction().velocity() / config_.traction.velocityUnitsPerMps;
+    const double speed = wheel_ != nullptr ? nodes_.traction().velocity() * trueDriveScale_
+                                           : nodes_.traction().velocity() / config_.traction.velocityUnitsPerMps;
     const double steer = (nodes_.steering().position() - config_.steering.zeroCount) / config_.steering.countsPerRadian;
     static_cast<void>(physics_.command(hal::DriveCommand{now, speed, steer}));
   }
+  // hal::EncoderSource: the samples the vehicle's decoder made from the frames.
+  Status read(hal::EncoderSample& out) noexcept override {
+    if (!decoder_.takeSample(out)) {
+      return Status::NotFound;
+    }
+    ++samplesDecoded;
+    return Status::Ok;
+  }
+  Status health() const noexcept override { return decoder_.health(); }
+
   agv::simdrives::SimDrives& nodes() noexcept { return nodes_; }
   const agv::drivers::canopen::Cia402DriveController& controller() const noexcept { return ctl_; }
+  const agv::drivers::canopen::CanopenEncoders& decoder() const noexcept { return decoder_; }
   int bringUps = 0;
   int quickStops = 0;
+  std::uint64_t samplesDecoded = 0;  ///< samples the vehicle got from the decoder
 
  private:
+  static constexpr double kSteerRadPerCount = 2.0 * agv::kPi<double> / 16384.0;
+  static agv::drivers::canopen::CanopenEncodersConfig decoderConfig() {
+    agv::drivers::canopen::CanopenEncodersConfig c;
+    c.drive.nodeId = 1;
+    c.drive.pdo = agv::drivers::canopen::PdoMapping{0x181, 2, 4};  // statusword + position actual value
+    c.steering.nodeId = 2;
+    c.steering.radiansPerCount = kSteerRadPerCount;
+    c.trigger = agv::drivers::canopen::SampleTrigger::DriveUpdated;
+    return c;
+  }
   hal::DriveControl& physics_;
+  hal::EncoderSource* wheel_;
+  double trueDriveScale_;
   agv::drivers::canopen::Cia402DriveConfig config_{};
   agv::simdrives::SimDrives nodes_;
   agv::drivers::canopen::Cia402DriveController ctl_;
+  agv::drivers::canopen::CanopenEncoders decoder_;
+  std::int64_t wheelTicks_ = 0;
+  double wheelSteer_ = 0.0;
 };
 
 const Pose2d kStart{10.0, 12.5, 0.0};
 const char* kOld = "the calibration file before the routine\n";
 
 struct VehicleBench {
+  /// `cia402`: the drives through the CiA 402 controller and simulated nodes; `closed`: and the
+  /// vehicle's encoders from the traction drive's TPDO1 (see `Cia402Drives`).
   explicit VehicleBench(const std::string& file, cal::FreeArea area = cal::FreeArea{2.5, 0.5, 24.0, 23.0},
-                        bool cia402 = false) {
+                        bool cia402 = false, bool closed = false) {
     {
       std::ofstream f(file, std::ios::trunc);
       f << kOld;
@@ -174,11 +240,11 @@ struct VehicleBench {
     agv::sim::WorldParseError perr;
     REQUIRE(agv::sim::parseWorld(agv::sim::defaultWorldText(), world, perr) == Status::Ok);
     caster = std::make_unique<agv::sim::RayCaster>(world, 1.0);
-    sim = std::make_unique<cal::SimCalibrationVehicle>(*caster, truth, laserParams, 1, kStart, &can);
+    sim = std::make_unique<cal::SimCalibrationVehicle>(*caster, truth, laserParams, 1, kStart, closed ? nullptr : &can);
     REQUIRE(sim->status() == Status::Ok);
     drives = std::make_unique<SimDrives>(sim->drive());
     if (cia402) {
-      cia = std::make_unique<Cia402Drives>(sim->drive());
+      cia = std::make_unique<Cia402Drives>(sim->drive(), closed ? &sim->encoders() : nullptr, truth.truth.driveScale);
     }
     map = std::make_unique<agv::LandmarkMap>();
     std::uint32_t id = 1;
@@ -197,7 +263,7 @@ struct VehicleBench {
     config.drives.traction.acceleration = truth.acceleration;
     config.calibrationFile = file;
     routine = std::make_unique<agv::vehicle::VehicleCalibrationRoutine>(
-        config, current, sim->encoders(), sim->laser(), plc,
+        config, current, closed ? static_cast<hal::EncoderSource&>(*cia) : sim->encoders(), sim->laser(), plc,
         cia ? static_cast<agv::vehicle::VehicleDrives*>(cia.get()) : drives.get(),
         [this](const std::string& line) { log.push_back(line); });
     agv::nav::PipelineParams p;
@@ -449,4 +515,22 @@ TEST_CASE("vehicle.calibration: through the CiA 402 controller and simulated dri
       CHECK(agv::test::readFile(file) == kOld);
     }
   }
+}
+
+TEST_CASE("vehicle.calibration: the loop closed through the traction drive's TPDO1 at {0x181, 2, 4}",
+          "[vehicle][calibrate]") {
+  const std::string file = work("vehicle_cal_closed.txt");
+  VehicleBench b(file, cal::FreeArea{2.5, 0.5, 24.0, 23.0}, true, true);
+  b.localize();
+  b.plc.send(hal::PlcCommandKind::Calibrate);
+  REQUIRE(b.cycleUntil([&] { return b.routine->progress().state == cal::RoutineState::Settling; }, 500));
+  REQUIRE(b.cycleUntil([&] { return !b.routine->running(); }));
+  INFO(b.routine->session()->lastMessage());
+  CHECK(b.routine->progress().state == cal::RoutineState::Done);
+  REQUIRE(b.wrote);
+  // The vehicle's only encoder input was the decoder of the traction node's TPDO1 (offset 2): a
+  // sample per TPDO (10 ms) over the run, no malformed frame.
+  CHECK(b.cia->samplesDecoded > 10000U);
+  CHECK(b.cia->decoder().malformedFrames() == 0U);
+  static_cast<void>(agv::test::checkCalibrationFile(file, b.truth, "vehicle routine, encoders from the drive's TPDO1"));
 }
