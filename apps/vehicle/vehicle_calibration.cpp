@@ -26,12 +26,19 @@ class SocketCanDrives final : public VehicleDrives {
       static_cast<void>(drives_.open(now));  // a failed open is retried by cycle()
     }
     const canopen::DriveControllerState s = drives_.controller().state();
+    startRefused_ = false;
     if (s != canopen::DriveControllerState::Enabled && s != canopen::DriveControllerState::BringingUp) {
-      static_cast<void>(drives_.start(now));
+      startRefused_ = drives_.start(now) != Status::Ok;  // NotInitialized: the bus is not open
     }
   }
 
-  Status health(const char*& why) const noexcept override { return drivesHealth(drives_.controller(), why); }
+  Status health(const char*& why) const noexcept override {
+    if (startRefused_ && drives_.controller().state() == canopen::DriveControllerState::Idle) {
+      why = "the drives' CAN interface cannot be opened";
+      return Status::DeviceFault;
+    }
+    return drivesHealth(drives_.controller(), why);
+  }
 
   void quickStop() noexcept override { drives_.quickStop(canopen::SafeStopReason::PlcStop); }
 
@@ -54,6 +61,7 @@ class SocketCanDrives final : public VehicleDrives {
   std::string name_;
   drivers::SocketCanDriveControl drives_;
   bool opened_ = false;
+  bool startRefused_ = false;  // the last bring-up could not start (no bus)
 };
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
