@@ -25,6 +25,7 @@
 #include "agv/sim/world.hpp"
 #include "agv_test.hpp"
 #include "sim_drives.hpp"
+#include "simulated_drive_side.hpp"
 #include "vcan_peer.hpp"
 #include "vehicle_calibration.hpp"
 
@@ -96,7 +97,6 @@ TEST_CASE("calibration routine on vcan: CiA 402 drives, encoders from the tracti
   busConfig.receiveErrorFrames = false;
   REQUIRE(nodesBus.open(busConfig) == Status::Ok);
   agv::simdrives::SimDrives nodes(agv::simdrives::SimDrivesOptions{}, nullptr);
-  const double steerRadPerCount = 2.0 * agv::kPi<double> / 16384.0;
 
   // The vehicle's side: configuration as agvnav-vehicle would parse it.
   agv::vehicle::VehicleConfig config;
@@ -118,7 +118,7 @@ TEST_CASE("calibration routine on vcan: CiA 402 drives, encoders from the tracti
   enc.canopen.drive.nodeId = 1;
   enc.canopen.drive.pdo = agv::drivers::canopen::PdoMapping{0x181, 2, 4};  // statusword + position
   enc.canopen.steering.nodeId = 2;
-  enc.canopen.steering.radiansPerCount = steerRadPerCount;
+  enc.canopen.steering.radiansPerCount = agv::test::kSteerEncoderRadPerCount;
   enc.canopen.trigger = agv::drivers::canopen::SampleTrigger::DriveUpdated;
   enc.canopen.heartbeatTimeout = Duration::fromMilliseconds(500);
   agv::drivers::CanopenEncoderSource encoders(enc);
@@ -183,23 +183,13 @@ TEST_CASE("calibration routine on vcan: CiA 402 drives, encoders from the tracti
     for (std::size_t k = 0; k < n; ++k) {
       static_cast<void>(nodesBus.send(out[k]));
     }
-    CanFrame hb;
-    hb.id = 0x702;
-    hb.dlc = 1;
-    hb.data[0] = 0x05;
-    static_cast<void>(nodesBus.send(hb));
-    CanFrame st;
-    st.id = 0x182;
-    st.dlc = 4;
-    const auto counts = static_cast<std::int32_t>(std::lround(wheelSteer / steerRadPerCount));
-    for (int b = 0; b < 4; ++b) {
-      st.data[b] = static_cast<std::uint8_t>((static_cast<std::uint32_t>(counts) >> (8 * b)) & 0xFFU);
+    CanFrame encoderFrames[2];
+    agv::test::steeringEncoderFrames(wheelSteer, now, encoderFrames);
+    for (const CanFrame& e : encoderFrames) {
+      static_cast<void>(nodesBus.send(e));
     }
-    static_cast<void>(nodesBus.send(st));
-    const agv::drivers::canopen::Cia402DriveConfig d = config.drives;
-    const double speed = nodes.traction().velocity() * truth.truth.driveScale;
-    const double steer = (nodes.steering().position() - d.steering.zeroCount) / d.steering.countsPerRadian;
-    static_cast<void>(sim.drive().command(hal::DriveCommand{now, speed, steer}));
+    static_cast<void>(sim.drive().command(
+        agv::test::motorsToVehicle(nodes.traction(), nodes.steering(), config.drives, truth.truth.driveScale, now)));
   };
   const auto cycle = [&]() {
     const Timestamp now = monotonicNow();

@@ -23,6 +23,7 @@
 #include "agv_test.hpp"
 #include "calibration_check.hpp"
 #include "sim_drives.hpp"
+#include "simulated_drive_side.hpp"
 #include "vehicle_calibration.hpp"
 
 using agv::Duration;
@@ -159,32 +160,22 @@ class Cia402Drives final : public agv::vehicle::VehicleDrives, public hal::Encod
       static_cast<void>(decoder_.onFrame(buf[k]));  // the encoder decoder on the same bus
     }
     if (wheel_ != nullptr) {  // the CiA 406 steering encoder, node 2: heartbeat and TPDO1
-      CanFrame hb;
-      hb.id = 0x702;
-      hb.dlc = 1;
-      hb.data[0] = 0x05;
-      hb.stamp = now;
-      static_cast<void>(decoder_.onFrame(hb));
-      CanFrame st;
-      st.id = 0x182;
-      st.dlc = 4;
-      const auto counts = static_cast<std::int32_t>(std::lround(wheelSteer_ / kSteerRadPerCount));
-      for (int b = 0; b < 4; ++b) {
-        st.data[b] = static_cast<std::uint8_t>((static_cast<std::uint32_t>(counts) >> (8 * b)) & 0xFFU);
+      CanFrame enc[2];
+      agv::test::steeringEncoderFrames(wheelSteer_, now, enc);
+      for (const CanFrame& f : enc) {
+        static_cast<void>(decoder_.onFrame(f));
       }
-      st.stamp = now;
-      static_cast<void>(decoder_.onFrame(st));
     }
     ctl_.poll(now);
     const std::size_t m = ctl_.takeFrames(agv::Span<CanFrame>(buf));
     for (std::size_t k = 0; k < m; ++k) {
       nodes_.receive(buf[k], now);
     }
-    // The motors move the vehicle: traction velocity [velocity units] and steering position.
-    const double speed = wheel_ != nullptr ? nodes_.traction().velocity() * trueDriveScale_
-                                           : nodes_.traction().velocity() / config_.traction.velocityUnitsPerMps;
-    const double steer = (nodes_.steering().position() - config_.steering.zeroCount) / config_.steering.countsPerRadian;
-    static_cast<void>(physics_.command(hal::DriveCommand{now, speed, steer}));
+    // The motors move the vehicle. Without the wheel's feedback the traction node's own position is
+    // the wheel: its counts are metres at the configured scale.
+    const double scale = wheel_ != nullptr ? trueDriveScale_ : 1.0 / config_.traction.velocityUnitsPerMps;
+    static_cast<void>(
+        physics_.command(agv::test::motorsToVehicle(nodes_.traction(), nodes_.steering(), config_, scale, now)));
   }
   // hal::EncoderSource: the samples the vehicle's decoder made from the frames.
   Status read(hal::EncoderSample& out) noexcept override {
@@ -204,13 +195,12 @@ class Cia402Drives final : public agv::vehicle::VehicleDrives, public hal::Encod
   std::uint64_t samplesDecoded = 0;  ///< samples the vehicle got from the decoder
 
  private:
-  static constexpr double kSteerRadPerCount = 2.0 * agv::kPi<double> / 16384.0;
   static agv::drivers::canopen::CanopenEncodersConfig decoderConfig() {
     agv::drivers::canopen::CanopenEncodersConfig c;
     c.drive.nodeId = 1;
     c.drive.pdo = agv::drivers::canopen::PdoMapping{0x181, 2, 4};  // statusword + position actual value
     c.steering.nodeId = 2;
-    c.steering.radiansPerCount = kSteerRadPerCount;
+    c.steering.radiansPerCount = agv::test::kSteerEncoderRadPerCount;
     c.trigger = agv::drivers::canopen::SampleTrigger::DriveUpdated;
     return c;
   }
