@@ -172,12 +172,7 @@ TEST_CASE("calibration routine on vcan: CiA 402 drives, encoders from the tracti
       return;
     }
     nextNodes = now + Duration::fromMilliseconds(10);
-    hal::EncoderSample m;
-    while (sim.encoders().read(m) == Status::Ok) {
-      wheelTicks = m.driveTicks;
-      wheelSteer = m.steeringAngle;
-    }
-    nodes.node(1).setPositionFeedback(static_cast<std::int32_t>(wheelTicks));
+    agv::test::feedWheel(sim.encoders(), nodes.node(1), wheelTicks, wheelSteer);
     CanFrame out[agv::simdrives::SimDrives::kMaxFrames];
     const std::size_t n = nodes.step(now, agv::Span<CanFrame>(out));
     for (std::size_t k = 0; k < n; ++k) {

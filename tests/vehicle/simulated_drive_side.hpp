@@ -9,6 +9,7 @@
 #include "agv/drivers/protocol/can_frame.hpp"
 #include "agv/drivers/protocol/canopen/cia402_drive.hpp"
 #include "agv/hal/drive_command.hpp"
+#include "agv/hal/encoder_source.hpp"
 #include "agv/sim/sim_cia402_node.hpp"
 
 namespace agv::test {
@@ -32,6 +33,17 @@ inline void steeringEncoderFrames(double angle, Timestamp now, drivers::CanFrame
     out[1].data[b] = static_cast<std::uint8_t>((static_cast<std::uint32_t>(counts) >> (8U * b)) & 0xFFU);
   }
   out[1].stamp = now;
+}
+
+/// Drains `wheel` (the simulated vehicle's own encoder measurements), keeping the newest counts in
+/// `ticks` and angle in `steer`, and gives the counts to `traction` as its position actual value.
+inline void feedWheel(hal::EncoderSource& wheel, sim::SimCia402Node& traction, std::int64_t& ticks, double& steer) {
+  hal::EncoderSample m;
+  while (wheel.read(m) == Status::Ok) {
+    ticks = m.driveTicks;
+    steer = m.steeringAngle;
+  }
+  traction.setPositionFeedback(static_cast<std::int32_t>(ticks));
 }
 
 /// What the motors do to the vehicle: the traction node's velocity [counts/s] times the wheel's

@@ -145,12 +145,7 @@ class Cia402Drives final : public agv::vehicle::VehicleDrives, public hal::Encod
   void cycle(Timestamp now) noexcept override {
     using agv::drivers::CanFrame;
     if (wheel_ != nullptr) {  // the wheel's measured counts and steering angle
-      hal::EncoderSample m;
-      while (wheel_->read(m) == Status::Ok) {
-        wheelTicks_ = m.driveTicks;
-        wheelSteer_ = m.steeringAngle;
-      }
-      nodes_.node(1).setPositionFeedback(static_cast<std::int32_t>(wheelTicks_));
+      agv::test::feedWheel(*wheel_, nodes_.node(1), wheelTicks_, wheelSteer_);
     }
     CanFrame buf[agv::simdrives::SimDrives::kMaxFrames];
     const std::size_t n = nodes_.step(now, agv::Span<CanFrame>(buf));
