@@ -2,12 +2,12 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
-#include <fstream>
 #include <string>
 #include <vector>
 
 #include "agv/calib/calibration_file.hpp"
 #include "agv/calibration/calibration_routine.hpp"
+#include "agv/calibration/calibration_session.hpp"
 #include "agv/calibration/sim_calibration_vehicle.hpp"
 #include "agv/core/angle.hpp"
 #include "agv/sim/ray_caster.hpp"
@@ -175,28 +175,6 @@ void printData(std::FILE* out, const CalibrateArgs& a, const CalibrationOutcome&
   printReport(out, "ATC", r.result.report);
 }
 
-/// A posteriori scale of the refinement's covariance: when the residuals are larger than its noise
-/// model says (cost per degree of freedom above 1: wheel slip, keypoint noise), the sigmas grow by
-/// sqrt(cost / dof); they never shrink below the model's.
-double varianceFactorOf(const CalibrationOutcome& r, double dof) {
-  return dof > 0.0 ? std::fmax(1.0, r.refined.finalCost / dof) : 1.0;
-}
-
-/// The values to write: the refined ones with their 1-sigma when the refinement succeeded, else
-/// the closed-form ATC values (no sigmas).
-VehicleCalibration chosenCalibration(const CalibrationOutcome& r, double varianceFactor) {
-  const bool refined = r.refinedStatus == Status::Ok;
-  VehicleCalibration cal;
-  cal.params = refined ? r.refined.params : r.result.params;
-  cal.laserPose = refined ? r.refined.laserPose : r.result.laserPose;
-  if (refined) {
-    const auto sd = [&](int i) { return std::sqrt(varianceFactor * r.refined.covariance(i, i)); };
-    cal.sigmas = CalibrationSigmas{sd(kParamDriveScale), sd(kParamOffsetForward), sd(kParamOffsetBackward),
-                                   sd(kParamLaserX),     sd(kParamLaserY),        sd(kParamLaserTheta)};
-  }
-  return cal;
-}
-
 /// The table nominal / STC / ATC / written value / 1-sigma / simulated truth / error.
 void printComparison(std::FILE* out, const CalibrateArgs& a, const CalibrationOutcome& r, const VehicleCalibration& cal,
                      const sim::SimVehicleParams& truth) {
@@ -226,19 +204,12 @@ void printComparison(std::FILE* out, const CalibrateArgs& a, const CalibrationOu
       cal.sigmas.laserTheta, truth.laserMount.theta, ff);
 }
 
-/// Writes `cal` as the calibration file `output`; the exit code (0, or 1/2 after saying why).
+/// Writes `cal` as the calibration file `output` (atomically, the old file kept as `.bak`); the
+/// exit code (0, or 2 after saying why).
 int writeCalibration(const VehicleCalibration& cal, const std::string& output, std::FILE* err) {
-  std::vector<char> text(4096);
-  const Result<std::size_t> n = formatCalibrationFile(cal, Span<char>(text.data(), text.size()));
-  if (!n.ok()) {
-    std::fprintf(err, "agvnav-calibrate: cannot format the calibration (%s)\n", toString(n.status()));
-    return 1;
-  }
-  std::ofstream file(output, std::ios::binary);
-  file.write(text.data(), static_cast<std::streamsize>(n.value()));
-  file.close();
-  if (!file) {
-    std::fprintf(err, "agvnav-calibrate: cannot write %s\n", output.c_str());
+  std::string error;
+  if (writeCalibrationFile(output, cal, error) != Status::Ok) {
+    std::fprintf(err, "agvnav-calibrate: %s\n", error.c_str());
     return 2;
   }
   return 0;
@@ -249,8 +220,8 @@ int reportAndWrite(std::FILE* out, std::FILE* err, const CalibrateArgs& a, const
                    const sim::SimVehicleParams& truth) {
   const bool refined = r.refinedStatus == Status::Ok;
   const double dof = 3.0 * r.segmentsUsed - static_cast<double>(kCalibParamCount);
-  const double varianceFactor = varianceFactorOf(r, dof);
-  const VehicleCalibration cal = chosenCalibration(r, varianceFactor);
+  const double varianceFactor = refinementVarianceFactor(r);
+  const VehicleCalibration cal = calibrationToWrite(r);
   std::fprintf(out, "refinement: %s (%d iterations, cost %.1f -> %.1f, %.0f degrees of freedom, sigma scale %.2f)\n",
                toString(r.refinedStatus), r.refined.iterations, r.refined.initialCost, r.refined.finalCost, dof,
                std::sqrt(varianceFactor));

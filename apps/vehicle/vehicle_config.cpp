@@ -182,6 +182,8 @@ struct ConfigDraft {
   long long driveSize = 4;
   long long steerOffset = 0;
   long long steerSize = 4;
+  bool driveOffsetGiven = false;
+  bool velocityUnitsGiven = false;
   std::string angleOffsetText;
 };
 
@@ -214,7 +216,10 @@ void addCanDriveKeys(Specs& specs, ConfigDraft& d) {
     co.drive.pdo.cobId = static_cast<std::uint16_t>(x);
     d.driveCob = true;
   });
-  specs["can.drive.pdo_offset"] = integer(false, 0, 7, [&d](long long x) { d.driveOffset = x; });
+  specs["can.drive.pdo_offset"] = integer(false, 0, 7, [&d](long long x) {
+    d.driveOffset = x;
+    d.driveOffsetGiven = true;
+  });
   specs["can.drive.pdo_size"] = integer(false, 1, 4, [&d](long long x) { d.driveSize = x; });
   specs["can.drive.direction"] = direction(co.drive.direction);
 }
@@ -338,6 +343,66 @@ void addLocalizationKeys(Specs& specs, VehicleConfig& c) {
               }};
 }
 
+/// drives.*: the CiA 402 drives the calibration routine commands.
+void addDrivesKeys(Specs& specs, ConfigDraft& d) {
+  VehicleConfig& c = d.c;
+  drivers::canopen::TractionAxisConfig& t = c.drives.traction;
+  drivers::canopen::SteeringAxisConfig& st = c.drives.steering;
+  specs["drives.enabled"] = choice(false, {"false", "true"}, [&c](std::size_t i) { c.drivesEnabled = i == 1; });
+  specs["drives.traction.node"] =
+      integer(false, 1, 127, [&t](long long x) { t.nodeId = static_cast<std::uint8_t>(x); });
+  specs["drives.traction.counts_per_metre"] = number(false, 1e-3, 1e9, "", [&t](double x) { t.countsPerMetre = x; });
+  specs["drives.traction.velocity_units_per_mps"] = number(false, 1e-3, 1e9, "", [&d, &t](double x) {
+    t.velocityUnitsPerMps = x;
+    d.velocityUnitsGiven = true;
+  });
+  specs["drives.traction.direction"] = direction(t.direction);
+  specs["drives.traction.max_speed"] = number(false, 0.01, 5.0, "m/s", [&t](double x) { t.maxSpeed = x; });
+  specs["drives.traction.acceleration"] = number(false, 0.01, 10.0, "m/s^2", [&t](double x) { t.acceleration = x; });
+  specs["drives.steering.node"] =
+      integer(false, 1, 127, [&st](long long x) { st.nodeId = static_cast<std::uint8_t>(x); });
+  specs["drives.steering.counts_per_radian"] =
+      number(false, 1e-3, 1e9, "", [&st](double x) { st.countsPerRadian = x; });
+  specs["drives.steering.zero_count"] =
+      integer(false, -2147483647LL, 2147483647LL, [&st](long long x) { st.zeroCount = static_cast<std::int32_t>(x); });
+  specs["drives.steering.direction"] = direction(st.direction);
+  specs["drives.steering.max_angle"] = number(false, 0.01, 1.5, "rad", [&st](double x) { st.maxAngle = x; });
+}
+
+/// calibration.*: the routine on the PLC's Calibrate (the file is calibration.file).
+void addCalibrationKeys(Specs& specs, VehicleConfig& c) {
+  calibration::PlanRequest& p = c.calibrationPlan;
+  specs["calibration.area"] = KeySpec{false, [&c, &p](const std::string& v, std::string& why) {
+                                        const std::vector<std::string> w = words(v);
+                                        double a[4] = {};
+                                        bool ok = w.size() == 4;
+                                        for (std::size_t i = 0; ok && i < 4; ++i) {
+                                          ok = parseDouble(w[i], a[i]) && std::fabs(a[i]) <= 1e6;
+                                        }
+                                        if (!ok || !(a[0] < a[2]) || !(a[1] < a[3])) {
+                                          why =
+                                              "expected 'xmin ymin xmax ymax' in m with xmin < xmax, ymin < ymax, "
+                                              "got '" +
+                                              v + "'";
+                                          return false;
+                                        }
+                                        p.area = calibration::FreeArea{a[0], a[1], a[2], a[3]};
+                                        c.calibrationAreaSet = true;
+                                        return true;
+                                      }};
+  specs["calibration.segments"] =
+      integer(false, 1, 16, [&p](long long x) { p.segmentsPerPhase = static_cast<int>(x); });
+  specs["calibration.min_steering"] = number(false, 0.05, 1.5, "rad", [&p](double x) { p.minSteering = x; });
+  specs["calibration.max_steering"] = number(false, 0.05, 1.5, "rad", [&p](double x) { p.maxSteering = x; });
+  specs["calibration.clearance"] = number(false, 0.0, 10.0, "m", [&p](double x) { p.clearance = x; });
+  specs["calibration.front"] = number(false, 0.0, 20.0, "m", [&p](double x) { p.frontOverhang = x; });
+  specs["calibration.speed"] = number(false, 0.05, 2.0, "m/s", [&c](double x) { c.calibrationSpeed = x; });
+  specs["calibration.egomotion"] = choice(false, {"reflectors", "keypoints"}, [&c](std::size_t i) {
+    c.calibrationEgomotion =
+        i == 0 ? calibration::EgomotionSource::Reflectors : calibration::EgomotionSource::Keypoints;
+  });
+}
+
 /// loop.*: the cycle and publication periods.
 void addLoopKeys(Specs& specs, VehicleConfig& c) {
   specs["loop.period"] = seconds(false, 0.0002, 0.1, c.cyclePeriod);
@@ -396,6 +461,35 @@ bool applyLines(const std::string& text, const std::string& path, const Specs& s
 
 /// Packs the CAN encoders' TPDO layouts (default COB-IDs from the node ids), then checks them across keys, reported at
 /// the later of the lines involved.
+/// The drives against the encoders on the same bus: the traction drive is the drive encoder's node,
+/// the steering drive is not the steering encoder's; the controller maps TPDO1 of the traction
+/// drive as statusword + position, so the drive encoder's position sits at byte 2 unless
+/// `can.drive.pdo_offset` says otherwise (docs/drives.md, "Sharing the bus").
+template <typename FailAt>
+bool settleDrives(ConfigDraft& d, const FailAt& failAt) {
+  VehicleConfig& c = d.c;
+  drivers::canopen::CanopenEncodersConfig& co = c.can.canopen;
+  if (!d.velocityUnitsGiven) {
+    c.drives.traction.velocityUnitsPerMps = c.drives.traction.countsPerMetre;
+  }
+  if (!c.drivesEnabled) {
+    return true;
+  }
+  if (c.drives.traction.nodeId != co.drive.nodeId) {
+    return failAt("drives.traction.node", "must be can.drive.node (the traction drive is the drive encoder)");
+  }
+  if (c.drives.steering.nodeId == co.steering.nodeId || c.drives.steering.nodeId == co.drive.nodeId) {
+    return failAt("drives.steering.node", "same node id as the steering encoder or the traction drive");
+  }
+  if (!d.driveOffsetGiven) {
+    co.drive.pdo.byteOffset = 2;  // TPDO1 = statusword (2 bytes) + position actual value (4 bytes)
+    if (co.drive.pdo.byteOffset + co.drive.pdo.size > 8) {
+      return failAt("can.drive.pdo_size", "pdo_offset (2 with the drives) + pdo_size exceeds 8 bytes");
+    }
+  }
+  return true;
+}
+
 bool settleCan(ConfigDraft& d, const LineOf& lineOf, const std::string& path, ConfigError& error) {
   drivers::canopen::CanopenEncodersConfig& co = d.c.can.canopen;
   co.drive.pdo.byteOffset = static_cast<std::uint8_t>(d.driveOffset);
@@ -427,7 +521,7 @@ bool settleCan(ConfigDraft& d, const LineOf& lineOf, const std::string& path, Co
   if (co.steering.countsPerRevolution != 0U && co.steering.zeroCount >= co.steering.countsPerRevolution) {
     return failAt("can.steering.zero_count", "must be below can.steering.counts_per_revolution");
   }
-  return true;
+  return settleDrives(d, failAt);
 }
 
 /// The laser's model defaults (port, range limits; an explicit angle offset survives) and the file paths resolved
@@ -467,6 +561,8 @@ bool parseVehicleConfig(const std::string& text, const std::string& path, Vehicl
   addFileKeys(specs, d.c);
   addLocalizationKeys(specs, d.c);
   addLoopKeys(specs, d.c);
+  addDrivesKeys(specs, d);
+  addCalibrationKeys(specs, d.c);
 
   LineOf lineOf;
   if (!applyLines(text, path, specs, lineOf, error) || !settleCan(d, lineOf, path, error)) {

@@ -9,10 +9,12 @@
 #include <cstdint>
 #include <string>
 
+#include "agv/calibration/calibration_routine.hpp"
 #include "agv/core/pose2.hpp"
 #include "agv/drivers/linux/canopen_encoder_source.hpp"
 #include "agv/drivers/linux/modbus_plc_link.hpp"
 #include "agv/drivers/linux/sick_laser_source.hpp"
+#include "agv/drivers/protocol/canopen/cia402_drive.hpp"
 #include "agv/localization/landmark_map.hpp"
 
 namespace agv::vehicle {
@@ -32,6 +34,17 @@ struct VehicleConfig {
   Pose2d initialPose{};                                     ///< localization.initial_pose
   Duration cyclePeriod = Duration::fromMilliseconds(2);     ///< loop.period
   Duration publishPeriod = Duration::fromMilliseconds(20);  ///< loop.publish_period
+  /// drives.*: the CiA 402 traction and steering drives on `canInterface` (docs/drives.md), which
+  /// the calibration routine commands. Without them the PLC's Calibrate is refused.
+  bool drivesEnabled = false;  ///< drives.enabled
+  drivers::canopen::Cia402DriveConfig drives;
+  /// calibration.*: the routine on the PLC's Calibrate (docs/vehicle.md, "Calibration on the
+  /// PLC's request"): the free area, the plan's shape, the speed; `start` is the pose at the
+  /// request. Without `calibration.area` the PLC's Calibrate is refused.
+  bool calibrationAreaSet = false;
+  calibration::PlanRequest calibrationPlan;
+  double calibrationSpeed = 0.5;  ///< calibration.speed [m/s]
+  calibration::EgomotionSource calibrationEgomotion = calibration::EgomotionSource::Reflectors;
 };
 
 /// Why a configuration was refused: `where` is "file:line" (or the file alone), `key` the key

@@ -9,6 +9,7 @@
 
 #include "agv/drivers/linux/modbus_plc_link.hpp"
 #include "agv/drivers/linux/monotonic_clock.hpp"
+#include "vehicle_calibration.hpp"
 
 namespace agv::vehicle {
 namespace {
@@ -43,13 +44,40 @@ struct VehicleRuntime::Impl {
         encoders(encoderSourceConfig(config)),
         laser(laserSourceConfig(config)),
         modbus(config.modbus),
-        navigation(config, std::move(f), nav::PipelineDevices{encoders, laser, modbus, clock}) {}
+        drives(config.drivesEnabled ? makeSocketCanDrives(config) : nullptr),
+        routine(config, f.calibration, encoders, laser, modbus, drives.get(),
+                [](const std::string& line) { std::fprintf(stderr, "agvnav-vehicle: %s\n", line.c_str()); }),
+        navigation(config, std::move(f),
+                   nav::PipelineDevices{routine.encoders(), routine.laser(), routine.plc(), clock}) {
+    routine.attach(navigation.pipeline());
+  }
+
+  /// The calibration registers from `cal`.
+  void publishCalibration(const VehicleCalibration& cal) {
+    drivers::plc::PlcCalibration pc;
+    pc.driveScale = cal.params.driveScale;
+    pc.steerOffsetForward = cal.params.steerOffsetForward;
+    pc.steerOffsetBackward = cal.params.steerOffsetBackward;
+    pc.laserMount = cal.laserPose;
+    pc.wheelbase = cal.params.wheelbase;
+    modbus.setCalibration(pc);
+  }
+
+  /// One pipeline cycle and the calibration routine's step after it.
+  void cycle() {
+    (void)navigation.pipeline().cycle();
+    if (routine.step(monotonicNow())) {
+      publishCalibration(routine.calibration());
+    }
+  }
 
   VehicleConfig config;
   drivers::CanopenEncoderSource encoders;
   drivers::SickLaserSource laser;
   drivers::ModbusPlcLink modbus;
   drivers::MonotonicClock clock;
+  std::unique_ptr<VehicleDrives> drives;  // drives.enabled only
+  VehicleCalibrationRoutine routine;      // between the pipeline and the devices
   VehicleNavigation navigation;
   VehicleRuntime::LoopStats stats;
 
@@ -75,14 +103,7 @@ struct VehicleRuntime::Impl {
 
 VehicleRuntime::VehicleRuntime(const VehicleConfig& config, VehicleFiles&& files)
     : impl_(std::make_unique<Impl>(config, std::move(files))) {
-  const VehicleCalibration& cal = impl_->navigation.calibration();
-  drivers::plc::PlcCalibration pc;
-  pc.driveScale = cal.params.driveScale;
-  pc.steerOffsetForward = cal.params.steerOffsetForward;
-  pc.steerOffsetBackward = cal.params.steerOffsetBackward;
-  pc.laserMount = cal.laserPose;
-  pc.wheelbase = cal.params.wheelbase;
-  impl_->modbus.setCalibration(pc);
+  impl_->publishCalibration(impl_->navigation.calibration());
 }
 
 VehicleRuntime::~VehicleRuntime() = default;
@@ -108,7 +129,7 @@ bool VehicleRuntime::open(std::string& error) {
 }
 
 void VehicleRuntime::cycle() {
-  (void)impl_->navigation.pipeline().cycle();
+  impl_->cycle();
 }
 
 const nav::PipelineCounters& VehicleRuntime::counters() const noexcept {
@@ -139,7 +160,7 @@ void VehicleRuntime::run(const volatile std::sig_atomic_t& stop) {
   bool wokeThisPeriod = false;
   while (stop == 0) {
     const Timestamp start = monotonicNow();
-    (void)m.navigation.pipeline().cycle();
+    m.cycle();
     // The PLC is answered every cycle, not only when a status is published (loop.publish_period).
     (void)m.modbus.service(monotonicNow());
     Timestamp now = monotonicNow();

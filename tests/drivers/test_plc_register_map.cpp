@@ -106,6 +106,11 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     s.calibration.steerOffsetBackward = -0.0045;
     s.calibration.laserMount = agv::Pose2d(0.8, -0.05, 0.02);
     s.calibration.wheelbase = 1.55;
+    s.routine.state = 8;  // aborted
+    s.routine.phase = 3;  // backward right
+    s.routine.segment = 17;
+    s.routine.total = 24;
+    s.routine.lastRefusal = Status::DeviceFault;
     std::vector<std::uint16_t> table(PlcRegisterMap::kRegisterCount, 0xAAAA);
     REQUIRE(map.encodeStatus(s, Span<std::uint16_t>(table.data(), table.size())) == Status::Ok);
     CHECK(table[0] == 4242);
@@ -133,7 +138,12 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     CHECK(table[41] == 3);
     CHECK(table[42] == 2);
     CHECK(table[43] == 11);
-    CHECK(table[44] == 0xAAAA);  // nothing written past the block
+    CHECK(table[44] == 8);
+    CHECK(table[45] == 3);
+    CHECK(table[46] == 17);
+    CHECK(table[47] == 24);
+    CHECK(table[48] == static_cast<std::uint16_t>(Status::DeviceFault));
+    CHECK(table[49] == 0xAAAA);  // nothing written past the block
   }
   PlcRegisterMap map;
   std::vector<std::uint16_t> shortTable(10);

@@ -377,6 +377,11 @@ TEST_CASE("PLC register map: word orders of 1.0f and a status block with known r
   s.visibleReflectors = 9;
   s.reflectorsFused = 6;
   s.cornersRejected = 11;
+  s.routine.state = 3;
+  s.routine.phase = 2;
+  s.routine.segment = 5;
+  s.routine.total = 24;
+  s.routine.lastRefusal = Status::OutOfRange;
   static std::uint16_t table[PlcRegisterMap::kRegisterCount];
   for (auto& v : table) {
     v = 0xAAAA;
@@ -393,6 +398,11 @@ TEST_CASE("PLC register map: word orders of 1.0f and a status block with known r
   CHECK(table[25] == 9U);
   CHECK(table[40] == 6U);
   CHECK(table[43] == 11U);
+  CHECK(table[44] == 3U);   // routine state: driving
+  CHECK(table[45] == 2U);   // phase: backward left
+  CHECK(table[46] == 5U);   // segment 5
+  CHECK(table[47] == 24U);  // of 24
+  CHECK(table[48] == static_cast<std::uint16_t>(Status::OutOfRange));
   CHECK(table[PlcRegisterMap::kStatusCount] == 0xAAAAU);  // nothing past the status block
 
   // A Localize command block as a PLC writes it: code 1, sequence 7, x 12.5, y -3.25, theta 1.5, heartbeat 99.

@@ -217,7 +217,11 @@ n=0
 while :; do
   missing=""
   # 000#0111, 000#0112, 080#: NMT Start and SYNC from the CANopen encoder source test.
-  for f in 201#11223344 1ABCDE01#01 202#R 000#0111 000#0112 080#; do
+  # 000#8001, 000#0101, 77F#05, 201#06/07/0F...: the calibration routine's drive controller: the
+  # traction drive (node 1) to pre-operational and started, the controller's heartbeat, and the
+  # power state machine's shutdown, switch on and enable operation (controlword + target 0).
+  for f in 201#11223344 1ABCDE01#01 202#R 000#0111 000#0112 080# \
+           000#8001 000#0101 77F#05 201#060000000000 201#070000000000 201#0F0000000000; do
     grep -q " vcan0 $f\$" /tmp/candump.log || missing="$missing $f"
   done
   [ -z "$missing" ] && break

@@ -405,3 +405,51 @@ TEST_CASE("the calibration and map files are loaded, a bad one is refused by fil
     CHECK(e.message.find("cannot read") != std::string::npos);
   }
 }
+
+TEST_CASE("drives and calibration keys: the drive encoder moves to byte 2 of TPDO1 with the drives", "[vehicle]") {
+  const std::string good = agv::test::goodVehicleConfig();
+  VehicleConfig plain;
+  ConfigError e;
+  REQUIRE(parseVehicleConfig(good, "v.conf", plain, e));
+  CHECK_FALSE(plain.drivesEnabled);
+  CHECK_FALSE(plain.calibrationAreaSet);
+  CHECK(plain.can.canopen.drive.pdo.byteOffset == 0);  // a drive mapping the position alone
+  std::string text = withValue(good, "drives.enabled", "true");
+  text = withValue(text, "drives.traction.counts_per_metre", "9915.7");
+  text = withValue(text, "drives.steering.counts_per_radian", "20000");
+  text = withValue(text, "drives.steering.zero_count", "-1200");
+  text = withValue(text, "calibration.area", "2.5 0.5 24 23");
+  text = withValue(text, "calibration.segments", "4");
+  text = withValue(text, "calibration.egomotion", "keypoints");
+  VehicleConfig c;
+  REQUIRE(parseVehicleConfig(text, "v.conf", c, e));
+  CHECK(c.drivesEnabled);
+  // The controller maps TPDO1 0x181 as statusword (2 bytes) + position: the decoder reads {0x181, 2, 4}.
+  CHECK(c.can.canopen.drive.pdo.cobId == 0x181);
+  CHECK(c.can.canopen.drive.pdo.byteOffset == 2);
+  CHECK(c.can.canopen.drive.pdo.size == 4);
+  CHECK(c.drives.traction.nodeId == 1);
+  CHECK(c.drives.steering.nodeId == 3);
+  CHECK(c.drives.traction.countsPerMetre == Approx(9915.7));
+  CHECK(c.drives.traction.velocityUnitsPerMps == Approx(9915.7));  // default: position units per second
+  CHECK(c.drives.steering.zeroCount == -1200);
+  CHECK(c.calibrationAreaSet);
+  CHECK(c.calibrationPlan.area.xMax == Approx(24.0));
+  CHECK(c.calibrationPlan.segmentsPerPhase == 4);
+  CHECK(c.calibrationEgomotion == agv::calibration::EgomotionSource::Keypoints);
+  // An explicit offset wins.
+  VehicleConfig explicitOffset;
+  REQUIRE(parseVehicleConfig(withValue(text, "can.drive.pdo_offset", "0"), "v.conf", explicitOffset, e));
+  CHECK(explicitOffset.can.canopen.drive.pdo.byteOffset == 0);
+  // The traction drive is the drive encoder's node; the steering drive is neither encoder.
+  std::size_t line = 0;
+  CHECK_FALSE(parseVehicleConfig(withValue(text, "drives.traction.node", "5", line), "v.conf", c, e));
+  CHECK(e.key == "drives.traction.node");
+  CHECK(e.where == "v.conf:" + std::to_string(line));
+  CHECK_FALSE(parseVehicleConfig(withValue(text, "drives.steering.node", "2"), "v.conf", c, e));
+  CHECK(e.key == "drives.steering.node");
+  CHECK_FALSE(parseVehicleConfig(withValue(text, "calibration.area", "5 5 4 9"), "v.conf", c, e));
+  CHECK(e.key == "calibration.area");
+  CHECK_FALSE(parseVehicleConfig(withValue(text, "calibration.segments", "17"), "v.conf", c, e));
+  CHECK(e.key == "calibration.segments");
+}

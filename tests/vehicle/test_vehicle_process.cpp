@@ -112,3 +112,46 @@ TEST_CASE("agvnav-vehicle refuses a bad configuration with exit 2, naming file, 
 
   CHECK(runVehicle({"--no-such-option"}, dir, log) == 2);
 }
+
+namespace {
+
+/// agvnav-vehicle with the drives enabled and the free area `area`: a libmodbus client localizes it
+/// at (3.25, -1.5, 0) and writes Calibrate, which must be refused (bit 8); `r` gets registers
+/// 44-48, `log` the program's log after SIGTERM (exit 0).
+void refusedCalibrate(const char* area, std::uint16_t (&r)[5], std::string& log) {
+  using agv::hal::PlcCommandKind;
+  agv::test::VehicleSetup setup;
+  setup.settings = {{"drives.enabled", "true"}, {"calibration.area", area}};
+  RunningVehicle v("", setup);
+  REQUIRE(v.ready());
+  REQUIRE(v.command(PlcCommandKind::Localize, 3.25F, -1.5F, 0.0F));
+  CHECK(v.waitFor([&]() { return modbus_get_float_abcd(v.regs + 4) == Approx(3.25F).margin(1e-6); }));
+  REQUIRE(v.command(PlcCommandKind::Calibrate));
+  CHECK(v.waitFor([&]() { return v.hasBit(PlcHealthBit::CommandRejected); }));
+  REQUIRE(modbus_read_registers(v.plc, 44, 5, r) == 5);
+  CHECK(v.regs[1] != 2U);  // not calibrating
+  CHECK(v.terminate() == 0);
+  log = v.log();
+}
+
+}  // namespace
+
+TEST_CASE("agvnav-vehicle with drives: a Calibrate it cannot run is refused with the reason on registers 44-48",
+          "[vehicle][modbus][laser]") {
+  std::uint16_t r[5] = {};
+  std::string log;
+  // A free area too small around the set-pose: refused before the drives are touched.
+  refusedCalibrate("0 -4 7 1", r, log);
+  INFO(log);
+  CHECK(r[0] == 0U);  // state idle: nothing started
+  CHECK(r[3] == 0U);  // no plan
+  CHECK(r[4] == static_cast<std::uint16_t>(agv::Status::OutOfRange));
+  CHECK(log.find("calibrate refused before any motion") != std::string::npos);
+  CHECK(log.find("leaves the free area") != std::string::npos);
+  CHECK(log.find("drives") == std::string::npos);  // the drives were not brought up
+  // The plan fits, but the drives' CAN interface does not exist: refused with DeviceFault.
+  refusedCalibrate("-100 -100 100 100", r, log);
+  CHECK(r[0] == 0U);
+  CHECK(r[4] == static_cast<std::uint16_t>(agv::Status::DeviceFault));
+  CHECK(log.find("the drives are not enabled (the drives' CAN interface cannot be opened)") != std::string::npos);
+}

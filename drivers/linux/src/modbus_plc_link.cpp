@@ -155,6 +155,7 @@ Status ModbusPlcLink::publish(const hal::PoseReport& report) noexcept {
   s.reflectorsRejected = report.health.reflectorsRejected;
   s.cornersFused = report.health.cornersFused;
   s.cornersRejected = report.health.cornersRejected;
+  s.routine = report.health.calibration;
   s.calibration = calibration_;
   const Status st = cycle(s, monotonicNow(), config_.publishBudget);
   return st == Status::Lost ? Status::Timeout : st;

@@ -55,6 +55,11 @@ Status PlcRegisterMap::encodeStatus(const PlcStatus& s, Span<std::uint16_t> tabl
   r[41] = s.reflectorsRejected;
   r[42] = s.cornersFused;
   r[43] = s.cornersRejected;
+  r[44] = s.routine.state;
+  r[45] = s.routine.phase;
+  r[46] = s.routine.segment;
+  r[47] = s.routine.total;
+  r[48] = static_cast<std::uint16_t>(s.routine.lastRefusal);
   return Status::Ok;
 }
 

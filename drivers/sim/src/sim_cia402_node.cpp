@@ -150,6 +150,9 @@ std::uint32_t SimCia402Node::read(std::uint16_t index, std::uint8_t sub) const n
     return statusword();
   }
   if (index == kPositionActual && sub == 0U) {
+    if (feedback_) {
+      return static_cast<std::uint32_t>(feedbackCounts_);
+    }
     return static_cast<std::uint32_t>(static_cast<std::int32_t>(std::lround(position_)));
   }
   if (index == kVelocityActual && sub == 0U) {

@@ -164,6 +164,15 @@ struct DriveRecord {
   BuiltSegment segment;
 };
 
+/// What the collection gathered: one drive record per segment driven, one observation per
+/// standstill (before the first segment and after each); `observed` of `observations` are filled
+/// (the rest is reserved storage).
+struct CollectedData {
+  std::vector<DriveRecord> drives;
+  std::vector<Observation> observations;
+  std::size_t observed = 0;
+};
+
 /// Keypoint detection state (the detector holds large buffers: one per routine, on the heap).
 struct KeypointTools {
   FalkoDetector detector;
@@ -171,175 +180,6 @@ struct KeypointTools {
   FalkoKeypoints keypoints;
   BscDescriptors bsc;
   CghDescriptors cgh;
-};
-
-/// The data collection of one run: drives the plan's segments on the vehicle, feeds the encoder samples to the
-/// segment builder (one drive record per segment) and observes with the laser at every standstill (one
-/// observation before the first segment and one after each).
-class DataCollection {
- public:
-  DataCollection(CalibrationVehicle& vehicle, const RoutineOptions& options)
-      : vehicle_(vehicle),
-        drive_(vehicle.drive()),
-        encoders_(vehicle.encoders()),
-        laser_(vehicle.laser()),
-        options_(options),
-        t0_(vehicle.now()) {
-    if (options.egomotion == EgomotionSource::Keypoints) {
-      tools_ = std::make_unique<KeypointTools>();
-    }
-  }
-
-  /// Drives `plan`, counting in `out`; false with `out.status` and `out.message` (the drive stopped) on a
-  /// fault. `out.seconds` is the duration either way.
-  bool run(const CalibrationPlan& plan, const std::function<void(const RoutineProgress&)>& progress,
-           CalibrationOutcome& out) {
-    if (!settle(lastSteer_)) {
-      return fail(out, Status::Timeout, "the vehicle did not come to standstill");
-    }
-    observe();
-    const int total = static_cast<int>(plan.segments.size());
-    for (const PlannedSegment& seg : plan.segments) {
-      if (!driveSegment(seg, out)) {
-        return false;
-      }
-      observe();
-      if (progress) {
-        RoutineProgress p;
-        p.segment = out.segmentsDriven;
-        p.total = total;
-        p.elapsed = (vehicle_.now() - t0_).seconds();
-        p.remaining = p.elapsed / p.segment * (total - p.segment);
-        progress(p);
-      }
-    }
-    out.seconds = (vehicle_.now() - t0_).seconds();
-    return true;
-  }
-
-  const std::vector<DriveRecord>& drives() const noexcept { return drives_; }
-  const std::vector<Observation>& observations() const noexcept { return observations_; }
-
- private:
-  static constexpr int kGuardSteps = 100000;  // bound on control periods per wait (2000 s at 20 ms)
-
-  /// Steers at rest, then drives until the nominal odometry says the rotation is reached (minus the braking
-  /// distance), stops and waits for standstill; false after `fail` on a fault.
-  bool driveSegment(const PlannedSegment& seg, CalibrationOutcome& out) {
-    if (drive_.command(hal::DriveCommand{vehicle_.now(), 0.0, seg.steering}) != Status::Ok) {
-      return fail(out, Status::InvalidArgument, "steering set-point refused by the drive");
-    }
-    if (!settle(seg.steering)) {
-      return fail(out, Status::Timeout, "the steering did not reach its set-point");
-    }
-    const std::int64_t startTicks = lastTicks_;
-    const double braking = options_.speed * options_.speed / (2.0 * options_.deceleration);
-    drives_.push_back(DriveRecord{});
-    ++out.segmentsDriven;
-    if (drive_.command(hal::DriveCommand{vehicle_.now(), seg.direction * options_.speed, seg.steering}) != Status::Ok) {
-      return fail(out, Status::InvalidArgument, "speed set-point refused by the drive");
-    }
-    bool reached = false;
-    for (int guard = 0; guard < kGuardSteps && !reached; ++guard) {
-      pump();
-      const double travelled = std::fabs(static_cast<double>(lastTicks_ - startTicks) * options_.nominal.driveScale);
-      reached = travelled >= seg.wheelTravel - braking;
-    }
-    static_cast<void>(drive_.stop());
-    if (!reached) {
-      return fail(out, Status::Timeout, "the segment's travel was not reached (drive or encoder fault)");
-    }
-    // The builder closes a segment after its standstill time; the settle time is longer.
-    if (!settle(seg.steering)) {
-      return fail(out, Status::Timeout, "the vehicle did not come to standstill");
-    }
-    return true;
-  }
-
-  /// Lets one control period pass and feeds the encoder samples to the builder.
-  void pump() {
-    vehicle_.wait(options_.controlPeriod);
-    hal::EncoderSample s;
-    while (encoders_.read(s) == Status::Ok) {
-      lastTicks_ = s.driveTicks;
-      lastSteer_ = s.steeringAngle;
-      SegmentEvent ev = SegmentEvent::None;
-      if (builder_.addSample(s.stamp, s.driveTicks, s.steeringAngle, &ev) != Status::Ok) {
-        continue;
-      }
-      if (ev == SegmentEvent::None || drives_.empty()) {
-        continue;
-      }
-      drives_.back().closed = ev == SegmentEvent::Closed;
-      drives_.back().segment = builder_.lastSegment();
-    }
-  }
-
-  /// Waits at rest for the settle time and until the steering encoder reads the set-point.
-  bool settle(double steerSet) {
-    const Timestamp until = vehicle_.now() + options_.settle;
-    for (int guard = 0; guard < kGuardSteps; ++guard) {
-      if (vehicle_.now() >= until && drive_.isStandstill() && std::fabs(lastSteer_ - steerSet) < deg2rad(0.1)) {
-        return true;
-      }
-      pump();
-    }
-    return false;
-  }
-
-  /// Takes the first sweep that starts after the vehicle settled (invalid when none comes).
-  void observe() {
-    static hal::LaserMeasurement scan;  // large: kept out of the stack
-    const Timestamp settled = vehicle_.now();
-    Observation obs;
-    bool got = false;
-    for (int guard = 0; guard < 500 && !got; ++guard) {
-      while (laser_.read(scan) == Status::Ok) {
-        got = got || scan.scan.stamp >= settled;
-        if (got) {
-          break;
-        }
-      }
-      if (!got) {
-        pump();
-      }
-    }
-    if (got) {
-      obs.valid = true;
-      for (const hal::ReflectorObservation& o : scan.reflectors) {
-        obs.reflectors.emplace_back(static_cast<double>(o.x), static_cast<double>(o.y));
-      }
-      KeypointTools* t = tools_.get();
-      if (t != nullptr && t->detector.detect(scan.scan, t->keypoints) == Status::Ok &&
-          t->describer.describe(t->detector.points(), t->keypoints, t->bsc, t->cgh) == Status::Ok) {
-        obs.keypoints.assign(t->keypoints.begin(), t->keypoints.end());
-        obs.bsc.assign(t->bsc.begin(), t->bsc.end());
-      }
-    }
-    observations_.push_back(std::move(obs));
-  }
-
-  /// Stops the drive and records the failure in `out`; always false.
-  bool fail(CalibrationOutcome& out, Status s, const char* message) {
-    static_cast<void>(drive_.stop());
-    out.status = s;
-    out.message = message;
-    out.seconds = (vehicle_.now() - t0_).seconds();
-    return false;
-  }
-
-  CalibrationVehicle& vehicle_;
-  hal::DriveControl& drive_;
-  hal::EncoderSource& encoders_;
-  hal::LaserSource& laser_;
-  const RoutineOptions& options_;
-  const Timestamp t0_;
-  CalibSegmentBuilder builder_;
-  std::vector<DriveRecord> drives_;
-  std::vector<Observation> observations_;  // one per standstill
-  std::int64_t lastTicks_ = 0;
-  double lastSteer_ = 0.0;
-  std::unique_ptr<KeypointTools> tools_;
 };
 
 /// Per drive: whether its egomotion was aligned, with the alignment's residual and match count; the aligned
@@ -384,11 +224,11 @@ Status alignPair(const Observation& a, const Observation& b, const Pose2d& guess
 
 /// Aligns every closed, not yet aligned segment with both observations valid, the guess predicted by `params`
 /// and `laserPose`; the segments whose alignment fails stay out.
-void alignAll(const DataCollection& data, const RoutineOptions& options, const TricycleParams& params,
+void alignAll(const CollectedData& data, const RoutineOptions& options, const TricycleParams& params,
               const Pose2d& laserPose, Alignments& al) {
-  const std::vector<DriveRecord>& drives = data.drives();
-  const std::vector<Observation>& observations = data.observations();
-  for (std::size_t i = 0; i < drives.size(); ++i) {
+  const std::vector<DriveRecord>& drives = data.drives;
+  const std::vector<Observation>& observations = data.observations;
+  for (std::size_t i = 0; i < drives.size() && i + 1 < data.observed; ++i) {
     const Observation& a = observations[i];
     const Observation& b = observations[i + 1];
     if (!drives[i].closed || al.aligned[i] != 0 || !a.valid || !b.valid) {
@@ -406,12 +246,12 @@ void alignAll(const DataCollection& data, const RoutineOptions& options, const T
 /// Egomotion of the segments, then the ATC and STC closed forms and the joint refinement. Two alignment passes:
 /// the nominal guess can be off by metres at far reflectors on the long low-steering arcs, so the segments that
 /// fail with it are aligned again from the first solve's estimate.
-void solve(const DataCollection& data, const RoutineOptions& options, Alignments& al, CalibrationOutcome& out) {
+void solve(const CollectedData& data, const RoutineOptions& options, Alignments& al, CalibrationOutcome& out) {
   CalibrationOptions calibOptions;
   calibOptions.nominal = options.nominal;
   alignAll(data, options, options.nominal, options.nominalLaser, al);
   out.status = calibrateAtc(al.span(), calibOptions, out.result);
-  if (out.status == Status::Ok && al.segments.size() < data.drives().size()) {
+  if (out.status == Status::Ok && al.segments.size() < data.drives.size()) {
     const std::size_t before = al.segments.size();
     alignAll(data, options, out.result.params, out.result.laserPose, al);
     if (al.segments.size() > before) {
@@ -451,18 +291,375 @@ void summarize(const Alignments& al, CalibrationOutcome& out) {
 
 }  // namespace
 
+double refinementVarianceFactor(const CalibrationOutcome& r) noexcept {
+  const double dof = 3.0 * r.segmentsUsed - static_cast<double>(kCalibParamCount);
+  return dof > 0.0 ? std::fmax(1.0, r.refined.finalCost / dof) : 1.0;
+}
+
+VehicleCalibration calibrationToWrite(const CalibrationOutcome& r) noexcept {
+  const bool refined = r.refinedStatus == Status::Ok;
+  VehicleCalibration cal;
+  cal.params = refined ? r.refined.params : r.result.params;
+  cal.laserPose = refined ? r.refined.laserPose : r.result.laserPose;
+  if (refined) {
+    const double factor = refinementVarianceFactor(r);
+    const auto sd = [&](int i) { return std::sqrt(factor * r.refined.covariance(i, i)); };
+    cal.sigmas = CalibrationSigmas{sd(kParamDriveScale), sd(kParamOffsetForward), sd(kParamOffsetBackward),
+                                   sd(kParamLaserX),     sd(kParamLaserY),        sd(kParamLaserTheta)};
+  }
+  return cal;
+}
+
+const char* routineStateName(RoutineState state) noexcept {
+  switch (state) {
+    case RoutineState::Idle:
+      return "idle";
+    case RoutineState::Settling:
+      return "settling";
+    case RoutineState::Steering:
+      return "steering";
+    case RoutineState::Driving:
+      return "driving";
+    case RoutineState::Stopping:
+      return "stopping";
+    case RoutineState::Observing:
+      return "observing";
+    case RoutineState::Solving:
+      return "solving";
+    case RoutineState::Done:
+      return "done";
+    case RoutineState::Aborted:
+      return "aborted";
+  }
+  return "?";
+}
+
+struct CalibrationRun::Impl {
+  Impl(hal::DriveControl& d, const RoutineOptions& o) : drive(d), options(o) {
+    if (options.egomotion == EgomotionSource::Keypoints) {
+      tools = std::make_unique<KeypointTools>();
+    }
+  }
+
+  bool running() const noexcept {
+    return state != RoutineState::Idle && state != RoutineState::Done && state != RoutineState::Aborted;
+  }
+
+  /// Sends the set-point of this state; false (after `fail`) when the drive refuses it.
+  bool send(Timestamp now, double speed, const char* what) {
+    const Status s = drive.command(hal::DriveCommand{now, speed, steerSet});
+    if (s == Status::Ok) {
+      return true;
+    }
+    const std::string message = format("%s set-point refused by the drive (%s) in %s, segment %d of %d", what,
+                                       toString(s), routineStateName(state), segment, total());
+    fail(s == Status::DeviceFault ? Status::DeviceFault : Status::InvalidArgument, message.c_str(), now);
+    return false;
+  }
+
+  /// Stops the drive and ends the run with `s` and `message`.
+  void fail(Status s, const char* message, Timestamp now) {
+    static_cast<void>(drive.stop());
+    out.status = s;
+    out.message = message;
+    out.seconds = (now - t0).seconds();
+    state = RoutineState::Aborted;
+  }
+
+  int total() const noexcept { return static_cast<int>(plan.segments.size()); }
+
+  /// At rest, steering on `steerSet`, at least the settle time after entering the state.
+  bool atRest(Timestamp now) const noexcept {
+    return now >= restUntil && drive.isStandstill() && haveSample && std::fabs(lastSteer - steerSet) < deg2rad(0.1);
+  }
+
+  void enter(RoutineState s, Timestamp now) noexcept {
+    state = s;
+    entered = now;
+    restUntil = now + options.settle;
+  }
+
+  bool waitedTooLong(Timestamp now, Duration limit) const noexcept { return now - entered > limit; }
+
+  /// After an observation: prepares the next segment, or the solve after the last.
+  void afterObservation(Timestamp now) {
+    ++data.observed;  // an observation without a sweep (observeLimit) stays invalid
+    observationTaken = false;
+    if (data.observed > 1) {
+      ++completed;  // the first observation precedes the first segment
+    }
+    if (completed >= total()) {
+      out.seconds = (now - t0).seconds();
+      enter(RoutineState::Solving, now);
+      return;
+    }
+    segment = completed + 1;
+    steerSet = plan.segments[static_cast<std::size_t>(completed)].steering;
+    enter(RoutineState::Steering, now);
+    static_cast<void>(send(now, 0.0, "steering"));
+  }
+
+  void stepCollecting(Timestamp now) {
+    const PlannedSegment& seg = plan.segments[static_cast<std::size_t>(segment > 0 ? segment - 1 : 0)];
+    switch (state) {
+      case RoutineState::Settling:
+      case RoutineState::Stopping:
+        if (!send(now, 0.0, "standstill")) {
+          return;
+        }
+        if (atRest(now)) {
+          settledAt = now;
+          enter(RoutineState::Observing, now);
+        } else if (waitedTooLong(now, options.waitLimit)) {
+          fail(Status::Timeout, "the vehicle did not come to standstill", now);
+        }
+        return;
+      case RoutineState::Steering:
+        if (!send(now, 0.0, "steering")) {
+          return;
+        }
+        if (atRest(now)) {
+          startTicks = lastTicks;
+          data.drives.push_back(DriveRecord{});
+          ++out.segmentsDriven;
+          enter(RoutineState::Driving, now);
+          static_cast<void>(send(now, seg.direction * options.speed, "speed"));
+        } else if (waitedTooLong(now, options.waitLimit)) {
+          fail(Status::Timeout, "the steering did not reach its set-point", now);
+        }
+        return;
+      case RoutineState::Driving: {
+        const double braking = options.speed * options.speed / (2.0 * options.deceleration);
+        const double travelled = std::fabs(static_cast<double>(lastTicks - startTicks) * options.nominal.driveScale);
+        if (travelled >= seg.wheelTravel - braking) {
+          enter(RoutineState::Stopping, now);
+          static_cast<void>(send(now, 0.0, "standstill"));
+        } else if (waitedTooLong(now, options.waitLimit)) {
+          fail(Status::Timeout, "the segment's travel was not reached (drive or encoder fault)", now);
+        } else {
+          static_cast<void>(send(now, seg.direction * options.speed, "speed"));
+        }
+        return;
+      }
+      case RoutineState::Observing:
+        if (!send(now, 0.0, "standstill")) {
+          return;
+        }
+        if (observationTaken || waitedTooLong(now, options.observeLimit)) {
+          afterObservation(now);
+        }
+        return;
+      default:
+        return;
+    }
+  }
+
+  void solveNow() {
+    Alignments al(data.drives.size());
+    solve(data, options, al, out);
+    summarize(al, out);
+    state = RoutineState::Done;
+  }
+
+  hal::DriveControl& drive;
+  RoutineOptions options;
+  CalibrationPlan plan;
+  RoutineState state = RoutineState::Idle;
+  int segment = 0;    // 1-based, 0 before the first
+  int completed = 0;  // segments driven and observed
+  double steerSet = 0.0;
+  Timestamp t0{};
+  Timestamp entered{};
+  Timestamp restUntil{};
+  Timestamp settledAt{};
+  bool observationTaken = false;
+  std::int64_t startTicks = 0;
+  std::int64_t lastTicks = 0;
+  double lastSteer = 0.0;
+  bool haveSample = false;
+  CalibSegmentBuilder builder;
+  CollectedData data;
+  std::unique_ptr<KeypointTools> tools;
+  CalibrationOutcome out;
+};
+
+CalibrationRun::CalibrationRun(hal::DriveControl& drive, const RoutineOptions& options)
+    : impl_(std::make_unique<Impl>(drive, options)) {}
+
+CalibrationRun::~CalibrationRun() = default;
+
+Status CalibrationRun::start(const CalibrationPlan& plan, Timestamp now) {
+  Impl& m = *impl_;
+  if (m.running()) {
+    return Status::Rejected;
+  }
+  if (plan.segments.empty()) {
+    return Status::InvalidArgument;
+  }
+  m.plan = plan;
+  m.out = CalibrationOutcome{};
+  m.builder.reset();
+  m.data.drives.clear();
+  m.data.drives.reserve(plan.segments.size());
+  m.data.observations.resize(plan.segments.size() + 1);
+  for (Observation& o : m.data.observations) {
+    o = Observation{};
+    o.reflectors.reserve(kMaxReflectors);
+    if (m.tools) {
+      o.keypoints.reserve(kMaxKeypoints);
+      o.bsc.reserve(kMaxKeypoints);
+    }
+  }
+  m.data.observed = 0;
+  m.segment = 0;
+  m.completed = 0;
+  m.steerSet = 0.0;
+  m.observationTaken = false;
+  m.startTicks = m.lastTicks;
+  m.t0 = now;
+  m.enter(RoutineState::Settling, now);
+  static_cast<void>(m.send(now, 0.0, "standstill"));
+  return Status::Ok;
+}
+
+void CalibrationRun::onEncoderSample(const hal::EncoderSample& s) noexcept {
+  Impl& m = *impl_;
+  m.lastTicks = s.driveTicks;
+  m.lastSteer = s.steeringAngle;
+  m.haveSample = true;
+  if (!m.running()) {
+    return;
+  }
+  SegmentEvent ev = SegmentEvent::None;
+  if (m.builder.addSample(s.stamp, s.driveTicks, s.steeringAngle, &ev) != Status::Ok) {
+    return;
+  }
+  if (ev == SegmentEvent::None || m.data.drives.empty()) {
+    return;
+  }
+  m.data.drives.back().closed = ev == SegmentEvent::Closed;
+  m.data.drives.back().segment = m.builder.lastSegment();
+}
+
+void CalibrationRun::onSweep(const hal::LaserMeasurement& scan) {
+  Impl& m = *impl_;
+  if (m.state != RoutineState::Observing || m.observationTaken || scan.scan.stamp < m.settledAt ||
+      m.data.observed >= m.data.observations.size()) {
+    return;
+  }
+  m.observationTaken = true;
+  Observation& obs = m.data.observations[m.data.observed];
+  obs.valid = true;
+  for (const hal::ReflectorObservation& o : scan.reflectors) {
+    obs.reflectors.emplace_back(static_cast<double>(o.x), static_cast<double>(o.y));
+  }
+  KeypointTools* t = m.tools.get();
+  if (t != nullptr && t->detector.detect(scan.scan, t->keypoints) == Status::Ok &&
+      t->describer.describe(t->detector.points(), t->keypoints, t->bsc, t->cgh) == Status::Ok) {
+    obs.keypoints.assign(t->keypoints.begin(), t->keypoints.end());
+    obs.bsc.assign(t->bsc.begin(), t->bsc.end());
+  }
+}
+
+RoutineState CalibrationRun::step(Timestamp now) {
+  Impl& m = *impl_;
+  if (m.state == RoutineState::Solving) {
+    m.solveNow();
+  } else if (m.running()) {
+    m.stepCollecting(now);
+  }
+  return m.state;
+}
+
+void CalibrationRun::abort(Status why, const char* reason, Timestamp now) {
+  Impl& m = *impl_;
+  if (m.running()) {
+    m.fail(why, reason, now);
+  }
+}
+
+RoutineState CalibrationRun::state() const noexcept {
+  return impl_->state;
+}
+
+bool CalibrationRun::finished() const noexcept {
+  return !impl_->running();
+}
+
+int CalibrationRun::segment() const noexcept {
+  return impl_->segment;
+}
+
+int CalibrationRun::segmentsCompleted() const noexcept {
+  return impl_->completed;
+}
+
+int CalibrationRun::total() const noexcept {
+  return impl_->total();
+}
+
+Phase CalibrationRun::phase() const noexcept {
+  const Impl& m = *impl_;
+  if (m.plan.segments.empty()) {
+    return Phase::ForwardLeft;
+  }
+  return m.plan.segments[static_cast<std::size_t>(m.segment > 0 ? m.segment - 1 : 0)].phase;
+}
+
+Timestamp CalibrationRun::startTime() const noexcept {
+  return impl_->t0;
+}
+
+const CalibrationOutcome& CalibrationRun::outcome() const noexcept {
+  return impl_->out;
+}
+
 CalibrationOutcome runCalibrationRoutine(CalibrationVehicle& vehicle, const CalibrationPlan& plan,
                                          const RoutineOptions& options,
                                          const std::function<void(const RoutineProgress&)>& progress) {
-  CalibrationOutcome out;
-  DataCollection data(vehicle, options);
-  if (!data.run(plan, progress, out)) {
+  CalibrationRun run(vehicle.drive(), options);
+  const Status started = run.start(plan, vehicle.now());
+  if (started != Status::Ok) {
+    CalibrationOutcome out;
+    out.status = started;
+    out.message = "the plan has no segment";
     return out;
   }
-  Alignments al(data.drives().size());
-  solve(data, options, al, out);
-  summarize(al, out);
-  return out;
+  auto scan = std::make_unique<hal::LaserMeasurement>();  // large: kept out of the stack
+  hal::EncoderSource& encoders = vehicle.encoders();
+  hal::LaserSource& laser = vehicle.laser();
+  int reported = 0;
+  while (!run.finished()) {
+    if (run.state() == RoutineState::Solving) {
+      static_cast<void>(run.step(vehicle.now()));
+      continue;
+    }
+    vehicle.wait(options.controlPeriod);
+    hal::EncoderSample s;
+    while (encoders.read(s) == Status::Ok) {
+      run.onEncoderSample(s);
+    }
+    const Timestamp now = vehicle.now();
+    // The sweeps after the step: a standstill reached in this step takes a sweep that starts at
+    // this very instant, and the next segment starts in the same instant (a second step).
+    static_cast<void>(run.step(now));
+    while (laser.read(*scan) == Status::Ok) {
+      run.onSweep(*scan);
+    }
+    if (run.state() == RoutineState::Observing) {
+      static_cast<void>(run.step(now));
+    }
+    if (progress && run.segmentsCompleted() > reported) {
+      reported = run.segmentsCompleted();
+      RoutineProgress p;
+      p.segment = reported;
+      p.total = run.total();
+      p.elapsed = (vehicle.now() - run.startTime()).seconds();
+      p.remaining = p.elapsed / p.segment * (p.total - p.segment);
+      progress(p);
+    }
+  }
+  return run.outcome();
 }
 
 }  // namespace agv::calibration

@@ -572,6 +572,33 @@ Status Pipeline::faultReason() const noexcept {
   return impl_->faultReason;
 }
 
+Status Pipeline::recalibrate(const TricycleParams& kinematics, const Pose2d& laserMounting) {
+  Impl& m = *impl_;
+  if (m.state != PipelineState::Active && m.state != PipelineState::Inactive) {
+    return Status::NotInitialized;
+  }
+  PipelineParams p = m.params;
+  p.kinematics = kinematics;
+  p.localizer.laser.mounting = laserMounting;
+  if (p.validate() != Status::Ok || !laserMounting.isFinite()) {
+    return Status::InvalidArgument;
+  }
+  const bool wasLocalizing = m.localizing;
+  const Pose2d pose = m.localizer->pose();
+  m.params = p;
+  m.odometry = TricycleOdometry(p.kinematics, p.odometryNoise);
+  m.localizer = std::make_unique<Localizer>(p.localizer);
+  GlobalLocalizerParams search = p.relocalization.search;
+  search.laserMount = p.localizer.laser.mounting;
+  m.globalLocalizer = std::make_unique<GlobalLocalizer>(search);
+  m.localizing = false;
+  if (wasLocalizing) {
+    m.pendingSetPose = true;
+    m.pendingPose = pose;
+  }
+  return Status::Ok;
+}
+
 Status Pipeline::setPose(const Pose2d& pose) noexcept {
   Impl& m = *impl_;
   if (m.state != PipelineState::Active && m.state != PipelineState::Inactive) {

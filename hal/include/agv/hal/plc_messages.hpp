@@ -47,6 +47,17 @@ constexpr bool hasBit(std::uint16_t bits, HealthBit bit) noexcept {
   return (bits & static_cast<std::uint16_t>(bit)) != 0U;
 }
 
+/// Progress of the on-vehicle calibration routine, as the PLC reads it (registers 44-48 of the
+/// Modbus map). All zero when no routine ever ran.
+struct CalibrationProgress {
+  std::uint8_t state = 0;  ///< `calibration::RoutineState` value: 0 idle .. 7 done, 8 aborted
+  std::uint8_t phase =
+      0;  ///< `calibration::Phase` of `segment`: 0 forward left, 1 forward right, 2 backward left, 3 backward right
+  std::uint16_t segment = 0;        ///< segment being driven, 1-based (0: none)
+  std::uint16_t total = 0;          ///< segments of the plan (0: none)
+  Status lastRefusal = Status::Ok;  ///< why the last Calibrate was refused or the last run aborted or failed
+};
+
 /// Health of the localization: enough for a PLC to decide whether to trust the pose.
 struct NavHealth {
   NavMode mode = NavMode::Idle;
@@ -61,6 +72,8 @@ struct NavHealth {
   std::uint16_t reflectorsRejected = 0;
   std::uint16_t cornersFused = 0;
   std::uint16_t cornersRejected = 0;
+  /// The calibration routine (filled by the program that runs it; zero otherwise).
+  CalibrationProgress calibration;
 };
 
 /// Pose of the vehicle's logical point in the map frame, with its uncertainty.

@@ -72,6 +72,14 @@ class SimCia402Node {
   /// A silent node sends nothing (no heartbeat, PDO, SDO answer or EMCY; a dead transmitter or a
   /// cut cable from the node) but still receives and acts on what it hears.
   void setSilent(bool silent) noexcept { silent_ = silent; }
+  /// The motor's position as a physical model measures it (e.g. the simulated vehicle's wheel
+  /// encoder, with slip and ramps the node does not model): from now on the position actual value
+  /// 0x6064 (SDO and TPDOs) reports `counts` instead of the node's own integration of its profile
+  /// velocity, which keeps driving the ramps (`velocity()`, 0x606C).
+  void setPositionFeedback(std::int32_t counts) noexcept {
+    feedback_ = true;
+    feedbackCounts_ = counts;
+  }
   /// Power cycle: object dictionary back to defaults, boot-up message, pre-operational.
   void powerCycle() noexcept;
 
@@ -81,7 +89,7 @@ class SimCia402Node {
   std::uint16_t statusword() const noexcept;
   std::uint16_t controlword() const noexcept { return controlword_; }
   std::uint16_t errorCode() const noexcept { return errorCode_; }
-  double position() const noexcept { return position_; }  ///< [position units]
+  double position() const noexcept { return position_; }  ///< [position units] (own integration)
   double velocity() const noexcept { return velocity_; }  ///< [velocity units]
   /// Profile position: the set-point being moved to.
   std::int32_t activeTargetPosition() const noexcept { return activeTarget_; }
@@ -136,6 +144,8 @@ class SimCia402Node {
   bool setPointAck_ = false;
   bool targetReached_ = true;
   bool silent_ = false;
+  bool feedback_ = false;
+  std::int32_t feedbackCounts_ = 0;
   // Time.
   bool started_ = false;
   Timestamp last_{};

@@ -7,21 +7,28 @@
 /// standstill scans (from reflectors, `alignReflectors`, or from FALKO keypoints,
 /// `alignKeypoints`), and solves STC, ATC and the joint refinement.
 ///
-/// Application code (host): it uses the standard containers. The vehicle is reached only through
+/// Application code (host): it uses the standard containers. The routine itself is one stepwise,
+/// non-blocking state machine, `CalibrationRun`: its owner feeds it the encoder samples and the
+/// sweeps it reads anyway and calls `step()` once per control cycle (`agvnav-vehicle` from its
+/// navigation cycle). `runCalibrationRoutine` drives the same state machine against a
 /// `CalibrationVehicle` (the HAL devices plus the passage of time), so the simulated vehicle
-/// (sim_calibration_vehicle.hpp) and a real one plug in alike.
+/// (sim_calibration_vehicle.hpp, `agvnav-calibrate`, `agvnav-hil`) and a real one run one copy.
 
+#include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "agv/calib/calibration.hpp"
+#include "agv/calib/calibration_file.hpp"
 #include "agv/calib/refinement.hpp"
 #include "agv/core/angle.hpp"
 #include "agv/core/pose2.hpp"
 #include "agv/core/timestamp.hpp"
 #include "agv/hal/drive_control.hpp"
 #include "agv/hal/encoder_source.hpp"
+#include "agv/hal/laser_measurement.hpp"
 #include "agv/hal/laser_source.hpp"
 #include "agv/kinematics/tricycle.hpp"
 
@@ -99,6 +106,11 @@ struct RoutineOptions {
   double deceleration = 0.5;                     ///< [m/s^2] the drive's ramp (braking distance)
   Duration settle = Duration::fromSeconds(1.5);  ///< standstill before each observation
   Duration controlPeriod = Duration::fromMilliseconds(20);
+  /// Longest wait for a standstill, the steering set-point or the planned travel (else `Timeout`).
+  Duration waitLimit = Duration::fromSeconds(2000.0);
+  /// Longest wait for the first sweep after a standstill (else that observation is missing and the
+  /// segments on either side of it are not aligned).
+  Duration observeLimit = Duration::fromSeconds(10.0);
   double reflectorGate = 1.0;  ///< [m] association gate of the reflector alignment
   /// Keypoint alignment: hypotheses farther than this from the odometry's guess are discarded.
   double keypointGuessTranslation = 1.0;         ///< [m]
@@ -152,7 +164,92 @@ struct CalibrationOutcome {
   double meanMatches = 0.0;       ///< reflector pairs / keypoint inliers per aligned segment
 };
 
-/// Runs `plan` on `vehicle`. `progress` (may be empty) is called after each segment.
+/// The refinement's a posteriori variance factor: max(1, final cost / (3 N - 6)) with N the
+/// segments used (1 without degrees of freedom), so residuals larger than the noise model (wheel
+/// slip, keypoint noise) widen the written sigmas.
+double refinementVarianceFactor(const CalibrationOutcome& outcome) noexcept;
+
+/// The values to write: the refined ones with their 1-sigma (covariance scaled by
+/// `refinementVarianceFactor`) when the refinement succeeded, else the closed-form ATC values
+/// (sigmas 0 = not known).
+VehicleCalibration calibrationToWrite(const CalibrationOutcome& outcome) noexcept;
+
+/// State of a `CalibrationRun`. The numeric values are published on the PLC (docs/plc-link.md,
+/// register 44) and stay stable.
+enum class RoutineState : std::uint8_t {
+  Idle = 0,       ///< not started
+  Settling = 1,   ///< at rest before the first observation, steering straight ahead, `settle` long
+  Steering = 2,   ///< at rest, steering to the segment's set-point (and `settle` long)
+  Driving = 3,    ///< driving the segment at `RoutineOptions::speed`
+  Stopping = 4,   ///< braking, then at rest `settle` long with the steering on its set-point
+  Observing = 5,  ///< waiting for the first sweep that starts after the standstill
+  Solving = 6,    ///< every segment collected: the next `step()` solves
+  Done = 7,       ///< solved; `outcome()` holds the result (its `status` may still be a refusal)
+  Aborted = 8,    ///< stopped by `abort()`, a set-point the drive refused or a wait limit
+};
+/// "idle", "settling", ... (static strings).
+const char* routineStateName(RoutineState state) noexcept;
+
+/// The routine as a stepwise, non-blocking state machine: one copy for every program.
+///
+/// Use: `start(plan, now)`; then once per control cycle feed every encoder sample
+/// (`onEncoderSample`) and every sweep (`onSweep`) read since the last cycle, and call `step(now)`,
+/// which sends the set-point of the current state to the drive (every call: it also feeds the
+/// drive controller's set-point watchdog) and moves on when the state's condition holds, until
+/// `finished()`. `abort()` stops it at once (PLC Stop, a heartbeat loss seen by the owner).
+///
+/// Allocation: `start()` reserves the segment records and the observation storage for the whole
+/// plan; the per-cycle calls (`onEncoderSample`, `step` while collecting) do not allocate; the
+/// observation at each standstill copies the sweep's reflectors into reserved storage (the keypoint
+/// detector runs there when the egomotion is `Keypoints`); only the final solve allocates. The
+/// solve runs inside one `step()` (tens of milliseconds for 24 segments: that cycle overruns once,
+/// with the vehicle at rest).
+class CalibrationRun {
+ public:
+  /// `drive` must outlive the run. The options are copied.
+  CalibrationRun(hal::DriveControl& drive, const RoutineOptions& options);
+  ~CalibrationRun();
+  CalibrationRun(const CalibrationRun&) = delete;
+  CalibrationRun& operator=(const CalibrationRun&) = delete;
+
+  /// Starts `plan` (copied) at `now`: state `Settling`. `InvalidArgument` for a plan without
+  /// segments, `Rejected` while a run is in progress (abort it first); the state is unchanged then.
+  Status start(const CalibrationPlan& plan, Timestamp now);
+  /// One encoder sample (any state; used while collecting).
+  void onEncoderSample(const hal::EncoderSample& sample) noexcept;
+  /// One sweep: taken as the standstill observation when the run is `Observing` and the sweep
+  /// starts after the standstill was reached; otherwise ignored.
+  void onSweep(const hal::LaserMeasurement& sweep);
+  /// One control cycle at `now` (see the class comment); returns the state after it.
+  RoutineState step(Timestamp now);
+  /// Stops the drive (`hal::DriveControl::stop`) in this call and ends the run as `Aborted` with
+  /// `why` and `reason` in `outcome()`. Nothing when the run is not in progress.
+  void abort(Status why, const char* reason, Timestamp now);
+
+  RoutineState state() const noexcept;
+  /// True in `Idle`, `Done` and `Aborted` (no set-point is sent any more).
+  bool finished() const noexcept;
+  /// The segment being prepared, driven or observed, 1-based (0 before the first).
+  int segment() const noexcept;
+  /// Segments driven and observed so far.
+  int segmentsCompleted() const noexcept;
+  /// Segments of the plan.
+  int total() const noexcept;
+  /// Phase of `segment()` (of the first segment before it starts).
+  Phase phase() const noexcept;
+  /// When the run started.
+  Timestamp startTime() const noexcept;
+  /// The result once `Done`; the reason once `Aborted` (`status`, `message`).
+  const CalibrationOutcome& outcome() const noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Runs `plan` on `vehicle` to the end: a `CalibrationRun` stepped every
+/// `options.controlPeriod` after `vehicle.wait()`, fed with every encoder sample and sweep the
+/// vehicle delivers. `progress` (may be empty) is called after each segment.
 CalibrationOutcome runCalibrationRoutine(CalibrationVehicle& vehicle, const CalibrationPlan& plan,
                                          const RoutineOptions& options,
                                          const std::function<void(const RoutineProgress&)>& progress);

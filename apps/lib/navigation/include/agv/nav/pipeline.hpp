@@ -194,6 +194,14 @@ class Pipeline {
   /// `NotInitialized` in Unconfigured or Fault.
   Status setPose(const Pose2d& pose) noexcept;
 
+  /// Replaces the calibration (kinematics and the laser's mounting), e.g. after the on-vehicle
+  /// calibration routine wrote a new file: the odometry, the localizer and the relocalization
+  /// search are rebuilt with it (this allocates: once per calibration, never per cycle). A
+  /// localizing pipeline goes on from its current pose as from a set-pose (with the set-pose
+  /// sigmas); the counters are kept. `InvalidArgument` (nothing changed) when the parameters
+  /// refuse the values; `NotInitialized` in Unconfigured or Fault.
+  Status recalibrate(const TricycleParams& kinematics, const Pose2d& laserMounting);
+
   /// One cycle (see the file comment). Returns `Ok` when Active, else the state's status
   /// (`NotInitialized`, or the fault reason in Fault, where only the report is published).
   Status cycle() noexcept;

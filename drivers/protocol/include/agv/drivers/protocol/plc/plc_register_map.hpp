@@ -31,6 +31,11 @@
 ///   41     reflectors rejected in the last correction u16 (gate, ambiguity, duplicate, update)
 ///   42     corners fused in the last correction u16
 ///   43     corners rejected in the last correction u16
+///   44     calibration routine state u16 (calibration::RoutineState: 0 idle .. 7 done, 8 aborted)
+///   45     calibration phase u16 (0 forward left, 1 forward right, 2 backward left, 3 backward right)
+///   46     calibration segment being driven u16 (1-based, 0 none)
+///   47     calibration segments of the plan u16
+///   48     calibration last refusal u16 (agv::Status; 0 none)
 ///
 /// Every other address in [0, 110) reads as 0 and is not writable; addresses >= 110 do not exist.
 
@@ -79,6 +84,7 @@ struct PlcStatus {
   std::uint16_t cornersFused = 0;
   std::uint16_t cornersRejected = 0;
   PlcCalibration calibration;
+  hal::CalibrationProgress routine;  ///< the calibration routine's progress (registers 44-48)
 };
 
 /// PLC command codes (register 100), the same values as hal::PlcCommandKind.
@@ -106,7 +112,7 @@ struct PlcMapConfig {
 class PlcRegisterMap {
  public:
   static constexpr std::uint16_t kStatusBase = 0;
-  static constexpr std::uint16_t kStatusCount = 44;
+  static constexpr std::uint16_t kStatusCount = 49;
   static constexpr std::uint16_t kCommandBase = 100;
   static constexpr std::uint16_t kCommandCount = 9;
   /// Size of the register table (addresses 0 .. kRegisterCount-1).
