@@ -212,16 +212,20 @@ bool RevolutionAssembler::finish() noexcept {
   if (count_ == 0 && refused_ == 0) {
     return false;
   }
-  info_.records = count_;
-  info_.refused = refused_;
-  info_.packets = packets_;
-  info_.complete = false;
+  close(false);
   started_ = false;
   armed_ = true;
   lastAzimuth_ = -1;
+  return true;
+}
+
+void RevolutionAssembler::close(bool complete) noexcept {
+  info_.records = count_;
+  info_.refused = refused_;
+  info_.packets = packets_;
+  info_.complete = complete;
   done_ = true;
   ++revolutions_;
-  return true;
 }
 
 bool RevolutionAssembler::add(Span<const FiringRecord> records) noexcept {
@@ -262,13 +266,8 @@ bool RevolutionAssembler::add(Span<const FiringRecord> records) noexcept {
   if (!wrapped) {
     return false;
   }
-  info_.records = count_;
-  info_.refused = refused_;
-  info_.packets = packets_;
-  info_.complete = started_;
+  close(started_);
   started_ = true;
-  done_ = true;
-  ++revolutions_;
   return true;
 }
 

@@ -164,6 +164,7 @@ class RevolutionAssembler {
  private:
   void store(const FiringRecord& r) noexcept;
   void startFromPending() noexcept;
+  void close(bool complete) noexcept;  ///< publishes the revolution in storage
 
   Span<FiringRecord> storage_;
   FiringRecord pending_[kMaxRecordsPerPacket]{};
