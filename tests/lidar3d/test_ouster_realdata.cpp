@@ -274,6 +274,43 @@ TEST_CASE("every Ouster capture decodes: frames, columns, packets, valid pixels"
       CHECK(valid >= 21000.0);
       CHECK(valid <= 120500.0);
     }
+    // Column timestamps against the JSON's lidar_mode "WxR" (R frames per second).
+    {
+      std::uint64_t tFirst = 0;
+      std::uint64_t tLast = 0;
+      unsigned mFirst = 0;
+      unsigned mLast = 0;
+      bool any = false;
+      OusterConfig tc;
+      tc.format = l.meta.format;
+      OusterDecoder td(tc);
+      std::vector<FiringRecord> tout(kMaxRecordsPerPacket);
+      for (std::size_t pk = 0; pk < 64; ++pk) {  // the first frame
+        PacketInfo info;
+        std::size_t n = 0;
+        REQUIRE(td.decode(Span<const std::uint8_t>(l.packets[pk].data(), l.packets[pk].size()),
+                          Span<FiringRecord>(tout.data(), tout.size()), n, &info) == Status::Ok);
+        for (std::size_t k2 = 0; k2 < info.columnCount; ++k2) {
+          const ColumnHeader& h = info.columns[k2];
+          if (!any || h.measurementId < mFirst) {
+            mFirst = h.measurementId;
+            tFirst = h.timestampNs;
+          }
+          if (!any || h.measurementId > mLast) {
+            mLast = h.measurementId;
+            tLast = h.timestampNs;
+          }
+          any = true;
+        }
+      }
+      const std::size_t x = l.meta.lidarMode.find('x');
+      REQUIRE(x != std::string::npos);
+      const double rate = std::stod(l.meta.lidarMode.substr(x + 1));
+      const double frameS = static_cast<double>(tLast - tFirst) / static_cast<double>(mLast - mFirst) * 1024.0 * 1e-9;
+      std::printf("%-36s lidar_mode %s: frame period from the column timestamps %.2f ms\n", c.pcap,
+                  l.meta.lidarMode.c_str(), 1000.0 * frameS);
+      CHECK(std::fabs(frameS * rate - 1.0) < 0.01);
+    }
     if (std::string(c.pcap).find("lb_n3") != std::string::npos) {
       CHECK(*ids.begin() == 1795);  // README: frame_id 1795-1797
       CHECK(*ids.rbegin() == 1797);

@@ -58,6 +58,9 @@ bool parseOusterMetadata(const std::string& text, OusterMetadata& out, std::stri
   if (j.contains("prod_line") && j["prod_line"].is_string()) {
     out.prodLine = j["prod_line"].get<std::string>();
   }
+  if (j.contains("lidar_mode") && j["lidar_mode"].is_string()) {
+    out.lidarMode = j["lidar_mode"].get<std::string>();
+  }
   if (!j.contains("data_format") || !j["data_format"].is_object()) {
     error = "data_format: missing";
     return false;

@@ -22,6 +22,7 @@ namespace agv::datasets {
 struct OusterMetadata {
   std::string prodLine;
   std::string profileName;  ///< as in the JSON ("LEGACY" when absent)
+  std::string lidarMode;    ///< `lidar_mode`, e.g. "1024x10" (columns x frame rate [Hz]); may be empty
   drivers::ouster::Format format{};
   drivers::ouster::OusterIntrinsics intrinsics{};
   std::uint16_t udpPortLidar = 7502;
