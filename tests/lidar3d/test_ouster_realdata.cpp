@@ -394,8 +394,8 @@ TEST_CASE("Ouster walls: per-beam plane residuals with the factory intrinsics", 
     double rmsBound;     // per-beam RMS [m]
   };
   // OS-2-128 and OS-0-32: 2 cm (the README's independent fit: -8..+12 mm on the OS-2-128).
-  // OS-0-128: its upper beams (6..24, 30..40 deg up, hitting the wall 6..9 m above the sensor)
-  // sit 20..37 mm in front of the plane and the middle ones 17 mm behind: an elevation-dependent
+  // OS-0-128: its upper beams 6..24 (28..41 deg up, hitting the wall 5.8..9.5 m above the sensor)
+  // sit 16..37 mm in front of the plane, beams 30, 34, 45 17 mm behind: an elevation-dependent
   // bias this test records but cannot attribute (facade not flat over 9 m, or the OS-0's beam
   // model: docs/ouster.md); bound 5 cm so that a wrong model (decimetres) still fails.
   const Wall walls[] = {{1, 10.9, 100, 0.02, 0.03}, {0, 10.9, 40, 0.05, 0.04}, {5, 4.2, 10, 0.02, 0.03}};
