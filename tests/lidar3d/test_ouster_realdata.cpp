@@ -538,3 +538,37 @@ TEST_CASE("Ouster decoder refuses truncated, oversized and garbage packets and s
   std::printf("OS-0-32 dual: %zu second returns\n", seconds);
   CHECK(seconds > 0);
 }
+
+TEST_CASE("Ouster decoding, assembling and points allocate nothing per packet", "[ouster][realdata]") {
+  const Loaded l = load(kCaptures[1]);  // OS-2-128: 2048-pixel packets
+  OusterConfig cfg;
+  cfg.format = l.meta.format;
+  OusterDecoder dec(cfg);
+  static FiringRecord out[kMaxRecordsPerPacket];
+  static PixelExtra extra[kMaxRecordsPerPacket];
+  static FiringReturn ret[kMaxRecordsPerPacket];
+  static FiringRecord storage[140000];
+  static PacketInfo info;
+  drivers::velodyne::RevolutionAssembler rev{Span<FiringRecord>(storage)};
+  std::size_t n = 0;
+  std::size_t m = 0;
+  Status s1 = Status::NotInitialized;
+  Status s2 = Status::NotInitialized;
+  std::size_t points = 0;
+  std::size_t records = 0;
+  AGV_CHECK_NO_ALLOCATIONS(for (const auto& p
+                                : l.packets) {
+    s1 = dec.decode(Span<const std::uint8_t>(p.data(), p.size()), Span<FiringRecord>(out), n, &info,
+                    Span<PixelExtra>(extra));
+    for (std::size_t i = 0; i < n; i += 128) {  // at most one column of 128 records per add
+      (void)rev.add(Span<const FiringRecord>(out + i, std::min<std::size_t>(128, n - i)));
+    }
+    s2 = toFiringReturns(Span<const FiringRecord>(out, n), l.meta.intrinsics, Span<FiringReturn>(ret), m);
+    points += m;
+    records += n;
+  });
+  CHECK(s1 == Status::Ok);
+  CHECK(s2 == Status::Ok);
+  CHECK(points == records);                                          // every first return has a point
+  CHECK(std::fabs(static_cast<double>(points) - 119700.0) < 300.0);  // README: 119.7k valid pixels
+}
