@@ -572,3 +572,39 @@ TEST_CASE("Ouster decoding, assembling and points allocate nothing per packet", 
   CHECK(points == records);                                          // every first return has a point
   CHECK(std::fabs(static_cast<double>(points) - 119700.0) < 300.0);  // README: 119.7k valid pixels
 }
+
+TEST_CASE("Ouster metadata JSON: bad files are refused with the field named", "[ouster]") {
+  OusterMetadata m;
+  std::string error;
+  CHECK_FALSE(datasets::parseOusterMetadata("not json", m, error));
+  CHECK_FALSE(datasets::parseOusterMetadata("{}", m, error));
+  CHECK(error.find("data_format") != std::string::npos);
+  const std::string df =
+      R"("data_format": {"columns_per_frame": 1024, "columns_per_packet": 16, "pixels_per_column": 2,
+         "pixel_shift_by_row": [0, 8]})";
+  const std::string ok = "{" + df +
+                         R"(, "beam_altitude_angles": [1, -1], "beam_azimuth_angles": [0.5, -0.5],
+      "lidar_origin_to_beam_origin_mm": 12.5, "lidar_to_sensor_transform": [-1,0,0,0, 0,-1,0,0, 0,0,1,36.18, 0,0,0,1]})";
+  REQUIRE(datasets::parseOusterMetadata(ok, m, error));
+  CHECK(m.profileName == "LEGACY");
+  CHECK(m.intrinsics.beams == 2);
+  CHECK(std::fabs(m.intrinsics.beamOriginM - 0.0125F) < 1e-7F);
+  CHECK(std::fabs(m.intrinsics.lidarToSensor[11] - 0.03618F) < 1e-7F);
+  CHECK(std::fabs(m.intrinsics.altitudeRad[0] - 0.0174533F) < 1e-6F);
+  CHECK(m.intrinsics.pixelShift[1] == 8);
+  // One altitude short, a string where a number goes, an unknown profile, too many pixels.
+  std::string bad = ok;
+  bad.replace(bad.find("[1, -1]"), 7, "[1]");
+  CHECK_FALSE(datasets::parseOusterMetadata(bad, m, error));
+  CHECK(error.find("beam_altitude_angles") != std::string::npos);
+  bad = ok;
+  bad.replace(bad.find("12.5"), 4, "\"x\"");
+  CHECK_FALSE(datasets::parseOusterMetadata(bad, m, error));
+  bad = ok;
+  bad.replace(bad.find("\"columns_per_frame\""), 0, "\"udp_profile_lidar\": \"FIVE_WORD_PIXEL\", ");
+  CHECK_FALSE(datasets::parseOusterMetadata(bad, m, error));
+  CHECK(error.find("unsupported profile") != std::string::npos);
+  bad = ok;
+  bad.replace(bad.find("\"pixels_per_column\": 2"), 22, "\"pixels_per_column\": 256");
+  CHECK_FALSE(datasets::parseOusterMetadata(bad, m, error));
+}
