@@ -6,6 +6,7 @@
 // come from the README and the JSON, never from the code under test. Figures: docs/ouster.md.
 #include <algorithm>
 #include <array>
+#include <chrono>
 
 #include <cmath>
 #include <cstdint>
@@ -571,6 +572,16 @@ TEST_CASE("Ouster decoding, assembling and points allocate nothing per packet", 
   CHECK(s2 == Status::Ok);
   CHECK(points == records);                                          // every first return has a point
   CHECK(std::fabs(static_cast<double>(points) - 119700.0) < 300.0);  // README: 119.7k valid pixels
+  // Time per frame (printed, not checked: the machine is shared): decode + points, 20 frames.
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int rep = 0; rep < 20; ++rep) {
+    for (const auto& p : l.packets) {
+      (void)dec.decode(Span<const std::uint8_t>(p.data(), p.size()), Span<FiringRecord>(out), n);
+      (void)toFiringReturns(Span<const FiringRecord>(out, n), l.meta.intrinsics, Span<FiringReturn>(ret), m);
+    }
+  }
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / 20.0;
+  std::printf("OS-2-128 frame (64 packets, ~120k returns): decode + points %.2f ms\n", ms);
 }
 
 TEST_CASE("Ouster metadata JSON: bad files are refused with the field named", "[ouster]") {
