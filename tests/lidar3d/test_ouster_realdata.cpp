@@ -3,7 +3,8 @@
 // revolution assembler; frame / column / packet counts and valid pixels against the folder's
 // README; the beam model against a hand computation from raw bytes; and, as a real check of the
 // factory intrinsics, per-beam residuals to the biggest wall (RANSAC + PCA refit). Expected values
-// come from the README and the JSON, never from the code under test. Figures: docs/ouster.md.
+// come from the README and the JSON, never from the code under test; last, the conditioning of one
+// placement (per-beam sigma of range offset / elevation / azimuth offset). Figures: docs/ouster.md.
 #include <algorithm>
 #include <array>
 #include <chrono>
