@@ -134,6 +134,13 @@ std::vector<Frame> decodeFrames(const Loaded& l, OusterCounters& counters, std::
   return frames;
 }
 
+std::vector<Frame> decodeFrames(const Loaded& l) {
+  OusterCounters k;
+  std::set<std::uint16_t> ids;
+  std::map<std::uint16_t, std::set<std::uint16_t>> cols;
+  return decodeFrames(l, k, ids, cols);
+}
+
 struct PlaneFit {
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   double d = 0.0;  // n.p + d = 0
@@ -407,10 +414,7 @@ TEST_CASE("Ouster walls: per-beam plane residuals with the factory intrinsics", 
     const Capture& c = kCaptures[w.capture];
     INFO(c.pcap);
     const Loaded l = load(c);
-    OusterCounters k;
-    std::set<std::uint16_t> ids;
-    std::map<std::uint16_t, std::set<std::uint16_t>> cols;
-    const std::vector<Frame> frames = decodeFrames(l, k, ids, cols);
+    const std::vector<Frame> frames = decodeFrames(l);
     REQUIRE(!frames.empty());
     const Frame& f = frames[0];
     const PlaneFit p = biggestPlane(f.points, true, 1.0);
@@ -445,10 +449,7 @@ TEST_CASE("Ouster walls: per-beam plane residuals with the factory intrinsics", 
   }
   // Ground under the moving OS-1-128: 1.9-2.0 m below the sensor in every frame.
   const Loaded l = load(kCaptures[2]);
-  OusterCounters k;
-  std::set<std::uint16_t> ids;
-  std::map<std::uint16_t, std::set<std::uint16_t>> cols;
-  const std::vector<Frame> frames = decodeFrames(l, k, ids, cols);
+  const std::vector<Frame> frames = decodeFrames(l);
   REQUIRE(frames.size() == 3);
   for (const Frame& f : frames) {
     const PlaneFit g = biggestPlane(f.points, false, 1.0);
@@ -630,10 +631,7 @@ TEST_CASE("One wall at one distance: per-beam range offset and elevation are not
   // nearly parallel = the data cannot tell the parameters apart (docs/ouster.md).
   const Capture& c = kCaptures[1];
   const Loaded l = load(c);
-  OusterCounters k;
-  std::set<std::uint16_t> ids;
-  std::map<std::uint16_t, std::set<std::uint16_t>> cols;
-  const std::vector<Frame> frames = decodeFrames(l, k, ids, cols);
+  const std::vector<Frame> frames = decodeFrames(l);
   REQUIRE(!frames.empty());
   const Frame& f = frames[0];
   const PlaneFit p = biggestPlane(f.points, true, 1.0);
