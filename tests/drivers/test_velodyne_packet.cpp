@@ -219,6 +219,13 @@ TEST_CASE("Revolution assembler cuts at the azimuth wrap", "[drivers][velodyne]"
   // A full turn = 18 blocks x 32 records (interpolated records near the cut move by one step).
   CHECK(sizes[1] == 18U * 32U);
   CHECK(sizes[2] == 18U * 32U);
+  // End of the recording: finish() publishes the turn in progress (144 000 .. 174 000 = 15 blocks),
+  // not closed by a wrap; a second finish() has nothing left.
+  REQUIRE(rev.finish());
+  CHECK(rev.revolution().size() == 15U * 32U);
+  CHECK_FALSE(rev.info().complete);
+  CHECK(rev.revolutions() == 5U);
+  CHECK_FALSE(rev.finish());
   // Storage too small: refused records counted in the revolution, never silently dropped.
   static FiringRecord tiny[100];
   RevolutionAssembler small(Span<FiringRecord>(tiny, 100));

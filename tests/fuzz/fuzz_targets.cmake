@@ -14,6 +14,7 @@ add_library(agv_fuzz_protocol STATIC
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/cia402.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/cia402_drive.cpp
   ${AGV_FUZZ_ROOT}/drivers/protocol/src/velodyne_packet.cpp
+  ${AGV_FUZZ_ROOT}/drivers/protocol/src/ouster_packet.cpp
   ${AGV_FUZZ_ROOT}/core/src/lidar3d/laser_intrinsics.cpp)
 target_include_directories(agv_fuzz_protocol PUBLIC ${AGV_FUZZ_ROOT}/core/include ${AGV_FUZZ_ROOT}/hal/include
                                                     ${AGV_FUZZ_ROOT}/drivers/protocol/include)
@@ -21,7 +22,7 @@ target_link_libraries(agv_fuzz_protocol PUBLIC Eigen3::Eigen)
 target_compile_features(agv_fuzz_protocol PUBLIC cxx_std_17)
 target_compile_options(agv_fuzz_protocol PRIVATE -fsanitize=fuzzer-no-link,address -fno-omit-frame-pointer -g)
 target_link_options(agv_fuzz_protocol INTERFACE -fsanitize=address)
-foreach(_t cola_a nav350 canopen cia402 modbus velodyne)
+foreach(_t cola_a nav350 canopen cia402 modbus velodyne ouster)
   add_executable(fuzz_${_t} ${AGV_FUZZ_ROOT}/tests/fuzz/fuzz_${_t}.cpp)
   target_link_libraries(fuzz_${_t} PRIVATE agv_fuzz_protocol)
   target_compile_options(fuzz_${_t} PRIVATE ${_agv_fuzz_flags})

@@ -193,17 +193,44 @@ void RevolutionAssembler::store(const FiringRecord& r) noexcept {
   }
 }
 
+void RevolutionAssembler::startFromPending() noexcept {
+  done_ = false;
+  count_ = 0;
+  refused_ = pendingRefused_;
+  pendingRefused_ = 0;
+  packets_ = pendingCount_ > 0 ? 1U : 0U;
+  for (std::size_t i = 0; i < pendingCount_; ++i) {
+    store(pending_[i]);
+  }
+  pendingCount_ = 0;
+}
+
+bool RevolutionAssembler::finish() noexcept {
+  if (done_) {  // the last add() completed a revolution: its pending tail is the one to end
+    startFromPending();
+  }
+  if (count_ == 0 && refused_ == 0) {
+    return false;
+  }
+  close(false);
+  started_ = false;
+  armed_ = true;
+  lastAzimuth_ = -1;
+  return true;
+}
+
+void RevolutionAssembler::close(bool complete) noexcept {
+  info_.records = count_;
+  info_.refused = refused_;
+  info_.packets = packets_;
+  info_.complete = complete;
+  done_ = true;
+  ++revolutions_;
+}
+
 bool RevolutionAssembler::add(Span<const FiringRecord> records) noexcept {
   if (done_) {  // the previous call completed a revolution: start the next from its pending tail
-    done_ = false;
-    count_ = 0;
-    refused_ = pendingRefused_;
-    pendingRefused_ = 0;
-    packets_ = pendingCount_ > 0 ? 1U : 0U;
-    for (std::size_t i = 0; i < pendingCount_; ++i) {
-      store(pending_[i]);
-    }
-    pendingCount_ = 0;
+    startFromPending();
   }
   bool wrapped = false;
   for (std::size_t i = 0; i < records.size(); ++i) {
@@ -239,13 +266,8 @@ bool RevolutionAssembler::add(Span<const FiringRecord> records) noexcept {
   if (!wrapped) {
     return false;
   }
-  info_.records = count_;
-  info_.refused = refused_;
-  info_.packets = packets_;
-  info_.complete = started_;
+  close(started_);
   started_ = true;
-  done_ = true;
-  ++revolutions_;
   return true;
 }
 

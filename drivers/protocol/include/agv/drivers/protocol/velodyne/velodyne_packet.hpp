@@ -145,6 +145,12 @@ class RevolutionAssembler {
   /// silently). Bounded: O(records).
   bool add(Span<const FiringRecord> records) noexcept;
 
+  /// Ends the revolution in progress without a wrap (the end of a recording, or a sensor whose
+  /// last frame is not followed by the next one: Ouster captures of one frame). Returns true when
+  /// it held records: `revolution()` / `info()` then describe it (complete = false: no wrap closed
+  /// it). The next add() starts a new revolution, itself marked incomplete.
+  bool finish() noexcept;
+
   /// The last completed revolution (empty before the first).
   Span<const FiringRecord> revolution() const noexcept {
     return Span<const FiringRecord>(storage_.data(), done_ ? info_.records : 0);
@@ -157,6 +163,8 @@ class RevolutionAssembler {
 
  private:
   void store(const FiringRecord& r) noexcept;
+  void startFromPending() noexcept;
+  void close(bool complete) noexcept;  ///< publishes the revolution in storage
 
   Span<FiringRecord> storage_;
   FiringRecord pending_[kMaxRecordsPerPacket]{};
