@@ -8,6 +8,10 @@
 
 #include "agv/core/angle.hpp"
 #include "agv/datasets/lidar3d_scans.hpp"
+#include "agv/datasets/velodyne_calibration.hpp"
+#include "agv/datasets/velodyne_recording.hpp"
+#include "agv/drivers/protocol/velodyne/velodyne_packet.hpp"
+#include "agv/lidar3d/laser_intrinsics.hpp"
 #include "agv/report/svg.hpp"
 #include "agv/sim/multibeam_world.hpp"
 
@@ -34,17 +38,10 @@ double distance(const Pose2d& a, const Pose2d& b) {
   return std::hypot(a.x - b.x, a.y - b.y);
 }
 
-/// Image, signatures and the per-scan record of one revolution.
-void addRevolution(const PlacesOptions& options, std::size_t columns, Image& image, const datasets::Revolution& rev,
-                   ScanResult scan, PlacesResult& r) {
-  scan.points = rev.points.size();
+/// Signatures and the per-scan record of one revolution whose image was built with status `st`.
+void finishRevolution(const PlacesOptions& options, const Image& image, Status st, ScanResult scan, PlacesResult& r) {
   NormalSignature sig;
   OrientationSignature ori;
-  Status st = image.reset(std::max<std::size_t>(rev.rings, 1), columns);
-  if (st == Status::Ok) {
-    st = image.buildFromRings(Span<const RingPoint>(rev.points.data(), rev.points.size()));
-    scan.collisions = image.stats().collisions;
-  }
   if (st == Status::Ok) {
     st = computeNormalSignature(image, options.signature, sig);
   }
@@ -53,9 +50,120 @@ void addRevolution(const PlacesOptions& options, std::size_t columns, Image& ima
   }
   scan.status = st;
   scan.normals = sig.counts.normals;
+  for (const float b : sig.bins) {
+    scan.signatureSum += static_cast<double>(b);
+  }
   r.scans.push_back(scan);
   r.signatures.push_back(sig);
   r.orientations.push_back(ori);
+}
+
+/// Image, signatures and the per-scan record of one revolution of ring-ordered points.
+void addRevolution(const PlacesOptions& options, std::size_t columns, Image& image, const datasets::Revolution& rev,
+                   ScanResult scan, PlacesResult& r) {
+  scan.points = rev.points.size();
+  Status st = image.reset(std::max<std::size_t>(rev.rings, 1), columns);
+  if (st == Status::Ok) {
+    st = image.buildFromRings(Span<const RingPoint>(rev.points.data(), rev.points.size()));
+    scan.collisions = image.stats().collisions;
+  }
+  finishRevolution(options, image, st, scan, r);
+}
+
+/// VLP-16 raw packet recordings: decoder -> revolution assembler -> firing returns (calibration
+/// file) -> range image -> signatures. Revolutions begun mid-turn (a file's first) are counted and
+/// not run; the records after a file's last wrap never complete a revolution.
+bool runPackets(const PlacesOptions& options, std::size_t columns, Image& image, PlacesResult& r, std::string& error) {
+  namespace vd = drivers::velodyne;
+  if (options.calibrationPath.empty()) {
+    error = "VLP-16 packets need a calibration file (--calibration: db.xml or velodyne_pointcloud YAML)";
+    return false;
+  }
+  auto cal = std::make_unique<LaserIntrinsics>();
+  if (!datasets::readVelodyneCalibration(options.calibrationPath, *cal, error)) {
+    return false;
+  }
+  const std::size_t lasers = vd::laserCount(vd::Model::Vlp16);
+  if (cal->size() != lasers) {
+    error = options.calibrationPath + ": " + std::to_string(cal->size()) + " lasers, a VLP-16 has " +
+            std::to_string(lasers) + " (calibration of another sensor?)";
+    return false;
+  }
+  std::vector<float> elevations(lasers);
+  for (std::size_t i = 0; i < lasers; ++i) {
+    elevations[i] = static_cast<float>(cal->params(i).theta);
+  }
+  std::vector<std::uint16_t> rowOfLaser(lasers);
+  if (elevationRanks(Span<const float>(elevations.data(), lasers), Span<std::uint16_t>(rowOfLaser.data(), lasers)) !=
+      Status::Ok) {
+    error = options.calibrationPath + ": elevations cannot be ranked";
+    return false;
+  }
+  std::vector<vd::FiringRecord> storage(80000);  // dual return at 5 Hz stays within
+  std::vector<FiringReturn> returns(storage.size());
+  vd::FiringRecord out[vd::kMaxRecordsPerPacket];
+  PacketStats& ps = r.packets;
+  for (const std::string& file : options.files) {
+    datasets::PacketRecording rec;
+    if (!datasets::readPacketRecording(file, vd::kPacketBytes, rec, error)) {
+      return false;
+    }
+    vd::VelodyneDecoder dec(vd::VelodyneConfig{});
+    vd::RevolutionAssembler assembler(Span<vd::FiringRecord>(storage.data(), storage.size()));
+    std::size_t decoded = 0;
+    for (std::size_t k = 0; k < rec.packets; ++k) {
+      std::size_t n = 0;
+      const Status st =
+          dec.decode(Span<const std::uint8_t>(rec.packet(k), rec.packetBytes), Span<vd::FiringRecord>(out), n);
+      if (st != Status::Ok && st != Status::Malformed) {
+        continue;  // refused, counted by the decoder
+      }
+      ++decoded;
+      ps.records += n;
+      if (!assembler.add(Span<const vd::FiringRecord>(out, n))) {
+        continue;
+      }
+      ++ps.revolutions;
+      ps.refusedRecords += assembler.info().refused;
+      if (!assembler.info().complete) {
+        ++ps.incomplete;
+        continue;
+      }
+      std::size_t m = 0;
+      Status st2 = vd::toFiringReturns(assembler.revolution(), *cal, columns,
+                                       Span<FiringReturn>(returns.data(), returns.size()), m);
+      // Columns of toFiringReturns grow with the head azimuth phi (clockwise); buildFromRings' with
+      // atan2(y, x) (counter-clockwise). Mirrored here so that yaws keep the library's sign.
+      for (std::size_t i = 0; i < m; ++i) {
+        returns[i].firing = static_cast<std::uint32_t>((columns - returns[i].firing) % columns);
+      }
+      ps.firingReturns += m;
+      ScanResult scan;
+      scan.file = file + "#rev" + std::to_string(assembler.revolutions() - 1);
+      scan.frame = static_cast<long>(assembler.revolutions() - 1);
+      scan.points = m;
+      if (st2 == Status::Ok) {
+        st2 = image.reset(lasers, columns);
+      }
+      if (st2 == Status::Ok) {
+        st2 = image.buildFromFirings(Span<const FiringReturn>(returns.data(), m),
+                                     Span<const std::uint16_t>(rowOfLaser.data(), lasers));
+        scan.collisions = image.stats().collisions;
+      }
+      finishRevolution(options, image, st2, scan, r);
+    }
+    const vd::VelodyneCounters& c = dec.counters();
+    ps.packets += rec.packets;
+    ps.refusedPackets += c.refusedPackets();
+    ps.skippedBlocks += c.badBlockId + c.badAzimuth;
+    ++ps.files;
+    if (decoded == 0) {
+      error = file + ": none of its " + std::to_string(rec.packets) + " packets is a VLP-16 data packet (truncated " +
+              std::to_string(c.truncated) + ", another product " + std::to_string(c.wrongProduct) + ")";
+      return false;
+    }
+  }
+  return true;
 }
 
 /// The simulated route: the yard world, the sensor, one revolution per route pose.
@@ -170,12 +278,26 @@ bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error
       error = "no revolution given";
       return false;
     }
+    if (options.format == Format::Vlp16Packets) {
+      if (!options.posesPath.empty()) {
+        error = "--poses (KITTI frames) does not apply to packet recordings";
+        return false;
+      }
+      if (!runPackets(options, options.columns > 0 ? options.columns : 1800, *image, r, error)) {
+        return false;
+      }
+      if (r.scans.empty()) {
+        error = "no complete revolution in the packet recording(s)";
+        return false;
+      }
+    }
     std::vector<Eigen::Matrix<double, 3, 4>> poses;
     if (!options.posesPath.empty() && !datasets::readKittiPoses(options.posesPath, poses, error)) {
       return false;
     }
     const std::size_t columns = options.columns > 0 ? options.columns : (options.format == Format::Kitti ? 2000 : 1024);
-    for (const std::string& file : options.files) {
+    for (std::size_t f = 0; f < options.files.size() && options.format != Format::Vlp16Packets; ++f) {
+      const std::string& file = options.files[f];
       ScanResult scan;
       scan.file = file;
       scan.frame = frameOf(file);
@@ -212,16 +334,40 @@ bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error
     }
   }
   r.yawErrorMeanAbsDeg = r.yawCount > 0 ? sumAbs / static_cast<double>(r.yawCount) : 0.0;
+  // Relative yaw between consecutive revolutions (what a recording without poses can report).
+  double stepAbs = 0.0;
+  for (std::size_t i = 1; i < r.scans.size(); ++i) {
+    if (r.orientations[i - 1].empty() || r.orientations[i].empty()) {
+      continue;
+    }
+    const Result<YawEstimate> y = relativeYaw(r.orientations[i - 1], r.orientations[i], options.orientation.minOverlap);
+    if (!y.ok()) {
+      continue;
+    }
+    ScanResult& s = r.scans[i];
+    s.hasStepYaw = true;
+    s.stepYaw = static_cast<double>(y.value().yaw);
+    s.stepYawRelativeCost = y.value().relativeCost();
+    const double e = std::fabs(rad2deg(s.stepYaw));
+    r.stepYawMaxAbsDeg = std::max(r.stepYawMaxAbsDeg, e);
+    stepAbs += e;
+    ++r.stepYawCount;
+  }
+  r.stepYawMeanAbsDeg = r.stepYawCount > 0 ? stepAbs / static_cast<double>(r.stepYawCount) : 0.0;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return true;
 }
 
 namespace {
-report::Json prJson(const PrPoint& p) {
+/// Precision and recall only with ground truth (without, every loop would count as false).
+report::Json prJson(const PrPoint& p, bool truth) {
   report::Json j;
   j["chi_square_threshold"] = report::shortestDouble(p.chiSquareThreshold);
   j["sorensen_threshold"] = report::shortestDouble(p.sorensenThreshold);
   j["detected"] = p.detected;
+  if (!truth) {
+    return j;
+  }
   j["true_positives"] = p.truePositives;
   j["positives"] = p.positives;
   j["precision"] = p.precision;
@@ -233,7 +379,8 @@ report::Json prJson(const PrPoint& p) {
 report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   report::Json doc;
   doc["program"] = "agvnav-lidar-places";
-  doc["format"] = options.format == Format::Kitti ? "kitti" : "nclt";
+  doc["format"] =
+      options.format == Format::Kitti ? "kitti" : (options.format == Format::Nclt ? "nclt" : "vlp16-packets");
   report::Json params;
   params["key_threshold"] = report::shortestDouble(options.place.keyThreshold);
   params["skip_recent_keys"] = options.place.skipRecentKeys;
@@ -243,15 +390,16 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   params["radius_m"] = options.radius;
   params["firing_step"] = options.signature.normals.firingStep;
   params["laser_step"] = options.signature.normals.laserStep;
+  params["normal_min_range_m"] = static_cast<double>(options.signature.normals.minRange);
   doc["parameters"] = params;
   doc["scans"] = r.scans.size();
   doc["keys"] = r.keys;
   doc["ground_truth"] = !r.truth.empty();
   doc["source"] = options.sim.sensor.empty() ? "files" : "sim:" + options.sim.sensor;
-  doc["summary"] = prJson(r.summary);
+  doc["summary"] = prJson(r.summary, !r.truth.empty());
   report::Json curve = report::Json::array();
   for (const PrPoint& p : r.curve) {
-    curve.push_back(prJson(p));
+    curve.push_back(prJson(p, !r.truth.empty()));
   }
   doc["pr_curve"] = curve;
   report::Json yaw;
@@ -259,6 +407,26 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   yaw["max_abs_error_deg"] = r.yawErrorMaxDeg;
   yaw["mean_abs_error_deg"] = r.yawErrorMeanAbsDeg;
   doc["yaw"] = yaw;
+  report::Json step;
+  step["count"] = r.stepYawCount;
+  step["max_abs_deg"] = r.stepYawMaxAbsDeg;
+  step["mean_abs_deg"] = r.stepYawMeanAbsDeg;
+  doc["yaw_between_consecutive"] = step;
+  if (options.format == Format::Vlp16Packets && options.sim.sensor.empty()) {
+    const PacketStats& ps = r.packets;
+    report::Json pj;
+    pj["calibration"] = options.calibrationPath;
+    pj["files"] = ps.files;
+    pj["packets"] = ps.packets;
+    pj["refused_packets"] = ps.refusedPackets;
+    pj["skipped_blocks"] = ps.skippedBlocks;
+    pj["records"] = ps.records;
+    pj["revolutions_assembled"] = ps.revolutions;
+    pj["revolutions_incomplete_skipped"] = ps.incomplete;
+    pj["refused_records"] = ps.refusedRecords;
+    pj["firing_returns"] = ps.firingReturns;
+    doc["packets"] = pj;
+  }
   report::Json loops = report::Json::array();
   report::Json scans = report::Json::array();
   for (std::size_t i = 0; i < r.scans.size(); ++i) {
@@ -272,6 +440,11 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
     js["status"] = toString(s.status);
     js["key"] = s.update.isKey;
     js["chi_square_to_last_key"] = report::shortestDouble(s.update.chiSquareToLastKey);
+    js["signature_sum"] = s.signatureSum;
+    if (s.hasStepYaw) {
+      js["yaw_from_previous_deg"] = rad2deg(s.stepYaw);
+      js["yaw_from_previous_relative_cost"] = report::shortestDouble(s.stepYawRelativeCost);
+    }
     scans.push_back(js);
     if (s.update.loop) {
       report::Json l;
