@@ -2,7 +2,7 @@
 # VLP-16 threshold set of docs/lidar-places.md): loops are found in both directions with precision
 # 1 and recall >= 0.8 (measured 1.000 / 0.853), and the yaw of the loops (same and opposite
 # direction) agrees with the truth on average within 1 deg.
-expect_keys("${j}" "program;format;parameters;scans;keys;ground_truth;source;summary;pr_curve;yaw;loops;per_scan")
+expect_keys("${j}" "program;format;parameters;scans;keys;ground_truth;source;summary;pr_curve;yaw;yaw_between_consecutive;loops;per_scan")
 expect_number_in("${j}" 180 180 scans)
 expect_number_in("${j}" 1 1 summary precision)
 expect_number_in("${j}" 0.8 1 summary recall)
