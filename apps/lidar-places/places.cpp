@@ -132,11 +132,9 @@ bool runPackets(const PlacesOptions& options, std::size_t columns, Image& image,
       std::size_t m = 0;
       Status st2 = vd::toFiringReturns(assembler.revolution(), *cal, columns,
                                        Span<FiringReturn>(returns.data(), returns.size()), m);
-      // Columns of toFiringReturns grow with the head azimuth phi (clockwise); buildFromRings' with
-      // atan2(y, x) (counter-clockwise). Mirrored here so that yaws keep the library's sign.
-      for (std::size_t i = 0; i < m; ++i) {
-        returns[i].firing = static_cast<std::uint32_t>((columns - returns[i].firing) % columns);
-      }
+      // toFiringReturns' columns grow with phi (clockwise), buildFromRings' counter-clockwise: neither
+      // matters here (the normals are turned towards the sensor, the orientation signature bins each
+      // cell by its point's atan2(y, x)); lidar3d.places_vlp16_turned checks the yaw's sign.
       ps.firingReturns += m;
       ScanResult scan;
       scan.file = file + "#rev" + std::to_string(assembler.revolutions() - 1);
