@@ -34,6 +34,8 @@ int main(int argc, char** argv) {
   app.add_option("--sim-lateral", options.sim.lateral, "[m] lateral offset of the repeated passes")
       ->check(CLI::Range(0.0, 5.0));
   app.add_option("--sim-seed", options.sim.seed, "world and noise seed");
+  app.add_flag("--sim-packets", options.sim.packets,
+               "vlp16: run the simulated revolutions through VLP-16 packets (decoder, assembler, buildFromFirings)");
   const std::map<std::string, agv::places::Format> formats{{"kitti", agv::places::Format::Kitti},
                                                            {"nclt", agv::places::Format::Nclt},
                                                            {"vlp16", agv::places::Format::Vlp16Packets}};

@@ -70,6 +70,31 @@ void addRevolution(const PlacesOptions& options, std::size_t columns, Image& ima
   finishRevolution(options, image, st, scan, r);
 }
 
+/// One assembled revolution of records: firing returns (points by `cal`), range image, signatures.
+/// Returns the number of firing returns.
+std::size_t addFiringRevolution(const PlacesOptions& options, std::size_t columns, Image& image,
+                                Span<const drivers::velodyne::FiringRecord> records, const LaserIntrinsics& cal,
+                                const std::vector<std::uint16_t>& rowOfLaser, std::vector<FiringReturn>& returns,
+                                ScanResult scan, PlacesResult& r) {
+  std::size_t m = 0;
+  // toFiringReturns' columns grow with phi (clockwise), buildFromRings' counter-clockwise: neither
+  // matters here (the normals are turned towards the sensor, the orientation signature bins each
+  // cell by its point's atan2(y, x)); lidar3d.places_vlp16_turned checks the yaw's sign.
+  Status st =
+      drivers::velodyne::toFiringReturns(records, cal, columns, Span<FiringReturn>(returns.data(), returns.size()), m);
+  scan.points = m;
+  if (st == Status::Ok) {
+    st = image.reset(rowOfLaser.size(), columns);
+  }
+  if (st == Status::Ok) {
+    st = image.buildFromFirings(Span<const FiringReturn>(returns.data(), m),
+                                Span<const std::uint16_t>(rowOfLaser.data(), rowOfLaser.size()));
+    scan.collisions = image.stats().collisions;
+  }
+  finishRevolution(options, image, st, scan, r);
+  return m;
+}
+
 /// VLP-16 raw packet recordings: decoder -> revolution assembler -> firing returns (calibration
 /// file) -> range image -> signatures. Revolutions begun mid-turn (a file's first) are counted and
 /// not run; the records after a file's last wrap never complete a revolution.
@@ -129,26 +154,11 @@ bool runPackets(const PlacesOptions& options, std::size_t columns, Image& image,
         ++ps.incomplete;
         continue;
       }
-      std::size_t m = 0;
-      Status st2 = vd::toFiringReturns(assembler.revolution(), *cal, columns,
-                                       Span<FiringReturn>(returns.data(), returns.size()), m);
-      // toFiringReturns' columns grow with phi (clockwise), buildFromRings' counter-clockwise: neither
-      // matters here (the normals are turned towards the sensor, the orientation signature bins each
-      // cell by its point's atan2(y, x)); lidar3d.places_vlp16_turned checks the yaw's sign.
-      ps.firingReturns += m;
       ScanResult scan;
       scan.file = file + "#rev" + std::to_string(assembler.revolutions() - 1);
       scan.frame = static_cast<long>(assembler.revolutions() - 1);
-      scan.points = m;
-      if (st2 == Status::Ok) {
-        st2 = image.reset(lasers, columns);
-      }
-      if (st2 == Status::Ok) {
-        st2 = image.buildFromFirings(Span<const FiringReturn>(returns.data(), m),
-                                     Span<const std::uint16_t>(rowOfLaser.data(), lasers));
-        scan.collisions = image.stats().collisions;
-      }
-      finishRevolution(options, image, st2, scan, r);
+      ps.firingReturns +=
+          addFiringRevolution(options, columns, image, assembler.revolution(), *cal, rowOfLaser, returns, scan, r);
     }
     const vd::VelodyneCounters& c = dec.counters();
     ps.packets += rec.packets;
@@ -160,6 +170,142 @@ bool runPackets(const PlacesOptions& options, std::size_t columns, Image& image,
               std::to_string(c.truncated) + ", another product " + std::to_string(c.wrongProduct) + ")";
       return false;
     }
+  }
+  return true;
+}
+
+/// The simulated VLP-16 as its packets (no encoder exists in drivers/protocol; this one writes what
+/// VelodyneDecoder reads, strongest return, product 0x22). The simulator casts every laser of firing
+/// column f at the counter-clockwise azimuth (f + 0.5) * 0.2 deg; the head angle phi grows
+/// clockwise, so column f becomes firing k = 1799 - f, sent in phi order at phi = k * 0.2 deg (0.1 deg
+/// before the ray: then the decoder's per-laser interpolation, +0..0.125 deg, keeps each laser of a
+/// firing in its column). Two firings per block (the second interpolated by the decoder), 12 blocks,
+/// 75 packets per revolution. Appends the packets to `out`.
+void encodeVlp16Revolution(const std::vector<RingPoint>& points, const std::vector<std::uint16_t>& laserOfRing,
+                           std::size_t firings, std::vector<std::uint8_t>& out) {
+  namespace vd = drivers::velodyne;
+  constexpr std::size_t kLasers = 16;
+  std::vector<std::uint16_t> raw(firings * kLasers, 0);
+  for (const RingPoint& p : points) {
+    double a = std::atan2(static_cast<double>(p.point.y()), static_cast<double>(p.point.x()));
+    if (a < 0.0) {
+      a += 2.0 * kPi<double>;
+    }
+    const auto f =
+        std::min(static_cast<std::size_t>(a / (2.0 * kPi<double>)*static_cast<double>(firings)), firings - 1);
+    const std::size_t k = firings - 1 - f;
+    const double counts = std::round(static_cast<double>(p.point.norm()) / 0.002);
+    raw[k * kLasers + laserOfRing[p.ring]] = static_cast<std::uint16_t>(std::min(counts, 65535.0));
+  }
+  const std::size_t perPacket = 2 * vd::kBlocksPerPacket;
+  for (std::size_t k0 = 0; k0 + perPacket <= firings; k0 += perPacket) {
+    const std::size_t base = out.size();
+    out.resize(base + vd::kPacketBytes, 0);
+    std::uint8_t* pkt = out.data() + base;
+    for (std::size_t b = 0; b < vd::kBlocksPerPacket; ++b) {
+      std::uint8_t* blk = pkt + b * 100;
+      const std::size_t k = k0 + 2 * b;
+      const auto az = static_cast<std::uint16_t>(k * vd::kAzimuthTurn / firings);
+      blk[0] = 0xFF;
+      blk[1] = 0xEE;
+      blk[2] = static_cast<std::uint8_t>(az & 0xFFU);
+      blk[3] = static_cast<std::uint8_t>(az >> 8U);
+      for (std::size_t seq = 0; seq < 2; ++seq) {
+        for (std::size_t l = 0; l < kLasers; ++l) {
+          const std::uint16_t d = raw[(k + seq) * kLasers + l];
+          std::uint8_t* rec = blk + 4 + (seq * kLasers + l) * 3;
+          rec[0] = static_cast<std::uint8_t>(d & 0xFFU);
+          rec[1] = static_cast<std::uint8_t>(d >> 8U);
+          rec[2] = 100;
+        }
+      }
+    }
+    pkt[1204] = static_cast<std::uint8_t>(vd::ReturnMode::Strongest);
+    pkt[1205] = 0x22;
+  }
+}
+
+/// The simulated VLP-16 route through its packets: each revolution encoded (encodeVlp16Revolution),
+/// decoded, assembled and turned into firing returns with the sensor's own table (elevations, no
+/// offsets) like a recording; the first packet of the last revolution is sent once more to cut it.
+/// The first revolution begins exactly at phi = 0, so it is run although the assembler marks it
+/// incomplete.
+bool simulatePackets(const PlacesOptions& options, const sim::MultibeamSensor& sensor, const sim::MultibeamWorld& world,
+                     const std::vector<sim::RoutePose>& route, std::mt19937_64& rng, Image& image, PlacesResult& r,
+                     std::string& error) {
+  namespace vd = drivers::velodyne;
+  const std::size_t lasers = sensor.elevation.size();
+  if (options.sim.sensor != "vlp16" || lasers != 16 || sensor.firings % 24 != 0) {
+    error = "--sim-packets: VLP-16 only";
+    return false;
+  }
+  auto cal = std::make_unique<LaserIntrinsics>();
+  std::vector<float> elevations(lasers);
+  bool ok = cal->reset(lasers) == Status::Ok;
+  for (std::size_t i = 0; i < lasers && ok; ++i) {
+    LaserParams lp;
+    lp.theta = sensor.elevation[i];
+    lp.alpha = sensor.azimuthOffset[i];  // beta = phi - alpha, phi = -(ray azimuth): ray = -beta
+    ok = cal->set(i, lp) == Status::Ok;
+    elevations[i] = static_cast<float>(sensor.elevation[i]);
+  }
+  std::vector<std::uint16_t> rowOfLaser(lasers);
+  if (!ok || elevationRanks(Span<const float>(elevations.data(), lasers),
+                            Span<std::uint16_t>(rowOfLaser.data(), lasers)) != Status::Ok) {
+    error = "the simulated sensor's table is not valid";
+    return false;
+  }
+  std::vector<std::uint16_t> laserOfRing(lasers);
+  for (std::size_t i = 0; i < lasers; ++i) {
+    laserOfRing[rowOfLaser[i]] = static_cast<std::uint16_t>(i);
+  }
+  std::vector<vd::FiringRecord> storage(80000);
+  std::vector<FiringReturn> returns(storage.size());
+  vd::FiringRecord out[vd::kMaxRecordsPerPacket];
+  vd::VelodyneDecoder dec(vd::VelodyneConfig{});
+  vd::RevolutionAssembler assembler(Span<vd::FiringRecord>(storage.data(), storage.size()));
+  PacketStats& ps = r.packets;
+  std::vector<RingPoint> points;
+  std::vector<std::uint8_t> bytes;
+  std::size_t emitted = 0;
+  const auto feed = [&](const std::uint8_t* pkt) {
+    std::size_t n = 0;
+    ++ps.packets;
+    if (dec.decode(Span<const std::uint8_t>(pkt, vd::kPacketBytes), Span<vd::FiringRecord>(out), n) != Status::Ok) {
+      return;  // counted by the decoder
+    }
+    ps.records += n;
+    if (!assembler.add(Span<const vd::FiringRecord>(out, n))) {
+      return;
+    }
+    ++ps.revolutions;
+    ps.refusedRecords += assembler.info().refused;
+    ScanResult scan;
+    scan.file = "sim:" + options.sim.sensor + ":packets:lap" + std::to_string(route[emitted].lap);
+    scan.frame = static_cast<long>(emitted);
+    ps.firingReturns +=
+        addFiringRevolution(options, sensor.firings, image, assembler.revolution(), *cal, rowOfLaser, returns, scan, r);
+    ++emitted;
+  };
+  std::vector<std::uint8_t> firstPacket;
+  for (std::size_t i = 0; i < route.size(); ++i) {
+    sim::scanRevolution(world, sensor, route[i].pose, rng, points);
+    r.truth.push_back(route[i].pose);
+    bytes.clear();
+    encodeVlp16Revolution(points, laserOfRing, sensor.firings, bytes);
+    firstPacket.assign(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(vd::kPacketBytes));
+    for (std::size_t k = 0; k + vd::kPacketBytes <= bytes.size(); k += vd::kPacketBytes) {
+      feed(bytes.data() + k);
+    }
+  }
+  if (!firstPacket.empty()) {
+    feed(firstPacket.data());  // the wrap that ends the last revolution (its records are not run)
+  }
+  ps.refusedPackets += dec.counters().refusedPackets();
+  ps.files = 0;
+  if (emitted != route.size()) {
+    error = "the packet path assembled " + std::to_string(emitted) + " revolutions of " + std::to_string(route.size());
+    return false;
   }
   return true;
 }
@@ -188,6 +334,9 @@ bool simulate(const PlacesOptions& options, Image& image, PlacesResult& r, std::
   std::mt19937_64 rng(o.seed * 7919U + 1U);
   datasets::Revolution rev;
   rev.rings = sensor.elevation.size();
+  if (o.packets) {
+    return simulatePackets(options, sensor, world, route, rng, image, r, error);
+  }
   for (std::size_t i = 0; i < route.size(); ++i) {
     sim::scanRevolution(world, sensor, route[i].pose, rng, rev.points);
     ScanResult scan;
@@ -393,7 +542,8 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   doc["scans"] = r.scans.size();
   doc["keys"] = r.keys;
   doc["ground_truth"] = !r.truth.empty();
-  doc["source"] = options.sim.sensor.empty() ? "files" : "sim:" + options.sim.sensor;
+  doc["source"] =
+      options.sim.sensor.empty() ? "files" : "sim:" + options.sim.sensor + (options.sim.packets ? ":packets" : "");
   doc["summary"] = prJson(r.summary, !r.truth.empty());
   report::Json curve = report::Json::array();
   for (const PrPoint& p : r.curve) {
@@ -410,7 +560,7 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   step["max_abs_deg"] = r.stepYawMaxAbsDeg;
   step["mean_abs_deg"] = r.stepYawMeanAbsDeg;
   doc["yaw_between_consecutive"] = step;
-  if (options.format == Format::Vlp16Packets && options.sim.sensor.empty()) {
+  if ((options.format == Format::Vlp16Packets && options.sim.sensor.empty()) || options.sim.packets) {
     const PacketStats& ps = r.packets;
     report::Json pj;
     pj["calibration"] = options.calibrationPath;

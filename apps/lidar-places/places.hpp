@@ -35,6 +35,9 @@ struct SimRouteOptions {
   double again = 0.3;       ///< fraction of the lap driven again in the first direction
   double lateral = 1.0;     ///< [m] lateral offset of the repeated passes (sinusoidal)
   std::uint64_t seed = 1;   ///< world and noise
+  /// vlp16: each revolution encoded as VLP-16 packets and run through the decoder, the revolution
+  /// assembler and buildFromFirings (the packet path against the simulator's truth).
+  bool packets = false;
 };
 
 /// What to run and how.
