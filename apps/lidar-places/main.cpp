@@ -1,5 +1,5 @@
 // agvnav-lidar-places: normal-histogram place recognition on a sequence of multi-beam lidar
-// revolutions (KITTI or NCLT velodyne .bin files): signatures, key-signatures, loops, precision /
+// revolutions (KITTI or NCLT velodyne .bin files, VLP-16 raw packets): signatures, key-signatures, loops, precision /
 // recall against ground-truth positions (KITTI poses) and yaw errors. Figures on stdout, --json, --svg.
 #include <CLI/CLI.hpp>
 
@@ -34,10 +34,17 @@ int main(int argc, char** argv) {
   app.add_option("--sim-lateral", options.sim.lateral, "[m] lateral offset of the repeated passes")
       ->check(CLI::Range(0.0, 5.0));
   app.add_option("--sim-seed", options.sim.seed, "world and noise seed");
+  app.add_flag("--sim-packets", options.sim.packets,
+               "vlp16: run the simulated revolutions through VLP-16 packets (decoder, assembler, buildFromFirings)");
   const std::map<std::string, agv::places::Format> formats{{"kitti", agv::places::Format::Kitti},
-                                                           {"nclt", agv::places::Format::Nclt}};
-  app.add_option("--format", options.format, "kitti (float32 x y z r) or nclt (velodyne_sync)")
+                                                           {"nclt", agv::places::Format::Nclt},
+                                                           {"vlp16", agv::places::Format::Vlp16Packets}};
+  app.add_option("--format", options.format,
+                 "kitti (float32 x y z r), nclt (velodyne_sync) or vlp16 (raw 1206-byte VLP-16 payloads, concatenated)")
       ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case));
+  app.add_option("--calibration", options.calibrationPath,
+                 "vlp16: per-laser calibration, db.xml or velodyne_pointcloud YAML (default: the shared vlp16_db.yaml)")
+      ->check(CLI::ExistingFile);
   app.add_option("--poses", options.posesPath, "KITTI poses file (frame = the number in each file name)");
   app.add_option("--radius", options.radius, "[m] a loop is true when its two positions are this close")
       ->check(CLI::PositiveNumber);
@@ -54,6 +61,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 8));
   app.add_option("--firing-step", options.signature.normals.firingStep, "normal neighbours: firings before/after")
       ->check(CLI::Range(1, 64));
+  app.add_option("--normal-min-range", options.signature.normals.minRange,
+                 "[m] nearest point that gets a normal (thesis: 3; indoor recordings see less)")
+      ->check(CLI::Range(0.1, 50.0));
   app.add_flag("--verbose", verbose, "print every revolution (default: only the loops and failures)");
   app.add_option("--json", jsonPath, "write the figures as JSON");
   app.add_option("--svg", svgPath, "write the key signatures and the loops as SVG");
@@ -66,6 +76,14 @@ int main(int argc, char** argv) {
   }
   if (options.sim.sensor == "hdl64" && options.sim.calibration.empty()) {
     options.sim.calibration = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/hdl64e_s2.1_sztaki.yaml";
+  }
+
+  if (options.format == agv::places::Format::Vlp16Packets && options.calibrationPath.empty()) {
+    options.calibrationPath = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/vlp16_db.yaml";
+  }
+  if (options.format != agv::places::Format::Vlp16Packets && !options.calibrationPath.empty()) {
+    std::fprintf(stderr, "agvnav-lidar-places: --calibration applies to --format vlp16 only\n");
+    return 2;
   }
 
   agv::places::PlacesResult result;
@@ -95,6 +113,9 @@ int main(int argc, char** argv) {
         std::printf(" (truth %.2f, error %.2f deg)", agv::rad2deg(s.yawTruth), agv::rad2deg(s.yawError));
       }
     }
+    if (s.hasStepYaw) {
+      std::printf(", yaw from the previous %.2f deg", agv::rad2deg(s.stepYaw));
+    }
     std::printf("\n");
   }
   std::printf("%zu revolutions in %.1f s; keys %zu; loops detected %zu", result.scans.size(), result.seconds,
@@ -105,9 +126,28 @@ int main(int argc, char** argv) {
   }
   std::printf("\n");
   for (const agv::places::PrPoint& p : result.curve) {
+    if (result.truth.empty()) {
+      std::printf("  T_chi2 %.2e T_Sor %.4f: detected %zu\n", static_cast<double>(p.chiSquareThreshold),
+                  static_cast<double>(p.sorensenThreshold), p.detected);
+      continue;
+    }
     std::printf("  T_chi2 %.2e T_Sor %.4f: detected %zu, true %zu, precision %.3f recall %.3f\n",
                 static_cast<double>(p.chiSquareThreshold), static_cast<double>(p.sorensenThreshold), p.detected,
                 p.truePositives, p.precision, p.recall);
+  }
+  if (options.format == agv::places::Format::Vlp16Packets) {
+    const agv::places::PacketStats& ps = result.packets;
+    std::printf(
+        "packets %zu (refused %zu, blocks skipped %zu), returns %zu; revolutions assembled %zu, begun mid-turn "
+        "(not run) %zu, records refused %zu\n",
+        ps.packets, ps.refusedPackets, ps.skippedBlocks, ps.records, ps.revolutions, ps.incomplete, ps.refusedRecords);
+  }
+  if (result.truth.empty()) {
+    std::printf("no ground-truth poses: no precision / recall or yaw errors\n");
+  }
+  if (result.stepYawCount > 0) {
+    std::printf("yaw between consecutive revolutions over %zu pairs: mean |yaw| %.3f deg, max %.3f deg\n",
+                result.stepYawCount, result.stepYawMeanAbsDeg, result.stepYawMaxAbsDeg);
   }
   if (result.yawCount > 0) {
     std::printf("yaw error over %zu loops: mean |e| %.3f deg, max %.3f deg\n", result.yawCount,

@@ -1,8 +1,8 @@
 #pragma once
 /// @file places.hpp
 /// agvnav-lidar-places: a sequence of multi-beam revolutions (KITTI or NCLT velodyne `.bin`) run
-/// through the normal-histogram signatures, key-signatures and loop detection of agv/lidar3d, with
-/// precision / recall against ground-truth positions and yaw errors where poses exist.
+/// or VLP-16 raw packets) through the normal-histogram signatures, key-signatures and loop detection of agv/lidar3d,
+/// with precision / recall against ground-truth positions and yaw errors where poses exist.
 
 #include <Eigen/Core>
 #include <cstddef>
@@ -18,7 +18,11 @@
 
 namespace agv::places {
 
-enum class Format { Kitti, Nclt };
+/// Kitti / Nclt: one revolution per `.bin` of points. Vlp16Packets: recordings of raw VLP-16 UDP
+/// payloads (1206 bytes each, concatenated: the einride recording), decoded by
+/// agv::drivers::velodyne, cut into revolutions by its RevolutionAssembler, points by a
+/// calibration file (`calibrationPath`).
+enum class Format { Kitti, Nclt, Vlp16Packets };
 
 /// The simulated route (drivers/sim multibeam_world.hpp) instead of files.
 struct SimRouteOptions {
@@ -31,6 +35,9 @@ struct SimRouteOptions {
   double again = 0.3;       ///< fraction of the lap driven again in the first direction
   double lateral = 1.0;     ///< [m] lateral offset of the repeated passes (sinusoidal)
   std::uint64_t seed = 1;   ///< world and noise
+  /// vlp16: each revolution encoded as VLP-16 packets and run through the decoder, the revolution
+  /// assembler and buildFromFirings (the packet path against the simulator's truth).
+  bool packets = false;
 };
 
 /// What to run and how.
@@ -38,9 +45,10 @@ struct PlacesOptions {
   Format format = Format::Kitti;
   std::vector<std::string> files;  ///< revolutions in driving order
   SimRouteOptions sim{};
-  std::string posesPath;    ///< KITTI poses (frame = the file name's number); empty: no truth
-  double radius = 5.0;      ///< [m] a loop is true when the two positions are this close
-  std::size_t columns = 0;  ///< range-image columns (0: 2000 for KITTI, 1024 for NCLT)
+  std::string calibrationPath;  ///< Vlp16Packets: db.xml or velodyne_pointcloud YAML (16 lasers)
+  std::string posesPath;        ///< KITTI poses (frame = the file name's number); empty: no truth
+  double radius = 5.0;          ///< [m] a loop is true when the two positions are this close
+  std::size_t columns = 0;      ///< range-image columns (0: 2000 for KITTI, 1024 for NCLT)
   PlaceParams place{};
   NormalSignatureParams signature{};
   OrientationParams orientation{};
@@ -63,8 +71,25 @@ struct ScanResult {
   bool loopTrue = false;               ///< the detected loop's positions are within the radius
   double loopDistance = 0.0;           ///< [m] between the two positions of the detected loop
   bool hasYawError = false;
-  double yawTruth = 0.0;  ///< [rad]
-  double yawError = 0.0;  ///< [rad] estimate - truth
+  double yawTruth = 0.0;      ///< [rad]
+  double yawError = 0.0;      ///< [rad] estimate - truth
+  double signatureSum = 0.0;  ///< sum of the normal signature's bins (1 when normalised, 0 when empty)
+  bool hasStepYaw = false;    ///< relative yaw to the previous revolution (both orientations valid)
+  double stepYaw = 0.0;       ///< [rad] counter-clockwise, this revolution w.r.t. the previous one
+  float stepYawRelativeCost = 0.0F;
+};
+
+/// What the packet path decoded (Vlp16Packets).
+struct PacketStats {
+  std::size_t files = 0;
+  std::size_t packets = 0;         ///< packets read
+  std::size_t refusedPackets = 0;  ///< refused by the decoder (truncated, another product, ...)
+  std::size_t skippedBlocks = 0;   ///< blocks skipped (bad id / azimuth)
+  std::size_t records = 0;         ///< returns decoded
+  std::size_t revolutions = 0;     ///< revolutions cut by the assembler
+  std::size_t incomplete = 0;      ///< of them begun mid-turn (a file's first): not run
+  std::size_t refusedRecords = 0;  ///< records beyond the assembler's storage
+  std::size_t firingReturns = 0;   ///< returns handed to the range images
 };
 
 /// One point of the precision / recall curve.
@@ -90,6 +115,10 @@ struct PlacesResult {
   double yawErrorMaxDeg = 0.0;
   double yawErrorMeanAbsDeg = 0.0;
   std::size_t yawCount = 0;
+  PacketStats packets{};
+  std::size_t stepYawCount = 0;  ///< consecutive revolutions with a relative yaw
+  double stepYawMaxAbsDeg = 0.0;
+  double stepYawMeanAbsDeg = 0.0;
   double seconds = 0.0;  ///< wall time of the run (reading / simulating included)
 };
 

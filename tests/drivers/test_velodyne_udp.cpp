@@ -8,11 +8,10 @@
 
 #include <cstdint>
 #include <cstring>
-#include <fstream>
-#include <iterator>
 #include <string>
 #include <vector>
 
+#include "agv/datasets/velodyne_recording.hpp"
 #include "agv/drivers/linux/monotonic_clock.hpp"
 #include "agv/drivers/linux/udp_receiver.hpp"
 #include "agv/drivers/protocol/velodyne/velodyne_packet.hpp"
@@ -25,9 +24,15 @@ using agv::Timestamp;
 using namespace agv::drivers;
 
 namespace {
+/// The recording's bytes through the shared reader (agv_datasets); empty when it cannot be read.
 std::vector<std::uint8_t> recording() {
-  std::ifstream f(std::string(AGV_SHARED_DATA_DIR) + "/lidar3d/vlp16_einride/recording.bin", std::ios::binary);
-  return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+  agv::datasets::PacketRecording r;
+  std::string error;
+  if (!agv::datasets::readPacketRecording(std::string(AGV_SHARED_DATA_DIR) + "/lidar3d/vlp16_einride/recording.bin",
+                                          velodyne::kPacketBytes, r, error)) {
+    FAIL(error);
+  }
+  return r.bytes;
 }
 
 /// A plain UDP sender to 127.0.0.1:port.

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "agv/datasets/velodyne_calibration.hpp"
+#include "agv/datasets/velodyne_recording.hpp"
 #include "agv/drivers/protocol/velodyne/velodyne_packet.hpp"
 #include "agv_test.hpp"
 
@@ -148,8 +149,11 @@ TEST_CASE("Calibration parsers refuse broken files by name", "[lidar3d][velodyne
 }
 
 TEST_CASE("einride VLP-16 recording decodes to the counts its README states", "[lidar3d][velodyne][realdata]") {
-  const std::vector<std::uint8_t> bytes = readBytes(kDir + "vlp16_einride/recording.bin");
-  REQUIRE(bytes.size() == 1206000U);
+  agv::datasets::PacketRecording recording;
+  std::string error;
+  INFO(error);
+  REQUIRE(agv::datasets::readPacketRecording(kDir + "vlp16_einride/recording.bin", kPacketBytes, recording, error));
+  REQUIRE(recording.packets == 1000U);  // README: 1000 packets, 1 206 000 bytes
   VelodyneDecoder dec(VelodyneConfig{});
   std::vector<FiringRecord> storage(40000);
   RevolutionAssembler rev(Span<FiringRecord>(storage.data(), storage.size()));
@@ -165,7 +169,7 @@ TEST_CASE("einride VLP-16 recording decodes to the counts its README states", "[
   int maxStep = 0;
   int prevAz = -1;
   for (std::size_t k = 0; k < 1000; ++k) {
-    const Span<const std::uint8_t> pkt(bytes.data() + k * kPacketBytes, kPacketBytes);
+    const Span<const std::uint8_t> pkt(recording.packet(k), kPacketBytes);
     std::size_t n = 0;
     PacketInfo info;
     REQUIRE(dec.decode(pkt, Span<FiringRecord>(out), n, &info) == Status::Ok);
