@@ -44,6 +44,7 @@ add_executable(fuzz_vehicle_config
   ${AGV_FUZZ_ROOT}/drivers/linux/src/canopen_encoder_source.cpp
   ${AGV_FUZZ_ROOT}/drivers/linux/src/sick_laser_source.cpp)
 target_include_directories(fuzz_vehicle_config PRIVATE ${AGV_FUZZ_ROOT}/apps/vehicle ${AGV_FUZZ_ROOT}/apps/lib/report/include
+                                                       ${AGV_FUZZ_ROOT}/apps/lib/calibration/include
                                                        ${AGV_FUZZ_ROOT}/drivers/linux/include ${AGV_FUZZ_ROOT}/tests/fuzz)
 target_link_libraries(fuzz_vehicle_config PRIVATE agv_fuzz_protocol)
 target_compile_options(fuzz_vehicle_config PRIVATE ${_agv_fuzz_flags})
