@@ -98,11 +98,12 @@ struct ScanMatchParams {
   /// vehicle has moved by what odometry says within what odometry can be wrong by, and the map
   /// keeps placing it there); it is then fused into the hypothesis. When the tracking match,
   /// searched around the main filter's estimate, does not confirm it, a second match is run at the
-  /// hypothesis over the window of its covariance. `resyncAfter` matches in a row (the first
-  /// included) mean the prior is wrong (a slip the odometry model did not cover): the main filter
-  /// is reset to the hypothesis. A scan the matcher cannot use (too few points, off the map)
-  /// carries the hypothesis on; a good match elsewhere replaces it; a match at the hypothesis that
-  /// fits badly or fails its gate ends it. 0 disables it. Three, because a wrong match that
+  /// hypothesis over the window of its covariance (so a cycle runs the matcher at most twice).
+  /// `resyncAfter` matches in a row (the first included) mean the prior is wrong (a slip the
+  /// odometry model did not cover): the main filter is reset to the hypothesis. A scan the
+  /// matcher cannot use (too few points, off the map), or a match at the hypothesis that passes
+  /// its gate but fits worse than `resyncMaxRms`, carries the hypothesis on without counting; a
+  /// good match elsewhere replaces it; a match at the hypothesis that fails its gate ends it. 0 disables it. Three, because a wrong match that
   /// repeats three times while the vehicle moves is a map that is locally ambiguous, which the
   /// gate cannot tell either.
   std::uint8_t resyncAfter = 3;
