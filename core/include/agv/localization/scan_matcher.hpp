@@ -103,9 +103,9 @@ struct ScanMatchParams {
   /// odometry model did not cover): the main filter is reset to the hypothesis. A scan the
   /// matcher cannot use (too few points, off the map), or a match at the hypothesis that passes
   /// its gate but fits worse than `resyncMaxRms`, carries the hypothesis on without counting; a
-  /// good match elsewhere replaces it; a match at the hypothesis that fails its gate ends it. 0 disables it. Three, because a wrong match that
-  /// repeats three times while the vehicle moves is a map that is locally ambiguous, which the
-  /// gate cannot tell either.
+  /// good match elsewhere replaces it; a match at the hypothesis that fails its gate ends it.
+  /// 0 disables it. Three, because a wrong match that repeats three times while the vehicle moves
+  /// is a map that is locally ambiguous, which the gate cannot tell either.
   std::uint8_t resyncAfter = 3;
   /// [m], [rad] 1-sigma scatter of a real match around the true pose beyond its covariance (the
   /// covariance says how well the points fit the map, not how well the map fits the world), added
