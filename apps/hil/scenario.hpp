@@ -108,6 +108,9 @@ struct ScenarioConfig {
   double relocSeconds = 4.0;  ///< [s] of simulated time per trial at most
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
   std::int16_t dynamicMinHitsToCorrect = 10;
+  /// Dynamic mode: scan matching against the surfaces of the run's earlier sweeps
+  /// (`ObservationParams::surfaceMap`) next to the dynamic corner map; off: the corners alone.
+  bool dynamicSurfaceMap = true;
 };
 
 /// One sample of a run's history (every control period).

@@ -98,6 +98,11 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
                  "(static corners + likelihood field), the rest is localized on them (0: off)");
   app.add_flag("!--no-scan-matching", options.scanMatching, "with --map-fraction: the corner map alone");
   app.add_option("--field-resolution", options.field.resolution, "[m] likelihood field cell size");
+  app.add_flag("!--no-surface-map", options.surfaceMap,
+               "map-less runs: no scan matching against the surface map of the earlier scans (corners alone)");
+  app.add_option("--surface-max-range", options.surface.maxRange, "[m] farthest beam the surface map takes");
+  app.add_option("--surface-new-distance", options.surface.newSurfaceDistance,
+                 "[m] a beam farther than this from the surface map's surfaces is a new surface");
   app.add_option("--field-min-scans", options.fieldMinScans, "mapping scans a field surface cell needs");
   app.add_option("--match-inlier", options.localizer.scanMatch.inlierDistance, "[m] scan-match inlier distance");
   app.add_option("--match-max-rms", options.localizer.scanMatch.maxRmsResidual, "[m] scan-match RMS limit");

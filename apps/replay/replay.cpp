@@ -335,6 +335,15 @@ class ScanReplay {
         r_.fieldWidth = static_cast<double>(field_->width()) * options_.field.resolution;
         r_.fieldHeight = static_cast<double>(field_->height()) * options_.field.resolution;
       }
+    } else if (options_.surfaceMap) {
+      surface_ = std::make_unique<HallSurfaceMap>(options_.surface);
+      if (surface_->params().validate() != Status::Ok) {
+        error = "invalid surface map parameters";
+        return false;
+      }
+      lp_.scanMatch = surfaceMapMatching(lp_.scanMatch);
+      localizer_ = std::make_unique<Localizer>(lp_);
+      r_.surfaceMap = true;
     }
     last_ = Timestamp::fromSeconds(log_.scans[start].timestamp);
     if (localizer_->reset(last_, r_.truth[0], p0_) != Status::Ok) {
@@ -361,9 +370,12 @@ class ScanReplay {
     (void)log_.scans[i].toLaserScan(*scan_);
     detectCorners(stamp);
     r_.keypoints += obs_->points.size();
-    const LocalizerHealth& h =
-        field_ ? localizer_->correct(*obs_, *scan_, *map_, *field_) : localizer_->correct(*obs_, *scan_, *map_);
+    const LocalizerHealth& h = correct();
     tally(h);
+    if (surface_ && mayExtendSurfaceMap(h)) {
+      const SurfaceInsert in = surface_->insert(*surfacePoints_, h.scanPose.compose(lp_.laser.mounting));
+      r_.surfaceAdded += in.added;
+    }
     if (h.scanMatch.resynced) {
       ++r_.matchResyncs;
       r_.resyncWrong += isWrongRestart(h.scanMatch.pose, log_.scans[i].robotPose) ? 1U : 0U;
@@ -501,6 +513,28 @@ class ScanReplay {
            std::fabs(normalizeAngle(pose.theta - truth.theta)) > deg2rad(5.0);
   }
 
+  /// The localizer's correction of the current scan: against the mapping run's field, the surface
+  /// map of the earlier scans (with the beams it takes: within its range), or the corners alone.
+  const LocalizerHealth& correct() {
+    if (field_) {
+      return localizer_->correct(*obs_, *scan_, *map_, *field_);
+    }
+    if (!surface_) {
+      return localizer_->correct(*obs_, *scan_, *map_);
+    }
+    surfacePoints_->clear();
+    for (std::size_t b = 0; b < scan_->size(); ++b) {
+      const double r = static_cast<double>(scan_->ranges[b]);
+      if (scan_->isValid(b) && r <= options_.surface.maxRange) {
+        const double a = static_cast<double>(scan_->angle(b));
+        (void)surfacePoints_->push_back(
+            MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))});
+      }
+    }
+    return surface_->field().built() ? localizer_->correct(*obs_, *scan_, *surfacePoints_, *map_, surface_->field())
+                                     : localizer_->correct(*obs_, *scan_, *map_);
+  }
+
   /// Whether the current scan is on the map at the vehicle pose `truth` (`ReplayResult::onMap`).
   bool onMap(const Pose2d& truth) const {
     const ScanMatchParams& mp = lp_.scanMatch;
@@ -593,6 +627,8 @@ class ScanReplay {
   std::unique_ptr<LandmarkMap> map_;
   std::unique_ptr<FalkoDetector> detector_;
   std::unique_ptr<LikelihoodField<kReplayFieldCells>> field_;
+  std::unique_ptr<HallSurfaceMap> surface_;
+  std::unique_ptr<MatchPoints> surfacePoints_ = std::make_unique<MatchPoints>();  // beams within its range
   std::size_t start_ = 0;
   std::unique_ptr<LaserScan> scan_ = std::make_unique<LaserScan>();
   std::unique_ptr<FalkoKeypoints> kps_ = std::make_unique<FalkoKeypoints>();
@@ -738,6 +774,11 @@ std::string resultText(const ReplayResult& r) {
       << r.relocConfirmed << " confirmed restarts (" << r.relocWrong << " wrong), " << r.relocUnconfirmed
       << " unconfirmed\n";
   }
+  if (r.surfaceMap) {
+    o << "surface map (the earlier scans' surfaces): " << r.surfaceAdded
+      << " surface points; scan matching: " << r.matchAttempts << " attempts, " << r.matchFused << " fused, "
+      << r.matchGated << " gated, " << r.matchRefused << " refused by the matcher\n";
+  }
   o << (r.staticMap ? "static map (built from the corrected poses): " : "dynamic map: ") << r.mapSize
     << " landmarks at the end, " << r.mapInserted << " inserted, " << r.mapDeleted << " deleted; replay "
     << fmt("%.1f s\n", r.seconds);
@@ -785,6 +826,7 @@ report::Json resultJson(const ReplayResult& r) {
                 {"wrong", r.relocWrong},
                 {"unconfirmed", r.relocUnconfirmed},
                 {"seconds", r.relocSeconds}}},
+              {"surface_map", {{"enabled", r.surfaceMap}, {"points", r.surfaceAdded}}},
               {"laser_x_m", r.laserX},
               {"odometry_noise",
                {{"fitted_steps", r.odometryNoiseSteps},

@@ -16,6 +16,7 @@
 #include "agv/localization/likelihood_field.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/odometry.hpp"
+#include "agv/localization/surface_map.hpp"
 #include "agv/report/json.hpp"
 
 namespace agv {
@@ -89,6 +90,11 @@ struct ReplayOptions {
   /// position covariance (which grows with the distance driven since the loss), at least this
   /// radius; 0: the whole field.
   double relocRadius = 3.0;
+  /// Map-less runs (no `mapFraction`, no `staticMapFromTruth`): scan-to-map matching against a
+  /// `SurfaceMap`, the likelihood field of the localizer's own earlier scans, next to the dynamic
+  /// corner map. Off: the corners alone.
+  bool surfaceMap = true;
+  SurfaceMapParams surface{};
   /// When not empty, one CSV line per scan (health and errors) is written here.
   std::string tracePath;
 };
@@ -133,6 +139,8 @@ struct ReplayResult {
   std::size_t mappingScans = 0;   ///< scans of the mapping run (not localized)
   std::size_t staticCorners = 0;  ///< corners of the static map
   std::size_t fieldSurfaceCells = 0;
+  bool surfaceMap = false;              ///< a map-less run matched against its `SurfaceMap`
+  std::size_t surfaceAdded = 0;         ///< surface points the map took
   double fieldWidth = 0.0;              ///< [m]
   double fieldHeight = 0.0;             ///< [m]
   std::size_t matchAttempts = 0;        ///< scans matched against the field

@@ -327,6 +327,8 @@ void addFileKeys(Specs& specs, VehicleConfig& c) {
 /// localization.*: corners as observations, the initial pose.
 void addLocalizationKeys(Specs& specs, VehicleConfig& c) {
   specs["localization.corners"] = choice(false, {"false", "true"}, [&c](std::size_t i) { c.useCorners = i == 1; });
+  specs["localization.surface_map"] =
+      choice(false, {"false", "true"}, [&c](std::size_t i) { c.useSurfaceMap = i == 1; });
   specs["localization.relocalize"] = choice(false, {"false", "true"}, [&c](std::size_t i) { c.relocalize = i == 1; });
   specs["localization.initial_pose"] =
       KeySpec{false, [&c](const std::string& v, std::string& why) {

@@ -29,7 +29,10 @@ struct VehicleConfig {
   std::string mapFile;          ///< map.file (same)
   MapMode mapMode = MapMode::Static;
   bool useCorners = false;  ///< localization.corners: FALKO corners as observations too
-  bool relocalize = true;   ///< localization.relocalize: search the map when lost or without a set-pose
+  /// localization.surface_map: scan matching against the surfaces of the earlier sweeps (map-less
+  /// natural navigation from the set-pose, `nav::ObservationParams::surfaceMap`)
+  bool useSurfaceMap = false;
+  bool relocalize = true;  ///< localization.relocalize: search the map when lost or without a set-pose
   bool haveInitialPose = false;
   Pose2d initialPose{};                                     ///< localization.initial_pose
   Duration cyclePeriod = Duration::fromMilliseconds(2);     ///< loop.period

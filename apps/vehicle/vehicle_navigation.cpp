@@ -141,6 +141,7 @@ nav::PipelineParams pipelineParams(const VehicleConfig& c, const VehicleCalibrat
   laser.angleMax = fov >= 2.0 * kPi ? kPi : 0.5 * fov;
   p.observations.reflectors = true;  // used when the laser reports them (NAV350)
   p.observations.corners = c.useCorners;
+  p.observations.surfaceMap = c.useSurfaceMap;
   p.relocalization.enabled = c.relocalize;
   p.publishPeriod = c.publishPeriod;
   p.calibrationValid = true;  // the program refuses to start without a checked calibration file

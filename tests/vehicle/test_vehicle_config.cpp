@@ -93,6 +93,10 @@ TEST_CASE("defaults follow the laser model and the node ids", "[vehicle]") {
   VehicleConfig noReloc;
   REQUIRE(parseVehicleConfig(withValue(text, "localization.relocalize", "false", line), "vehicle.conf", noReloc, e));
   CHECK_FALSE(noReloc.relocalize);
+  CHECK_FALSE(c.useSurfaceMap);  // the default
+  VehicleConfig surfaces;
+  REQUIRE(parseVehicleConfig(withValue(text, "localization.surface_map", "true", line), "vehicle.conf", surfaces, e));
+  CHECK(surfaces.useSurfaceMap);
   CHECK(c.laser.tcp.port == 2112);
   CHECK(c.laser.nav.rangeMax == Approx(250.0));
   CHECK(c.can.canopen.drive.pdo.cobId == 0x190);
@@ -205,6 +209,7 @@ TEST_CASE("every key with a bad value is refused, naming the file, line and key"
       {"map.file", ""},
       {"map.mode", "frozen"},
       {"localization.corners", "yes"},
+      {"localization.surface_map", "1"},
       {"localization.relocalize", "on"},
       {"localization.initial_pose", "1 2"},
       {"localization.initial_pose", "1 2 3 4"},

@@ -814,6 +814,7 @@ bool Localizer::judgeCycle(MapMode mode) noexcept {
 }
 
 void Localizer::storeAndReplay(const Rewind& at) noexcept {
+  health_.scanPose = ekf_.pose();
   const std::size_t n = history_.size();
   const std::size_t k = at.k;
   if (at.split) {

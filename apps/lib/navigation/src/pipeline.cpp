@@ -10,8 +10,21 @@
 #include "agv/loop/global_localizer.hpp"
 
 namespace agv::nav {
+namespace {
+/// The localizer's parameters: the configured ones, with the surface map's matching settings when
+/// the sweeps are matched against it.
+LocalizerParams localizerParams(const PipelineParams& p) noexcept {
+  LocalizerParams l = p.localizer;
+  if (p.observations.surfaceMap) {
+    l.scanMatch = surfaceMapMatching(l.scanMatch);
+  }
+  return l;
+}
+}  // namespace
+
 Status PipelineParams::validate() const noexcept {
-  for (const Status s : {kinematics.validate(), odometryNoise.validate(), localizer.validate(), agv::validate(falko)}) {
+  for (const Status s : {kinematics.validate(), odometryNoise.validate(), localizer.validate(), agv::validate(falko),
+                         observations.surfaceMap ? surface.validate() : Status::Ok}) {
     if (s != Status::Ok) {
       return s;
     }
@@ -59,7 +72,7 @@ struct Pipeline::Impl {
         plc(d.plc),
         clock(d.clock),
         odometry(p.kinematics, p.odometryNoise),
-        localizer(std::make_unique<Localizer>(p.localizer)),
+        localizer(std::make_unique<Localizer>(localizerParams(p))),
         detector(std::make_unique<FalkoDetector>(p.falko)),
         keypoints(std::make_unique<FalkoKeypoints>()),
         observations(std::make_unique<ScanObservations>()),
@@ -69,6 +82,17 @@ struct Pipeline::Impl {
     search.laserMount = p.localizer.laser.mounting;
     globalLocalizer = std::make_unique<GlobalLocalizer>(search);
     confirmer = std::make_unique<RelocConfirmer>(p.relocalization.confirm);
+    if (p.observations.surfaceMap) {
+      surface = std::make_unique<HallSurfaceMap>(p.surface);
+    }
+  }
+
+  /// Drops the surface map (when there is one): a new pose may not fit the surfaces placed with
+  /// the old one.
+  void clearSurfaces() noexcept {
+    if (surface) {
+      surface->clear();
+    }
   }
 
   // Stages of one cycle, in order.
@@ -123,6 +147,7 @@ struct Pipeline::Impl {
   std::unique_ptr<FixedVector<Pose2d::Vector2, kMaxCorners>> corners;
   const LikelihoodFieldBase* field = nullptr;
   std::unique_ptr<MatchPoints> matchPoints = std::make_unique<MatchPoints>();
+  std::unique_ptr<HallSurfaceMap> surface;  // with observations.surfaceMap
   std::unique_ptr<GlobalLocalizer> globalLocalizer;
   std::unique_ptr<RelocConfirmer> confirmer;
   bool searching = false;
@@ -224,6 +249,7 @@ void Pipeline::Impl::applySetPose() noexcept {
   localizing = true;
   searching = false;
   everRelocalized = false;
+  clearSurfaces();
   ++counters.setPoses;
   // The odometry restarts at the newest sample: the set-pose holds at its instant.
   odometry.reset();
@@ -249,9 +275,12 @@ void Pipeline::Impl::readSweep() noexcept {
   observe(sweep);
   MatchPoints& points = *matchPoints;
   points.clear();
-  if (field != nullptr || params.observations.collectScanPoints) {
+  if (field != nullptr || params.observations.collectScanPoints || surface) {
+    // Matched against the surface map: only the beams it takes (farther surfaces are not in it,
+    // and would count as off the map).
+    const double maxRange = field == nullptr && surface ? params.surface.maxRange : 1e300;
     for (std::size_t i = 0; i < meas.scan.size(); ++i) {
-      if (meas.scan.isValid(i)) {
+      if (meas.scan.isValid(i) && static_cast<double>(meas.scan.ranges[i]) <= maxRange) {
         const double a = static_cast<double>(meas.scan.angle(i));
         const double r = static_cast<double>(meas.scan.ranges[i]);
         const Pose2d::Vector2 p = sweep.atBeam(i, r * std::cos(a), r * std::sin(a));
@@ -261,10 +290,15 @@ void Pipeline::Impl::readSweep() noexcept {
   }
   if (localizing) {
     // The sweep's ranges let the localizer tell hidden landmarks from missed ones.
-    if (field != nullptr) {
-      (void)localizer->correct(*observations, meas.scan, *matchPoints, map, *field);
-    } else {
-      (void)localizer->correct(*observations, meas.scan, map);
+    const LikelihoodFieldBase* against = field;
+    if (against == nullptr && surface && surface->field().built()) {
+      against = &surface->field();
+    }
+    const LocalizerHealth& h = against != nullptr
+                                   ? localizer->correct(*observations, meas.scan, *matchPoints, map, *against)
+                                   : localizer->correct(*observations, meas.scan, map);
+    if (field == nullptr && surface && mayExtendSurfaceMap(h)) {
+      (void)surface->insert(*matchPoints, h.scanPose.compose(params.localizer.laser.mounting));
     }
     ++counters.corrections;
     report.corrected = true;
@@ -313,6 +347,7 @@ void Pipeline::Impl::relocalize() noexcept {
         localizing = true;
         searching = false;
         everRelocalized = true;
+        clearSurfaces();
         relocalizedAt = t;
         report.relocalized = true;
         report.searching = false;
@@ -497,6 +532,7 @@ void Pipeline::Impl::resetTracking() noexcept {
   deadReckoning = Pose2d{};
   corners->clear();
   matchPoints->clear();
+  clearSurfaces();
   visibleReflectors = 0;
   searching = false;
   lastSearchAmbiguous = false;
@@ -587,7 +623,7 @@ Status Pipeline::recalibrate(const TricycleParams& kinematics, const Pose2d& las
   const Pose2d pose = m.localizer->pose();
   m.params = p;
   m.odometry = TricycleOdometry(p.kinematics, p.odometryNoise);
-  m.localizer = std::make_unique<Localizer>(p.localizer);
+  m.localizer = std::make_unique<Localizer>(localizerParams(p));
   GlobalLocalizerParams search = p.relocalization.search;
   search.laserMount = p.localizer.laser.mounting;
   m.globalLocalizer = std::make_unique<GlobalLocalizer>(search);

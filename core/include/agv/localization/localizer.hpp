@@ -303,6 +303,10 @@ struct LocalizerHealth {
   double headingCorrection = 0.0;
   double positionSigma = 0.0;  ///< [m] largest axis of the position covariance
   double headingSigma = 0.0;   ///< [rad]
+  /// The estimate at the scan's time after this cycle's updates (before the newer odometry is
+  /// re-applied): where the scan was taken, e.g. to add it to a `SurfaceMap`. Meaningful when
+  /// the cycle was not refused (`status` Ok).
+  Pose2d scanPose{};
   std::uint8_t consecutiveBadCycles = 0;
   bool lost = false;
   /// Per observation kind, indexed by `LandmarkKind`.

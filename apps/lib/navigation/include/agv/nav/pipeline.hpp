@@ -48,6 +48,7 @@
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/odometry.hpp"
+#include "agv/localization/surface_map.hpp"
 #include "agv/loop/global_localizer.hpp"
 
 namespace agv::nav {
@@ -64,6 +65,11 @@ struct ObservationParams {
   /// Keep each sweep's valid beams as points de-skewed to the sweep's reference instant
   /// (`Pipeline::sweepPoints()`, for a mapping run). Implied by a likelihood field being set.
   bool collectScanPoints = false;
+  /// Without a likelihood field: match each sweep against the surfaces of the sweeps before it
+  /// (`SurfaceMap`, `PipelineParams::surface`) and add the sweep's new surfaces when the cycle
+  /// allows (`mayExtendSurfaceMap`): natural navigation without a mapping run, anchored at the
+  /// set-pose. The map is dropped at every set-pose and relocalization.
+  bool surfaceMap = false;
 };
 
 /// Relocalization: finding the pose on the map with no prior (`GlobalLocalizer`), confirming it over
@@ -88,6 +94,7 @@ struct PipelineParams {
   LocalizerParams localizer{};          ///< EKF, association, map lifecycle; `laser.mounting` = calibrated l
   ObservationParams observations{};     ///< what corrects the pose
   FalkoParams falko{};                  ///< corner detector (thesis defaults)
+  SurfaceMapParams surface{};           ///< with `observations.surfaceMap`
   RelocalizationParams relocalization{};
   /// One report per period on the `hal::Clock` (a late cycle publishes once and the schedule
   /// restarts from it: no burst). Zero: every cycle publishes.
@@ -103,8 +110,9 @@ struct PipelineParams {
 
   /// `Ok`, or the first refusal (`NonFiniteInput` for a NaN / infinite value, `InvalidArgument` for
   /// a value outside its domain) of: `kinematics.validate()`, `odometryNoise.validate()`,
-  /// `localizer.validate()`, `validate(falko)`, then the pipeline's own values (negative set-pose
-  /// sigma or publish period, zero per-cycle bounds).
+  /// `localizer.validate()`, `validate(falko)`, `surface.validate()` (with
+  /// `observations.surfaceMap`), then the pipeline's own values (negative set-pose sigma or publish
+  /// period, zero per-cycle bounds).
   Status validate() const noexcept;
 };
 

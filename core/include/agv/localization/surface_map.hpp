@@ -1,0 +1,173 @@
+#pragma once
+/// @file surface_map.hpp
+/// The surfaces the vehicle has seen so far, kept as a likelihood field built online from its own
+/// scans: the map-less counterpart of a mapping run's field (docs/localization.md, "Surface map").
+/// Without a surveyed map the localizer has nothing absolute to hold on to, but what it saw a
+/// moment ago is still there: each scan matched against the walls of the scans before it keeps
+/// the heading and position to what the laser resolves instead of what the wheels say, and the
+/// first scans anchor the map, so the vehicle drifts only where it sees nothing it saw before.
+///
+/// Model: every valid beam of an inserted scan (up to `maxRange`) is a world point on a surface
+/// through its neighbouring beams, facing the sensor. A point is *new* when the field has no
+/// surface within `newSurfaceDistance` of it; new points are added to the field
+/// (`LikelihoodFieldBase::addPoint`)
+/// and kept in a ring of `MaxPoints`, so the map grows with the area seen, not with time spent
+/// in it. The field covers a square of `side` around the sensor; when the sensor comes within
+/// `recentreMargin` of its edge, the field is rebuilt around the sensor from the points kept.
+/// When the ring is full the oldest point is dropped (it leaves the field at the next recentre).
+///
+/// What it cannot do: a surface inserted at a wrong pose stays wrong (the caller inserts only
+/// scans whose pose it trusts), and a place left and re-entered after the ring has dropped it is
+/// mapped again from the current estimate (no loop closure).
+///
+/// Heap-free: the field, the ring and a scan's worth of points (16 KB, for `LaserScan` input) live
+/// inside `SurfaceMap<FieldCells, MaxPoints>`. Work per
+/// insert: the scan's beams x one field sample, plus (2 w + 1)^2 cell updates per new point,
+/// w = ceil(maxDistance / resolution); a recentre re-adds at most `MaxPoints` points.
+
+#include <cstddef>
+#include <cstdint>
+
+#include "agv/core/pose2.hpp"
+#include "agv/core/status.hpp"
+#include "agv/localization/likelihood_field.hpp"
+#include "agv/localization/localizer.hpp"
+#include "agv/localization/scan_matcher.hpp"
+#include "agv/scan/laser_scan.hpp"
+
+namespace agv {
+
+/// Parameters of a surface map.
+struct SurfaceMapParams {
+  /// Cell size and saturation of the field (the scan matcher's inlier band must fit inside).
+  LikelihoodFieldParams field{};
+  /// [m] side of the square the field covers around the sensor. 40 m at 5 cm is 640 000 cells.
+  double side = 40.0;
+  /// [m] the field is rebuilt around the sensor when it comes this close to an edge (a laser
+  /// that reaches `maxRange` then still has the surfaces it sees inside the field).
+  double recentreMargin = 12.0;
+  /// [m] a beam's point farther than this from every stored surface is new. A quarter of the
+  /// field's 0.5 m saturation keeps a point per cell or two along a wall.
+  double newSurfaceDistance = 0.05;
+  /// [m] beams beyond this are not inserted: at 0.5 deg beam spacing and 0.25 deg of heading
+  /// uncertainty a point at 12 m is placed within 5 cm across the beam; farther ones add more
+  /// error than surface.
+  double maxRange = 12.0;
+  /// [m] a point's surface runs through its neighbouring beams within this distance (the normal
+  /// the field signs its distances with is across that line); with none that near, the normal is
+  /// the beam's direction back to the sensor. A normal along the beam instead of across the
+  /// surface would sign the field wrongly along walls seen at a grazing angle.
+  double normalSpan = 0.3;
+  /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (invalid field, a non-positive side, distance
+  /// or range, a margin of half the side or more).
+  Status validate() const noexcept;
+};
+
+/// A kept surface point (world frame) and the direction it was seen from.
+struct SurfacePoint {
+  float x = 0.0F;
+  float y = 0.0F;
+  float nx = 0.0F;  ///< surface normal on the side it was seen from (not normalised)
+  float ny = 0.0F;
+};
+
+/// What one insert did.
+struct SurfaceInsert {
+  Status status = Status::Ok;
+  std::uint16_t beams = 0;  ///< valid beams within maxRange
+  std::uint16_t added = 0;  ///< new surface points
+  bool recentred = false;   ///< the field was rebuilt around the sensor first
+};
+
+/// The map over caller-provided storage (see `SurfaceMap` for the owning type).
+class SurfaceMapBase {
+ public:
+  SurfaceMapBase(const SurfaceMapBase&) = delete;
+  SurfaceMapBase& operator=(const SurfaceMapBase&) = delete;
+
+  /// Adds the new surface points of `scan` seen by the laser at world pose `sensor`.
+  /// `InvalidArgument` (invalid parameters), `NonFiniteInput` (sensor pose), `CapacityExceeded`
+  /// (the field storage is smaller than `side` needs); nothing is changed then.
+  SurfaceInsert insert(const LaserScan& scan, const Pose2d& sensor) noexcept;
+  /// The same with the scan's points in the laser frame (e.g. de-skewed; non-finite ones skipped).
+  SurfaceInsert insert(const MatchPoints& points, const Pose2d& sensor) noexcept;
+
+  /// Forgets every surface (the field is unconfigured until the next insert).
+  void clear() noexcept;
+
+  /// The field to match against (not `built()` before the first insert with a surface).
+  const LikelihoodFieldBase& field() const noexcept { return field_; }
+  /// Surface points kept, and the capacity.
+  std::size_t size() const noexcept { return size_; }
+  std::size_t capacity() const noexcept { return capacity_; }
+  /// Points added since construction or `clear`, dropped from a full ring, and recentres.
+  std::size_t added() const noexcept { return added_; }
+  std::size_t dropped() const noexcept { return dropped_; }
+  std::size_t recentres() const noexcept { return recentres_; }
+  const SurfaceMapParams& params() const noexcept { return params_; }
+
+ protected:
+  SurfaceMapBase(LikelihoodFieldBase& field, SurfacePoint* points, std::size_t capacity,
+                 const SurfaceMapParams& params) noexcept
+      : field_(field), points_(points), capacity_(capacity), params_(params), valid_(params.validate()) {}
+  ~SurfaceMapBase() = default;
+
+ private:
+  /// Recentres when needed; false with `out.status` set when the field cannot cover the sensor.
+  bool prepare(const Pose2d& sensor, SurfaceInsert& out) noexcept;
+  /// Configures the field around (x, y) and re-adds the points kept.
+  Status recentre(double x, double y) noexcept;
+  /// Offers one world point with its surface normal (world frame); true when it was added.
+  bool offer(double x, double y, double nx, double ny) noexcept;
+  /// Builds the field once it holds a surface.
+  void finish() noexcept;
+
+  LikelihoodFieldBase& field_;
+  SurfacePoint* points_;
+  std::size_t capacity_;
+  SurfaceMapParams params_;
+  Status valid_;
+  MatchPoints scratch_;   // a `LaserScan` as points
+  std::size_t head_ = 0;  // index of the oldest point
+  std::size_t size_ = 0;
+  std::size_t added_ = 0;
+  std::size_t dropped_ = 0;
+  std::size_t recentres_ = 0;
+};
+
+/// Whether the cycle `health` reports may write its scan into a surface map at
+/// `health.scanPose`: a cycle the localizer did not refuse and is not lost in, whose scan match
+/// (if any) was fused or found too little of the map to judge (the scan sees new ground, which
+/// is how the map grows). A match refused for disagreeing with the prior (gate, fit, range,
+/// convergence) keeps its scan out: the prior or the map is wrong, and writing would make it
+/// worse.
+bool mayExtendSurfaceMap(const LocalizerHealth& health) noexcept;
+
+/// The localizer's scan-matching settings for matching against a surface map: `base` with the
+/// re-synchronisation and the widened recovery search off (`resyncAfter`, `widenAfter` = 0). Both
+/// let a match overrule the filter's prior, which is right against a surveyed map when the
+/// odometry slipped; a surface map was placed by that same filter and has no authority over it,
+/// and a match that disagrees with the prior there is an ambiguity of the map (a lane lined with
+/// identical pallet blocks), not a slip: it is refused, never forced.
+ScanMatchParams surfaceMapMatching(const ScanMatchParams& base) noexcept;
+
+/// A surface map with a field of `FieldCells` cells and a ring of `MaxPoints` points inside the
+/// object (`FieldCells` bytes + 16 `MaxPoints` bytes): give it static storage or allocate it once.
+template <std::size_t FieldCells, std::size_t MaxPoints>
+class SurfaceMap : public SurfaceMapBase {
+  static_assert(MaxPoints >= 1, "a surface map keeps at least one point");
+
+ public:
+  explicit SurfaceMap(const SurfaceMapParams& params = SurfaceMapParams{}) noexcept
+      : SurfaceMapBase(field_, points_, MaxPoints, params) {}
+
+ private:
+  LikelihoodField<FieldCells> field_;
+  SurfacePoint points_[MaxPoints] = {};
+};
+
+/// The size the programs use: the default 40 m square at 5 cm (640 000 of 1 M cells) and 65 536
+/// points (about 2 MB in all).
+using HallSurfaceMap = SurfaceMap<std::size_t{1} << 20U, std::size_t{1} << 16U>;
+
+}  // namespace agv

@@ -1,0 +1,357 @@
+// The surface map (a likelihood field built from the localizer's own scans): distances to the walls
+// it saw, no growth from seeing them again, recentring that keeps them, the ring's capacity,
+// refusals, the insert policy, and the map-less localizer holding its pose on biased odometry in
+// the simulated hall of scan_hall.hpp, with zero allocations in steady state.
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "agv/localization/localizer.hpp"
+#include "agv/localization/surface_map.hpp"
+#include "agv_test.hpp"
+#include "scan_hall.hpp"
+
+using namespace agv;
+using namespace agv::test;
+
+namespace {
+
+/// Room for the default 40 m square at 5 cm and 20 000 points.
+using TestSurfaceMap = SurfaceMap<800 * 800, 20000>;
+
+/// Unsigned distance from `p` to the nearest segment.
+double distanceToWalls(const std::vector<Segment>& segs, const Eigen::Vector2d& p) {
+  double best = 1e9;
+  for (const Segment& s : segs) {
+    const Eigen::Vector2d e = s.b - s.a;
+    const double u = std::clamp((p - s.a).dot(e) / e.squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (s.a + u * e - p).norm());
+  }
+  return best;
+}
+
+/// The world points of a scan taken by the laser at `laser` (valid beams only).
+std::vector<Eigen::Vector2d> worldPoints(const LaserScan& scan, const Pose2d& laser) {
+  std::vector<Eigen::Vector2d> out;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    if (scan.isValid(i)) {
+      const double a = static_cast<double>(scan.angle(i));
+      const double r = static_cast<double>(scan.ranges[i]);
+      out.push_back(laser.transformPoint(Eigen::Vector2d(r * std::cos(a), r * std::sin(a))));
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("surface map: distances to the walls it saw, no growth from seeing them again", "[localization][surface]") {
+  auto map = std::make_unique<TestSurfaceMap>();
+  auto scan = std::make_unique<LaserScan>();
+  const std::vector<Segment> segs = hall();
+  std::mt19937_64 rng(3);
+  const Pose2d laser{2.5, 2.0, 0.3};
+  castScan(segs, laser, 0.0, rng, *scan);  // noise-free: the map's own error alone
+  CHECK_FALSE(map->field().built());
+  const SurfaceInsert first = map->insert(*scan, laser);
+  REQUIRE(first.status == Status::Ok);
+  CHECK(first.recentred);
+  CHECK(first.added > 200);
+  CHECK(first.added <= first.beams);
+  REQUIRE(map->field().built());
+  CHECK(map->size() == first.added);
+  // On every wall point the scan saw the field is zero; 20 cm in front of it (towards the laser)
+  // it is 20 cm, to within the spacing of the beams along the wall (at most 9 cm apart within
+  // 12 m: a point midway is sqrt(0.2^2 + 0.045^2) = 0.205 m from the nearest) and a cell.
+  const double tol = 0.5 * map->field().params().resolution + 0.01;
+  int checked = 0;
+  for (const Eigen::Vector2d& w : worldPoints(*scan, laser)) {
+    if ((w - laser.translation()).norm() > map->params().maxRange - 0.5) {
+      continue;
+    }
+    const FieldSample on = map->field().sample(w.x(), w.y());
+    REQUIRE(on.inside);
+    CHECK(std::fabs(on.distance) < tol);
+    const Eigen::Vector2d front = w + 0.2 * (laser.translation() - w).normalized();
+    if (distanceToWalls(segs, front) > 0.19) {
+      const FieldSample f = map->field().sample(front.x(), front.y());
+      REQUIRE(f.inside);
+      CHECK(f.distance == Approx(0.2).margin(tol));
+      ++checked;
+    }
+  }
+  CHECK(checked > 200);
+  // The same scan again adds nothing; one from 10 cm / 1 deg away adds few points (the ends of
+  // walls it now sees a little farther along, and beams between the first scan's points).
+  CHECK(map->insert(*scan, laser).added == 0U);
+  const Pose2d moved = laser.compose(Pose2d{0.1, 0.0, 0.017});
+  castScan(segs, moved, 0.0, rng, *scan);
+  const SurfaceInsert again = map->insert(*scan, moved);
+  CHECK_FALSE(again.recentred);
+  CHECK(again.added < again.beams / 5U);
+}
+
+TEST_CASE("surface map: the field follows the sensor and keeps what it saw", "[localization][surface]") {
+  SurfaceMapParams p;
+  p.side = 20.0;
+  p.recentreMargin = 6.0;
+  p.maxRange = 6.0;
+  auto map = std::make_unique<TestSurfaceMap>(p);
+  auto scan = std::make_unique<LaserScan>();
+  const std::vector<Segment> segs = corridor();
+  std::mt19937_64 rng(5);
+  Pose2d laser{-25.0, 0.0, 0.0};
+  castScan(segs, laser, 0.0, rng, *scan);
+  REQUIRE(map->insert(*scan, laser).status == Status::Ok);
+  const Eigen::Vector2d seenFirst(-24.0, 1.0);  // on the left wall, seen from the start
+  CHECK(std::fabs(map->field().sample(seenFirst.x(), seenFirst.y()).distance) < 0.03);
+  std::size_t recentres = 0;
+  for (int k = 0; k < 40; ++k) {  // 40 m along the corridor, 1 m per scan
+    laser = laser.compose(Pose2d{1.0, 0.0, 0.0});
+    castScan(segs, laser, 0.0, rng, *scan);
+    const SurfaceInsert in = map->insert(*scan, laser);
+    REQUIRE(in.status == Status::Ok);
+    recentres += in.recentred ? 1U : 0U;
+    // The sensor stays at least the margin inside the field.
+    const double x0 = map->field().originX();
+    const double x1 = x0 + static_cast<double>(map->field().width()) * p.field.resolution;
+    CHECK(laser.x - x0 >= p.recentreMargin - 1e-9);
+    CHECK(x1 - laser.x >= p.recentreMargin - 1e-9);
+  }
+  CHECK(recentres >= 3U);
+  CHECK(map->recentres() == recentres + 1U);  // and the first insert's
+  // Both walls within reach of the sensor are in the field, built from points kept across
+  // recentres (the walls ahead were seen from up to 6 m back).
+  for (const double dx : {-3.0, 0.0, 3.0}) {
+    for (const double y : {-1.0, 1.0}) {
+      const FieldSample f = map->field().sample(laser.x + dx, y);
+      REQUIRE(f.inside);
+      CHECK(std::fabs(f.distance) < 0.03);
+    }
+  }
+  // The start left the field; it comes back with the points kept when the sensor returns.
+  CHECK_FALSE(map->field().sample(seenFirst.x(), seenFirst.y()).inside);
+  const Pose2d back{-24.0, 0.0, 0.0};
+  auto few = std::make_unique<LaserScan>(*scan);
+  few->ranges.clear();  // an empty scan still moves the field
+  const SurfaceInsert returned = map->insert(*few, back);
+  CHECK(returned.recentred);
+  CHECK(returned.added == 0U);
+  const FieldSample f = map->field().sample(seenFirst.x(), seenFirst.y());
+  REQUIRE(f.inside);
+  CHECK(std::fabs(f.distance) < 0.03);
+}
+
+TEST_CASE("surface map: a full ring drops its oldest points, counted", "[localization][surface]") {
+  auto map = std::make_unique<SurfaceMap<800 * 800, 100>>();
+  auto scan = std::make_unique<LaserScan>();
+  std::mt19937_64 rng(9);
+  const Pose2d laser{2.5, 2.0, 0.0};
+  castScan(hall(), laser, 0.0, rng, *scan);
+  const SurfaceInsert in = map->insert(*scan, laser);
+  REQUIRE(in.status == Status::Ok);
+  CHECK(in.added > 100U);
+  CHECK(map->size() == 100U);
+  CHECK(map->capacity() == 100U);
+  CHECK(map->added() == in.added);
+  CHECK(map->dropped() == in.added - 100U);
+  map->clear();
+  CHECK(map->size() == 0U);
+  CHECK(map->added() == 0U);
+  CHECK_FALSE(map->field().built());
+}
+
+TEST_CASE("surface map: refusals (parameters, a non-finite pose, a field too small, bad points)",
+          "[localization][surface]") {
+  auto scan = std::make_unique<LaserScan>();
+  std::mt19937_64 rng(1);
+  const Pose2d laser{2.5, 2.0, 0.0};
+  castScan(hall(), laser, 0.0, rng, *scan);
+  SurfaceMapParams bad;
+  bad.side = -1.0;
+  CHECK(bad.validate() == Status::InvalidArgument);
+  bad = SurfaceMapParams{};
+  bad.recentreMargin = 0.5 * bad.side;
+  CHECK(bad.validate() == Status::InvalidArgument);
+  bad = SurfaceMapParams{};
+  bad.newSurfaceDistance = 0.0;
+  CHECK(bad.validate() == Status::InvalidArgument);
+  bad = SurfaceMapParams{};
+  bad.maxRange = std::nan("");
+  CHECK(bad.validate() == Status::NonFiniteInput);
+  bad = SurfaceMapParams{};
+  bad.field.maxDistance = bad.field.resolution;  // not above two cells
+  CHECK(bad.validate() == Status::InvalidArgument);
+  CHECK(SurfaceMapParams{}.validate() == Status::Ok);
+  // An invalid map refuses every insert and stays empty.
+  auto invalid = std::make_unique<TestSurfaceMap>(bad);
+  CHECK(invalid->insert(*scan, laser).status == Status::InvalidArgument);
+  CHECK(invalid->size() == 0U);
+  auto map = std::make_unique<TestSurfaceMap>();
+  CHECK(map->insert(*scan, Pose2d{std::nan(""), 0.0, 0.0}).status == Status::NonFiniteInput);
+  CHECK(map->size() == 0U);
+  // 40 m at 5 cm needs 640 000 cells.
+  auto small = std::make_unique<SurfaceMap<100 * 100, 100>>();
+  CHECK(small->insert(*scan, laser).status == Status::CapacityExceeded);
+  CHECK_FALSE(small->field().built());
+  // Non-finite points are skipped, the others taken.
+  MatchPoints points;
+  REQUIRE(points.push_back(MatchPoint{std::nanf(""), 1.0F}) == Status::Ok);
+  REQUIRE(points.push_back(MatchPoint{1.0F, std::numeric_limits<float>::infinity()}) == Status::Ok);
+  for (int i = 0; i < 20; ++i) {
+    REQUIRE(points.push_back(MatchPoint{3.0F, -1.0F + 0.1F * static_cast<float>(i)}) == Status::Ok);
+  }
+  const SurfaceInsert in = map->insert(points, laser);
+  CHECK(in.status == Status::Ok);
+  CHECK(in.beams == 20U);
+  CHECK(in.added == 20U);
+  // The wall x = 3 (laser frame) faces the laser: in front of it positive, behind it negative.
+  const Eigen::Vector2d front = laser.transformPoint(Eigen::Vector2d(2.8, 0.0));
+  const Eigen::Vector2d behind = laser.transformPoint(Eigen::Vector2d(3.2, 0.0));
+  CHECK(map->field().sample(front.x(), front.y()).distance == Approx(0.2).margin(0.02));
+  CHECK(map->field().sample(behind.x(), behind.y()).distance == Approx(-0.2).margin(0.02));
+}
+
+TEST_CASE("surface map: which cycles may write their scan, and the matcher settings it runs with",
+          "[localization][surface]") {
+  LocalizerHealth h;
+  h.status = Status::Ok;
+  CHECK(mayExtendSurfaceMap(h));  // no match attempted (the map is still empty)
+  h.scanMatch.attempted = true;
+  h.scanMatch.status = Status::Ok;
+  h.scanMatch.fused = true;
+  CHECK(mayExtendSurfaceMap(h));
+  h.scanMatch.fused = false;
+  h.scanMatch.status = Status::NotEnoughData;  // new ground
+  CHECK(mayExtendSurfaceMap(h));
+  for (const Status refused :
+       {Status::Rejected, Status::IllConditioned, Status::OutOfRange, Status::NotConverged, Status::Unobservable}) {
+    h.scanMatch.status = refused;
+    CHECK_FALSE(mayExtendSurfaceMap(h));
+  }
+  h.scanMatch.status = Status::Ok;
+  h.scanMatch.fused = true;
+  h.lost = true;
+  CHECK_FALSE(mayExtendSurfaceMap(h));
+  h.lost = false;
+  h.status = Status::Rejected;  // the scan was refused (too old)
+  CHECK_FALSE(mayExtendSurfaceMap(h));
+
+  ScanMatchParams base;
+  base.inlierDistance = 0.25;
+  const ScanMatchParams m = surfaceMapMatching(base);
+  CHECK(m.resyncAfter == 0U);
+  CHECK(m.widenAfter == 0U);
+  CHECK(m.inlierDistance == 0.25);
+  CHECK(m.validate() == Status::Ok);
+}
+
+namespace {
+
+/// The map-less localizer: the dynamic corner map empty (no landmark is given), the surface map
+/// built from its own scans, driving the hall on biased odometry.
+struct SurfaceRun {
+  std::unique_ptr<TestSurfaceMap> surface = std::make_unique<TestSurfaceMap>();
+  std::vector<Segment> segs = hall();
+  LocalizerParams params;
+  std::unique_ptr<Localizer> loc;
+  std::unique_ptr<LandmarkMap> map = std::make_unique<LandmarkMap>();
+  std::unique_ptr<ScanObservations> obs = std::make_unique<ScanObservations>();
+  std::unique_ptr<LaserScan> scan = std::make_unique<LaserScan>();
+  Pose2d truth{2.0, 2.0, 0.0};
+  Pose2d deadReckoning = truth;
+  Timestamp t = Timestamp::fromSeconds(1.0);
+  std::mt19937_64 rng{33};
+
+  SurfaceRun() {
+    params.laser.mounting = Pose2d{0.6, 0.0, 0.0};
+    params.scanMatch = surfaceMapMatching(params.scanMatch);
+    loc = std::make_unique<Localizer>(params);
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0.diagonal() << 1e-6, 1e-6, 1e-8;
+    REQUIRE(loc->reset(t, truth, P0) == Status::Ok);
+  }
+
+  /// Drives `delta` reporting `reported`, then one scan (1 cm range noise): correct, then insert.
+  const LocalizerHealth& step(const Pose2d& delta, const Pose2d& reported) {
+    t = t + Duration::fromMilliseconds(100);
+    OdometryIncrement inc;
+    inc.stamp = t;
+    inc.delta = reported;
+    inc.covariance = Eigen::Matrix3d::Identity() * 1e-5;
+    inc.covariance(2, 2) = 1e-5;
+    REQUIRE(loc->predict(inc) == Status::Ok);
+    truth = truth.compose(delta);
+    deadReckoning = deadReckoning.compose(reported);
+    castScan(segs, truth.compose(params.laser.mounting), 0.01, rng, *scan);
+    scan->stamp = t;
+    obs->stamp = t;
+    const LocalizerHealth& h =
+        surface->field().built() ? loc->correct(*obs, *scan, *map, surface->field()) : loc->correct(*obs, *scan, *map);
+    if (mayExtendSurfaceMap(h)) {
+      REQUIRE(surface->insert(*scan, h.scanPose.compose(params.laser.mounting)).status == Status::Ok);
+    }
+    return h;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("surface map: the map-less localizer holds its pose on biased odometry where dead reckoning drifts",
+          "[localization][surface][localizer]") {
+  SurfaceRun run;
+  double worst = 0.0;
+  double worstHeading = 0.0;
+  int fused = 0;
+  for (int c = 0; c < 60; ++c) {
+    // 10 cm per cycle along a gentle arc; the odometry reports 3 % less distance and 2 % less turn.
+    const LocalizerHealth& h = run.step(Pose2d{0.1, 0.0, 0.01}, Pose2d{0.097, 0.0, 0.0098});
+    CHECK_FALSE(h.lost);
+    fused += h.scanMatch.fused ? 1 : 0;
+    worst = std::max(worst, std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y));
+    worstHeading = std::max(worstHeading, std::fabs(normalizeAngle(run.loc->pose().theta - run.truth.theta)));
+  }
+  CHECK(fused >= 58);  // every scan after the first
+  // Dead reckoning ends 18 cm and 0.7 deg off. The map is made of the same beams (1 cm range
+  // noise, each wall kept as first seen), so a match is aligned to walls rough by about 1 cm:
+  // at the hall's 3-6 m ranges that is 0.1-0.2 deg of heading, 3 times the 0.05 deg the match
+  // covariance claims for the scan's own noise. Bounds: 2 cm, 0.3 deg.
+  const double drError = std::hypot(run.deadReckoning.x - run.truth.x, run.deadReckoning.y - run.truth.y);
+  const double drHeading = std::fabs(normalizeAngle(run.deadReckoning.theta - run.truth.theta));
+  CHECK(drError > 0.15);
+  CHECK(drHeading > 0.6 * kPiD / 180.0);
+  CHECK(worst < 0.02);
+  CHECK(worstHeading < 0.3 * kPiD / 180.0);
+  CHECK(run.surface->size() > 500U);
+}
+
+TEST_CASE("surface map: the steady-state insert and the match against it allocate nothing",
+          "[localization][surface][alloc]") {
+  SurfaceRun run;
+  for (int c = 0; c < 3; ++c) {
+    (void)run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0});
+  }
+  const Pose2d d{0.1, 0.0, 0.01};
+  for (int c = 0; c < 3; ++c) {
+    run.truth = run.truth.compose(d);
+    castScan(run.segs, run.truth.compose(run.params.laser.mounting), 0.01, run.rng, *run.scan);
+    OdometryIncrement inc;
+    inc.delta = d;
+    inc.covariance = Eigen::Matrix3d::Identity() * 1e-5;
+    SurfaceInsert in;
+    AGV_CHECK_NO_ALLOCATIONS(run.t = run.t + Duration::fromMilliseconds(100); inc.stamp = run.t;
+                             (void)run.loc->predict(inc); run.scan->stamp = run.t; run.obs->stamp = run.t;
+                             const LocalizerHealth& h =
+                                 run.loc->correct(*run.obs, *run.scan, *run.map, run.surface->field());
+                             in = run.surface->insert(*run.scan, h.scanPose.compose(run.params.laser.mounting)));
+    CHECK(run.loc->health().scanMatch.fused);
+    CHECK(in.status == Status::Ok);
+  }
+  // A recentre re-adds the kept points: no allocation either.
+  AGV_CHECK_NO_ALLOCATIONS((void)run.surface->insert(*run.scan, run.truth.compose(Pose2d{15.0, 0.0, 0.0})));
+  CHECK(run.surface->recentres() == 2U);
+}
