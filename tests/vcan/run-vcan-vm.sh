@@ -219,9 +219,11 @@ while :; do
   # 000#0111, 000#0112, 080#: NMT Start and SYNC from the CANopen encoder source test.
   # 000#8001, 000#0101, 77F#05, 201#06/07/0F...: the calibration routine's drive controller: the
   # traction drive (node 1) to pre-operational and started, the controller's heartbeat, and the
-  # power state machine's shutdown, switch on and enable operation (controlword + target 0).
+  # power state machine's shutdown, switch on and enable operation (controlword + target 0), and
+  # the traction quick stop (controlword 0x0002, target 0) of the Stop, heartbeat and fault cases.
   for f in 201#11223344 1ABCDE01#01 202#R 000#0111 000#0112 080# \
-           000#8001 000#0101 77F#05 201#060000000000 201#070000000000 201#0F0000000000; do
+           000#8001 000#0101 77F#05 201#060000000000 201#070000000000 201#0F0000000000 \
+           201#020000000000; do
     grep -q " vcan0 $f\$" /tmp/candump.log || missing="$missing $f"
   done
   [ -z "$missing" ] && break
