@@ -46,9 +46,9 @@ TEST_CASE("calibration on vcan: a plan that does not fit the free area is refuse
   CHECK(b.plc.last.health.calibration.lastRefusal == Status::OutOfRange);
   CHECK(b.plc.last.health.calibration.state == static_cast<std::uint8_t>(cal::RoutineState::Idle));
   CHECK(hal::hasBit(b.plc.last.health.bits, hal::HealthBit::CommandRejected));
-  // Not Calibrating. (Nor localizing for long: the drive encoder is the traction node's TPDO1, which
-  // only the drive controller's bring-up maps with the position and gives an event timer and a
-  // heartbeat; unconfigured, the node leaves the encoder source silent and the navigation Lost.)
+  // Not Calibrating. (Nor localizing for long: the drive encoder is the traction node's TPDO1,
+  // which only the drive controller's bring-up maps with the position and gives an event timer and
+  // a heartbeat; unconfigured, the node leaves the encoder source silent and the navigation Lost.)
   CHECK(b.plc.last.health.mode != hal::NavMode::Calibrating);
   std::printf("refused plan: mode %u, health bits 0x%04X\n", static_cast<unsigned>(b.plc.last.health.mode),
               static_cast<unsigned>(b.plc.last.health.bits));
@@ -156,7 +156,8 @@ TEST_CASE("calibration on vcan: a traction drive fault is reported with its code
   b.localize();
   b.calibrateUntilMidSegment();
   const Timestamp tFault = monotonicNow();
-  b.nodes->node(1).injectFault(0x2310);  // EMCY 0x2310, 0x603F = 0x2310, Fault reaction active -> Fault
+  // EMCY 0x2310, 0x603F = 0x2310, Fault reaction active -> Fault.
+  b.nodes->node(1).injectFault(0x2310);
   REQUIRE(b.runUntil([&] { return !b.routine->running(); }, Duration::fromSeconds(2.0)));
   b.runFor(Duration::fromSeconds(1.0));
   // The EMCY crossed the bus; the controller quick-stopped the traction in its next control cycle
