@@ -9,7 +9,10 @@
 # the test transmitted, prints one result line and powers off. See docs/vcan-testing.md.
 #
 # usage: run-vcan-vm.sh --test-binary PATH --work-dir DIR [--timeout SECONDS] [--kernel VMLINUZ]
-#                       [-- TEST-ARGS...]
+#                       [--companion PATH]... [-- TEST-ARGS...]
+# A companion is a further, dynamically linked test program (e.g. one that needs libmodbus, which
+# Debian ships as a shared library only): it is copied into the VM with its shared libraries and
+# the loader, and run after the test binary with the same arguments.
 # Exit status: 0 when the line "AGV-VCAN-RESULT: PASS" was seen, 1 otherwise (missing packages,
 # kernel without CAN modules, test failure, VM timeout). It never skips.
 #
@@ -23,12 +26,14 @@ work_dir=""
 timeout_s=120
 kernel="${AGV_VCAN_KERNEL:-}"
 test_args=()
+companions=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --test-binary) test_binary="$2"; shift 2 ;;
     --work-dir) work_dir="$2"; shift 2 ;;
     --timeout) timeout_s="$2"; shift 2 ;;
     --kernel) kernel="$2"; shift 2 ;;
+    --companion) companions+=("$2"); shift 2 ;;
     --) shift; test_args=("$@"); break ;;
     *) echo "run-vcan-vm: unknown argument '$1'" >&2; exit 1 ;;
   esac
@@ -69,6 +74,10 @@ fi
 if ldd "$test_binary" >/dev/null 2>&1; then
   fail "test binary '$test_binary' is dynamically linked; it must be static"
 fi
+for c in "${companions[@]}"; do
+  [[ -x "$c" ]] || fail "companion '$c' not found or not executable"
+  ldd "$c" >/dev/null 2>&1 || fail "companion '$c' is not a dynamically linked program"
+done
 
 # ---- kernel with CAN modules -------------------------------------------------------------------
 # A kernel image qualifies when /lib/modules/<version> has can-dev, vcan, can and can-raw.
@@ -210,6 +219,12 @@ echo "AGV-VCAN: $(cut -d' ' -f1 /proc/uptime) s after boot: CAN up, running /tes
 cd /test
 AGV_VCAN_IF=vcan0 AGV_VCAN_IF2=vcan1 AGV_CANSEND=cansend ./test_vcan_socketcan --use-colour no $args
 rc=$?
+for c in $(cat /test/companions 2>/dev/null); do
+  echo "AGV-VCAN: $(cut -d' ' -f1 /proc/uptime) s after boot: running /test/$c $args"
+  AGV_VCAN_IF=vcan0 AGV_VCAN_IF2=vcan1 ./$c --use-colour no $args
+  c_rc=$?
+  [ $rc -eq 0 ] && rc=$c_rc
+done
 
 # The frames the test transmitted on vcan0, as candump -L prints them. candump may still be
 # writing: give it up to 5 s before calling a frame missing.
@@ -219,9 +234,11 @@ while :; do
   # 000#0111, 000#0112, 080#: NMT Start and SYNC from the CANopen encoder source test.
   # 000#8001, 000#0101, 77F#05, 201#06/07/0F...: the calibration routine's drive controller: the
   # traction drive (node 1) to pre-operational and started, the controller's heartbeat, and the
-  # power state machine's shutdown, switch on and enable operation (controlword + target 0).
+  # power state machine's shutdown, switch on and enable operation (controlword + target 0), and
+  # the traction quick stop (controlword 0x0002, target 0) of the Stop, heartbeat and fault cases.
   for f in 201#11223344 1ABCDE01#01 202#R 000#0111 000#0112 080# \
-           000#8001 000#0101 77F#05 201#060000000000 201#070000000000 201#0F0000000000; do
+           000#8001 000#0101 77F#05 201#060000000000 201#070000000000 201#0F0000000000 \
+           201#020000000000; do
     grep -q " vcan0 $f\$" /tmp/candump.log || missing="$missing $f"
   done
   [ -z "$missing" ] && break
@@ -265,7 +282,18 @@ cp "$test_binary" "$run_root/test/test_vcan_socketcan"
 # Debug information only slows the boot (the initramfs is unpacked in emulation).
 if command -v strip >/dev/null 2>&1; then strip --strip-debug "$run_root/test/test_vcan_socketcan"; fi
 printf '%s ' "${test_args[@]}" > "$run_root/test/args"
-(cd "$run_root" && find test | LC_ALL=C sort | cpio -o -H newc -R 0:0 --quiet) > "$work_dir/test.cpio"
+# Companions: the program (without debug information) and its shared libraries at their paths.
+for c in "${companions[@]}"; do
+  name="$(basename "$c")"
+  cp "$c" "$run_root/test/$name"
+  if command -v strip >/dev/null 2>&1; then strip --strip-debug "$run_root/test/$name"; fi
+  echo "$name" >> "$run_root/test/companions"
+  while IFS= read -r lib; do
+    mkdir -p "$run_root$(dirname "$lib")"
+    cp -L "$lib" "$run_root$lib"
+  done < <(libs_of "$c")
+done
+(cd "$run_root" && find . -mindepth 1 | sed 's|^\./||' | LC_ALL=C sort | cpio -o -H newc -R 0:0 --quiet) > "$work_dir/test.cpio"
 cat "$base_cpio" "$work_dir/test.cpio" > "$work_dir/initramfs.cpio"
 rm -rf "$run_root"
 t_built=$(date +%s%N)

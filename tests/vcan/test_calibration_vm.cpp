@@ -1,33 +1,17 @@
 // agvnav-vehicle's calibration routine on the real Linux CAN stack, in the vcan VM
-// (docs/vcan-testing.md): the vehicle side is the program's code (`VehicleCalibrationRoutine`,
-// the SocketCAN CiA 402 drive controller, the real `CanopenEncoderSource` reading the drive
-// encoder from the traction drive's TPDO1 at {0x181, 2, 4}, the navigation pipeline); the other
-// side of vcan0 plays the two CiA 402 drives (`SimDrives` of agvnav-sim-drives, on their own
-// socket), the steering encoder (node 2) and the simulated tricycle and laser, all in real time.
-// A scripted PLC (this statically linked binary has no libmodbus) localizes and writes Calibrate;
-// the routine must run through every state and write a calibration file. The init script checks
-// candump's log for the bring-up and enable sequence of the traction drive.
+// (docs/vcan-testing.md), with the bench of calibration_vm_bench.hpp and a scripted PLC (this
+// statically linked binary has no libmodbus). Cases: a plan that does not fit is refused before
+// any frame to the drives; a PLC Stop mid-segment, a heartbeat loss of the traction node and a
+// traction drive fault each quick-stop the traction (timed on the bus by the peer socket) and
+// abort the routine, the calibration file untouched. The whole routine (every state, a file) runs
+// in test_calibration_modbus_vm.cpp, started by a libmodbus client; here only when that binary is
+// not built (no libmodbus). The init script checks candump's log for the bring-up and enable
+// sequence of the traction drive and its quick stop.
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <memory>
-#include <sstream>
 #include <string>
-#include <thread>
 
-#include "agv/calib/calibration_file.hpp"
-#include "agv/calibration/sim_calibration_vehicle.hpp"
-#include "agv/drivers/linux/canopen_encoder_source.hpp"
-#include "agv/drivers/linux/monotonic_clock.hpp"
-#include "agv/drivers/linux/socketcan_bus.hpp"
-#include "agv/nav/pipeline.hpp"
-#include "agv/sim/ray_caster.hpp"
-#include "agv/sim/world.hpp"
-#include "agv_test.hpp"
-#include "sim_drives.hpp"
-#include "simulated_drive_side.hpp"
-#include "vcan_peer.hpp"
-#include "vehicle_calibration.hpp"
+#include "calibration_vm_bench.hpp"
 
 using agv::Duration;
 using agv::Pose2d;
@@ -35,229 +19,204 @@ using agv::Status;
 using agv::Timestamp;
 using agv::drivers::CanFrame;
 using agv::drivers::monotonicNow;
+using agv::drivers::canopen::PowerState;
+using agv::test::vmcal::isQuickStop;
+using agv::test::vmcal::kEncoderHeartbeat;
+using agv::test::vmcal::kNmt;
+using agv::test::vmcal::kOld;
+using agv::test::vmcal::kStart;
+using agv::test::vmcal::kTractionEmcy;
+using agv::test::vmcal::kTractionRpdo;
+using agv::test::vmcal::kTractionSdo;
+using agv::test::vmcal::rpdoTarget;
+using agv::test::vmcal::VmCalibrationBench;
 namespace cal = agv::calibration;
 namespace hal = agv::hal;
 
-namespace {
-
-class ScriptedPlc final : public hal::PlcLink {
- public:
-  Status publish(const hal::PoseReport& report) noexcept override {
-    last = report;
-    seen[report.health.calibration.state & 15U] = true;
-    return Status::Ok;
-  }
-  Status readCommand(hal::PlcCommand& out) noexcept override {
-    if (!pending) {
-      return Status::NotFound;
+TEST_CASE("calibration on vcan: a plan that does not fit the free area is refused before any frame to the drives",
+          "[calibration]") {
+  // The start (10, 12.5) fits with its 0.8 m clearance; the left circles (radius 1.8 m at 40 deg)
+  // reach y = 14.3.
+  VmCalibrationBench b("/tmp/agv_vm_cal_refused.txt", cal::FreeArea{8.0, 11.0, 13.0, 14.0});
+  b.localize();
+  b.plc.send(hal::PlcCommandKind::Calibrate);
+  b.runFor(Duration::fromSeconds(1.0));
+  // The refusal on the registers (48: OutOfRange, status bit 8) and in the log.
+  CHECK(b.routine->progress().lastRefusal == Status::OutOfRange);
+  CHECK(b.plc.last.health.calibration.lastRefusal == Status::OutOfRange);
+  CHECK(b.plc.last.health.calibration.state == static_cast<std::uint8_t>(cal::RoutineState::Idle));
+  CHECK(hal::hasBit(b.plc.last.health.bits, hal::HealthBit::CommandRejected));
+  // Not Calibrating. (Nor localizing for long: the drive encoder is the traction node's TPDO1,
+  // which only the drive controller's bring-up maps with the position and gives an event timer and
+  // a heartbeat; unconfigured, the node leaves the encoder source silent and the navigation Lost.)
+  CHECK(b.plc.last.health.mode != hal::NavMode::Calibrating);
+  std::printf("refused plan: mode %u, health bits 0x%04X\n", static_cast<unsigned>(b.plc.last.health.mode),
+              static_cast<unsigned>(b.plc.last.health.bits));
+  REQUIRE_FALSE(b.log.empty());
+  CHECK(b.log.back().find("leaves the free area") != std::string::npos);
+  // The drive controller sent nothing: no NMT pre-operational, no SDO, no RPDO (so no target
+  // velocity at all), no heartbeat. (The encoder source's NMT Start of nodes 1 and 2 at its open()
+  // is the encoders' own.) The peer socket did receive: the steering encoder's heartbeats.
+  int toDrives = 0;
+  int movingTargets = 0;
+  int encoderHeartbeats = 0;
+  for (const CanFrame& f : b.seen) {
+    if (f.id == kEncoderHeartbeat) {
+      ++encoderHeartbeats;
+    } else if (f.id != kTractionEmcy && !(f.id == kNmt && f.data[0] == 0x01)) {
+      ++toDrives;
     }
-    pending = false;
-    out = next;
-    return Status::Ok;
+    if (f.id == kTractionRpdo && rpdoTarget(f) != 0) {
+      ++movingTargets;
+    }
   }
-  void send(hal::PlcCommandKind kind, const Pose2d& pose = Pose2d{}) {
-    next.kind = kind;
-    next.initialPose = pose;
-    pending = true;
+  CHECK(encoderHeartbeats > 50);
+  CHECK(toDrives == 0);
+  CHECK(movingTargets == 0);
+  CHECK(b.nodes->traction().state() != PowerState::OperationEnabled);
+  const Pose2d truePose = b.sim->vehicle().truePose();
+  CHECK(std::hypot(truePose.x - kStart.x, truePose.y - kStart.y) < 1e-9);
+  CHECK_FALSE(b.wrote);
+  CHECK(agv::test::readFile(b.file) == kOld);
+}
+
+TEST_CASE("calibration on vcan: a PLC Stop mid-segment quick-stops the traction in the cycle that reads it",
+          "[calibration]") {
+  VmCalibrationBench b("/tmp/agv_vm_cal_stop.txt");
+  b.localize();
+  b.calibrateUntilMidSegment();
+  // The Stop arrives just before a cycle of the vehicle, whose pipeline reads it first: the quick
+  // stop goes out in this cycle.
+  const Timestamp tStop = monotonicNow();
+  b.plc.send(hal::PlcCommandKind::Stop);
+  b.cycle();
+  const Timestamp tCycleEnd = monotonicNow();
+  CHECK(b.routine->progress().state == cal::RoutineState::Aborted);
+  // The quick-stop ramp (2 m/s^2 from 0.4..0.8 m/s): at most 0.4 s, then Switch on disabled.
+  b.runFor(Duration::fromSeconds(1.0));
+  // The first traction RPDO on the bus after the Stop is the quick stop, sent while the vehicle's
+  // cycle that read the Stop ran, within one control cycle (10 ms) of the Stop.
+  const CanFrame* first = b.firstAfter(tStop, [](const CanFrame& f) { return f.id == kTractionRpdo; });
+  REQUIRE(first != nullptr);
+  CHECK(isQuickStop(*first));
+  CHECK(rpdoTarget(*first) == 0);
+  const Duration latency = first->stamp - tStop;
+  std::printf("PLC Stop -> quick stop on the bus: %.2f ms (the vehicle's cycle took %.2f ms)\n",
+              1e3 * latency.seconds(), 1e3 * (tCycleEnd - tStop).seconds());
+  CHECK(first->stamp <= tCycleEnd);
+  CHECK(latency < Duration::fromMilliseconds(10));
+  // Every later traction RPDO repeats the quick stop with target 0: no set-point after the Stop.
+  int rpdos = 0;
+  int others = 0;
+  for (const CanFrame& f : b.seen) {
+    if (f.stamp >= tStop && f.id == kTractionRpdo) {
+      ++rpdos;
+      others += (isQuickStop(f) && rpdoTarget(f) == 0) ? 0 : 1;
+    }
   }
-  hal::PoseReport last;
-  bool seen[16] = {};
-  bool pending = false;
-  hal::PlcCommand next;
-};
+  CHECK(rpdos > 20);
+  CHECK(others == 0);
+  // The drive stopped on its quick-stop ramp and is in Switch on disabled; the vehicle stands.
+  CHECK(b.nodes->traction().velocity() == 0.0);
+  CHECK(b.nodes->traction().state() == PowerState::SwitchOnDisabled);
+  CHECK(b.sim->drive().isStandstill());
+  // Aborted on request: no fault reason; the Stop reached the pipeline too.
+  b.checkAbortedAndFileUntouched(Status::Ok);
+  CHECK(b.plc.last.health.mode == hal::NavMode::Idle);
+}
 
-class MonoClock final : public hal::Clock {
- public:
-  Timestamp now() const noexcept override { return monotonicNow(); }
-};
+TEST_CASE("calibration on vcan: a heartbeat loss of the traction node aborts the routine and stops the vehicle",
+          "[calibration]") {
+  VmCalibrationBench b("/tmp/agv_vm_cal_heartbeat.txt");
+  b.localize();
+  b.calibrateUntilMidSegment();
+  const Timestamp tSilent = monotonicNow();
+  b.nodes->node(1).setSilent(true);  // transmits nothing from now on (still listens)
+  REQUIRE(b.runUntil([&] { return !b.routine->running(); }, Duration::fromSeconds(2.0)));
+  // The quick stop after the drive's heartbeat timeout: 150 ms from the last heartbeat, which came
+  // at most one 50 ms producer period (plus a 10 ms step of the nodes) before the silence.
+  const CanFrame* qs = b.firstAfter(tSilent, [](const CanFrame& f) { return isQuickStop(f); });
+  REQUIRE(qs != nullptr);
+  const Duration latency = qs->stamp - tSilent;
+  std::printf("traction node silent -> quick stop on the bus: %.1f ms\n", 1e3 * latency.seconds());
+  CHECK(latency > Duration::fromMilliseconds(80));
+  CHECK(latency < Duration::fromMilliseconds(250));
+  // Longer than the encoder source's heartbeat timeout (0.5 s): the drive encoder (node 1) too.
+  b.runFor(Duration::fromSeconds(1.0));
+  CHECK(b.nodes->traction().velocity() == 0.0);
+  CHECK(b.sim->drive().isStandstill());
+  b.checkAbortedAndFileUntouched(Status::Timeout);
+  CHECK(hal::hasBit(b.plc.last.health.bits, hal::HealthBit::EncoderTimeout));
+  CHECK(b.routine->session()->lastMessage().find("heartbeat") != std::string::npos);
+}
 
-}  // namespace
+TEST_CASE("calibration on vcan: a traction drive fault is reported with its code and aborts the routine",
+          "[calibration]") {
+  VmCalibrationBench b("/tmp/agv_vm_cal_fault.txt");
+  b.localize();
+  b.calibrateUntilMidSegment();
+  const Timestamp tFault = monotonicNow();
+  // EMCY 0x2310, 0x603F = 0x2310, Fault reaction active -> Fault.
+  b.nodes->node(1).injectFault(0x2310);
+  REQUIRE(b.runUntil([&] { return !b.routine->running(); }, Duration::fromSeconds(2.0)));
+  b.runFor(Duration::fromSeconds(1.0));
+  // The EMCY crossed the bus; the controller quick-stopped the traction in its next control cycle
+  // and read the error code (SDO upload of 0x603F).
+  const CanFrame* emcy = b.firstAfter(tFault, [](const CanFrame& f) { return f.id == kTractionEmcy; });
+  REQUIRE(emcy != nullptr);
+  CHECK(emcy->data[0] == 0x10);
+  CHECK(emcy->data[1] == 0x23);
+  const CanFrame* qs = b.firstAfter(emcy->stamp, [](const CanFrame& f) { return isQuickStop(f); });
+  REQUIRE(qs != nullptr);
+  const Duration latency = qs->stamp - emcy->stamp;
+  std::printf("traction EMCY -> quick stop on the bus: %.2f ms\n", 1e3 * latency.seconds());
+  CHECK(latency < Duration::fromMilliseconds(30));
+  CHECK(b.firstAfter(tFault, [](const CanFrame& f) {
+    return f.id == kTractionSdo && f.data[0] == 0x40 && f.data[1] == 0x3F && f.data[2] == 0x60;
+  }) != nullptr);
+  // The fault code in the routine's reason and log; DeviceFault on register 48 and status bit 6
+  // (the encoder source saw the same EMCY of node 1); the drive stopped by its fault reaction.
+  CHECK(b.drives->faultCode() == 0x2310U);
+  CHECK(b.routine->session()->lastMessage().find("0x2310") != std::string::npos);
+  b.checkAbortedAndFileUntouched(Status::DeviceFault);
+  CHECK(hal::hasBit(b.plc.last.health.bits, hal::HealthBit::DeviceFault));
+  CHECK(b.nodes->traction().state() == PowerState::Fault);
+  CHECK(b.nodes->traction().velocity() == 0.0);
+  CHECK(b.sim->drive().isStandstill());
+}
 
+#if !defined(AGV_VCAN_CALIBRATION_OVER_MODBUS)
 TEST_CASE("calibration routine on vcan: CiA 402 drives, encoders from the traction TPDO1, all phases, a file",
           "[calibration]") {
-  const std::string ifname = agv::test::vcanInterface();
-  const Pose2d start{10.0, 12.5, 0.0};
-  // The world, the simulated vehicle (its own encoder measurements feed the simulated drives) and
-  // its laser (1 deg beams: the routine uses the reflectors), brought to the VM's monotonic time.
-  agv::sim::World world;
-  agv::sim::WorldParseError perr;
-  REQUIRE(agv::sim::parseWorld(agv::sim::defaultWorldText(), world, perr) == Status::Ok);
-  const agv::sim::RayCaster caster(world, 1.0);
-  const agv::sim::SimVehicleParams truth;
-  agv::sim::SimLaserParams laserParams;
-  laserParams.angularResolution = agv::deg2rad(1.0);
-  cal::SimCalibrationVehicle sim(caster, truth, laserParams, 1, start, nullptr);
-  REQUIRE(sim.status() == Status::Ok);
-  sim.wait(monotonicNow() - sim.now());
-
-  // The drives' side of the bus.
-  agv::drivers::SocketCanBus nodesBus;
-  agv::drivers::SocketCanConfig busConfig;
-  busConfig.interfaceName = ifname.c_str();
-  busConfig.receiveErrorFrames = false;
-  REQUIRE(nodesBus.open(busConfig) == Status::Ok);
-  agv::simdrives::SimDrives nodes(agv::simdrives::SimDrivesOptions{}, nullptr);
-
-  // The vehicle's side: configuration as agvnav-vehicle would parse it.
-  agv::vehicle::VehicleConfig config;
-  config.canInterface = ifname;
-  config.drivesEnabled = true;
-  config.calibrationAreaSet = true;
-  config.calibrationPlan.segmentsPerPhase = 2;  // 8 short segments: the VM's time budget
-  config.calibrationPlan.minSteering = agv::deg2rad(40.0);
-  config.calibrationPlan.maxSteering = agv::deg2rad(50.0);
-  config.calibrationPlan.rotation = agv::deg2rad(90.0);
-  config.calibrationSpeed = 0.8;
-  config.calibrationFile = "/tmp/agv_vm_calibration.txt";
-  {
-    std::ofstream old(config.calibrationFile, std::ios::trunc);
-    old << "old\n";
-  }
-  agv::drivers::CanopenEncoderSourceConfig enc;
-  enc.interfaceName = ifname.c_str();
-  enc.canopen.drive.nodeId = 1;
-  enc.canopen.drive.pdo = agv::drivers::canopen::PdoMapping{0x181, 2, 4};  // statusword + position
-  enc.canopen.steering.nodeId = 2;
-  enc.canopen.steering.radiansPerCount = agv::test::kSteerEncoderRadPerCount;
-  enc.canopen.trigger = agv::drivers::canopen::SampleTrigger::DriveUpdated;
-  enc.canopen.heartbeatTimeout = Duration::fromMilliseconds(500);
-  agv::drivers::CanopenEncoderSource encoders(enc);
-  REQUIRE(encoders.open() == Status::Ok);
-  std::unique_ptr<agv::vehicle::VehicleDrives> drives = agv::vehicle::makeSocketCanDrives(config);
-  agv::VehicleCalibration current;
-  current.params = agv::TricycleParams{1.5, 1.0e-4, 0.0, 0.0};
-  current.laserPose = Pose2d{1.6, 0.0, 0.0};
-  ScriptedPlc plc;
-  std::vector<std::string> log;
-  agv::vehicle::VehicleCalibrationRoutine routine(config, current, encoders, sim.laser(), plc, drives.get(),
-                                                  [&log](const std::string& line) {
-                                                    std::printf("vehicle: %s\n", line.c_str());
-                                                    log.push_back(line);
-                                                  });
-  agv::LandmarkMap map;
-  std::uint32_t id = 1;
-  for (const agv::sim::Circle& c : world.circles) {
-    if (c.kind == agv::sim::ObstacleKind::Reflector) {
-      REQUIRE(map.addSurveyed(agv::LandmarkKind::Reflector, c.centre.x, c.centre.y, 0.005, id++).ok());
-    }
-  }
-  map.setMode(agv::MapMode::Static);
-  agv::nav::PipelineParams p;
-  p.kinematics = current.params;
-  p.localizer.laser.mounting = current.laserPose;
-  p.localizer.laser.rangeMax = 30.0;
-  p.relocalization.enabled = false;  // the PLC's Localize gives the pose (a global search is slow under TCG)
-  MonoClock clock;
-  agv::nav::Pipeline pipeline(p, map,
-                              agv::nav::PipelineDevices{routine.encoders(), routine.laser(), routine.plc(), clock});
-  REQUIRE(pipeline.configure() == Status::Ok);
-  REQUIRE(pipeline.activate() == Status::Ok);
-  routine.attach(pipeline);
-
-  // One loop, real time: the drives' side every 10 ms (frames in, nodes stepped, the wheel's
-  // counts as the traction position, the steering encoder's heartbeat and TPDO, the motors moving
-  // the vehicle), the vehicle's side every 2 ms.
-  std::int64_t wheelTicks = 0;
-  double wheelSteer = 0.0;
-  Timestamp nextNodes = monotonicNow();
-  const auto stepWorld = [&](Timestamp now) {
-    sim.wait(now - sim.now());
-    CanFrame f;
-    while (nodesBus.receive(f, Duration{}) == Status::Ok) {
-      if (!f.error) {
-        nodes.receive(f, now);
-      }
-    }
-    if (now < nextNodes) {
-      return;
-    }
-    nextNodes = now + Duration::fromMilliseconds(10);
-    agv::test::feedWheel(sim.encoders(), nodes.node(1), wheelTicks, wheelSteer);
-    CanFrame out[agv::simdrives::SimDrives::kMaxFrames];
-    const std::size_t n = nodes.step(now, agv::Span<CanFrame>(out));
-    for (std::size_t k = 0; k < n; ++k) {
-      static_cast<void>(nodesBus.send(out[k]));
-    }
-    CanFrame encoderFrames[2];
-    agv::test::steeringEncoderFrames(wheelSteer, now, encoderFrames);
-    for (const CanFrame& e : encoderFrames) {
-      static_cast<void>(nodesBus.send(e));
-    }
-    static_cast<void>(sim.drive().command(
-        agv::test::motorsToVehicle(nodes.traction(), nodes.steering(), config.drives, truth.truth.driveScale, now)));
-  };
-  const auto cycle = [&]() {
-    const Timestamp now = monotonicNow();
-    stepWorld(now);
-    static_cast<void>(pipeline.cycle());
-    const bool wrote = routine.step(monotonicNow());
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-    return wrote;
-  };
-
-  // Localize at the start (the encoder decoder needs its first samples), then Calibrate.
-  for (int i = 0; i < 100; ++i) {
-    cycle();
-  }
-  plc.send(hal::PlcCommandKind::Localize, start);
-  for (int i = 0; i < 100; ++i) {
-    cycle();
-  }
-  REQUIRE(pipeline.localizing());
-  plc.send(hal::PlcCommandKind::Calibrate);
-  bool wrote = false;
+  VmCalibrationBench b("/tmp/agv_vm_calibration.txt");
+  b.localize();
+  b.plc.send(hal::PlcCommandKind::Calibrate);
   const Timestamp t0 = monotonicNow();
   int lastSegment = -1;
   int lastState = -1;
   while (monotonicNow() - t0 < Duration::fromSeconds(100.0)) {
-    wrote = cycle() || wrote;
-    const cal::SessionProgress& pr = routine.progress();
+    b.cycle();
+    const cal::SessionProgress& pr = b.routine->progress();
     if (static_cast<int>(pr.state) != lastState || pr.segment != lastSegment) {
       lastState = static_cast<int>(pr.state);
       lastSegment = pr.segment;
       std::printf("%.2f s: %s, segment %u of %u\n", (monotonicNow() - t0).seconds(), cal::routineStateName(pr.state),
                   pr.segment, pr.total);
     }
-    if (!routine.running() && monotonicNow() - t0 > Duration::fromSeconds(1.0)) {
+    if (!b.routine->running() && monotonicNow() - t0 > Duration::fromSeconds(1.0)) {
       break;
     }
   }
-  INFO(routine.session()->lastMessage());
-  std::printf("routine %s after %.1f s; %s\n", cal::routineStateName(routine.progress().state),
-              (monotonicNow() - t0).seconds(), routine.session()->lastMessage().c_str());
-  CHECK(routine.progress().state == cal::RoutineState::Done);
-  CHECK(routine.progress().total == 8);
-  REQUIRE(wrote);
+  INFO(b.routine->session()->lastMessage());
+  std::printf("routine %s after %.1f s; %s\n", cal::routineStateName(b.routine->progress().state),
+              (monotonicNow() - t0).seconds(), b.routine->session()->lastMessage().c_str());
+  CHECK(b.routine->progress().state == cal::RoutineState::Done);
+  CHECK(b.routine->progress().total == 8);
+  REQUIRE(b.wrote);
   for (cal::RoutineState s : {cal::RoutineState::Settling, cal::RoutineState::Steering, cal::RoutineState::Driving,
                               cal::RoutineState::Stopping, cal::RoutineState::Observing}) {
-    CHECK(plc.seen[static_cast<int>(s)]);
+    CHECK(b.plc.seen[static_cast<int>(s)]);
   }
-  std::ifstream in(config.calibrationFile);
-  std::stringstream text;
-  text << in.rdbuf();
-  const std::string t = text.str();
-  agv::VehicleCalibration got;
-  REQUIRE(agv::parseCalibrationFile(agv::Span<const char>(t.data(), t.size()), got) == Status::Ok);
-  const agv::TricycleParams& tr = truth.truth;
-  std::printf(
-      "vcan routine: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, ly %+.2f mm, "
-      "ltheta %+.4f deg (refined - truth)\n",
-      1e6 * (got.params.driveScale / tr.driveScale - 1.0),
-      agv::rad2deg(got.params.steerOffsetForward - tr.steerOffsetForward),
-      agv::rad2deg(got.params.steerOffsetBackward - tr.steerOffsetBackward),
-      1e3 * (got.laserPose.x - truth.laserMount.x), 1e3 * (got.laserPose.y - truth.laserMount.y),
-      agv::rad2deg(got.laserPose.theta - truth.laserMount.theta));
-  // 8 segments of 90 deg at 40..50 deg steering and 1 deg laser beams instead of calibrate.app's
-  // half circles at 18..50 deg and 0.25 deg: its tolerance doubled (docs/calibration.md).
-  CHECK(std::fabs(got.params.driveScale / tr.driveScale - 1.0) < 4000e-6);
-  CHECK(std::fabs(got.params.steerOffsetForward - tr.steerOffsetForward) < agv::deg2rad(0.2));
-  CHECK(std::fabs(got.params.steerOffsetBackward - tr.steerOffsetBackward) < agv::deg2rad(0.2));
-  CHECK(std::fabs(got.laserPose.x - truth.laserMount.x) < 0.016);
-  CHECK(std::fabs(got.laserPose.y - truth.laserMount.y) < 0.016);
-  CHECK(std::fabs(got.laserPose.theta - truth.laserMount.theta) < agv::deg2rad(0.6));
-  std::ifstream bak(config.calibrationFile + ".bak");
-  std::string old;
-  std::getline(bak, old);
-  CHECK(old == "old");
-  encoders.close();
+  b.checkWrittenCalibration();
 }
+#endif

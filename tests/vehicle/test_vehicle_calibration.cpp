@@ -6,7 +6,6 @@
 // cycle that reads it; a drive fault and a heartbeat loss abort with the reason on the registers;
 // a plan that does not fit and a Calibrate without a pose are refused before the drives move.
 #include <cmath>
-#include <deque>
 #include <fstream>
 #include <memory>
 #include <set>
@@ -22,6 +21,7 @@
 #include "agv/sim/world.hpp"
 #include "agv_test.hpp"
 #include "calibration_check.hpp"
+#include "scripted_plc.hpp"
 #include "sim_drives.hpp"
 #include "simulated_drive_side.hpp"
 #include "vehicle_calibration.hpp"
@@ -32,45 +32,13 @@ using agv::Status;
 using agv::Timestamp;
 namespace cal = agv::calibration;
 namespace hal = agv::hal;
+using agv::test::ScriptedPlc;
 
 namespace {
 
 std::string work(const char* name) {
   return std::string(AGV_TEST_WORK_DIR) + "/" + name;
 }
-
-/// The PLC: commands queued by the test, every report kept.
-class ScriptedPlc final : public hal::PlcLink {
- public:
-  Status publish(const hal::PoseReport& report) noexcept override {
-    last = report;
-    ++reports;
-    if (report.health.mode == hal::NavMode::Calibrating) {
-      ++calibratingReports;
-    }
-    seen[report.health.calibration.state & 15U] = true;  // no allocation: the cycles are counted
-    return Status::Ok;
-  }
-  Status readCommand(hal::PlcCommand& out) noexcept override {
-    if (queue.empty()) {
-      return Status::NotFound;
-    }
-    out = queue.front();
-    queue.pop_front();
-    return Status::Ok;
-  }
-  void send(hal::PlcCommandKind kind, const Pose2d& pose = Pose2d{}) {
-    hal::PlcCommand c;
-    c.kind = kind;
-    c.initialPose = pose;
-    queue.push_back(c);
-  }
-  std::deque<hal::PlcCommand> queue;
-  hal::PoseReport last;
-  int reports = 0;
-  int calibratingReports = 0;
-  bool seen[16] = {};
-};
 
 /// The simulated vehicle's drive as the vehicle's drives, with a switchable fault.
 class SimDrives final : public agv::vehicle::VehicleDrives, public hal::DriveControl {

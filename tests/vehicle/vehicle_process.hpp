@@ -24,6 +24,7 @@
 #include "agv/drivers/protocol/plc/plc_register_map.hpp"
 #include "agv_test.hpp"
 #include "loopback_server.hpp"
+#include "plc_modbus_client.hpp"
 #include "sick_telegrams.hpp"
 #include "vehicle_files.hpp"
 
@@ -190,16 +191,7 @@ class RunningVehicle {
   bool poll() { return modbus_read_registers(plc, 0, 40, regs) == 40; }
   /// Writes the whole command block in one request (code, a new sequence, set-pose, heartbeat).
   bool command(agv::hal::PlcCommandKind kind, float x = 0.0F, float y = 0.0F, float theta = 0.0F) {
-    std::uint16_t cmd[9] = {};
-    cmd[0] = static_cast<std::uint16_t>(kind);
-    cmd[1] = ++sequence_;
-    // Our packing: libmodbus' setters write ABCD byte-swapped (docs/plc-link.md).
-    using agv::drivers::plc::WordOrder;
-    agv::drivers::plc::packFloat(x, WordOrder::ABCD, &cmd[2]);
-    agv::drivers::plc::packFloat(y, WordOrder::ABCD, &cmd[4]);
-    agv::drivers::plc::packFloat(theta, WordOrder::ABCD, &cmd[6]);
-    cmd[8] = sequence_;  // the PLC heartbeat moves too
-    return modbus_write_registers(plc, 100, 9, cmd) == 9;
+    return agv::test::writePlcCommand(plc, ++sequence_, kind, x, y, theta);
   }
   /// Polls until `done()` holds on the status block or about 2 s passed (the loop publishes every
   /// 20 ms); true when it held.
