@@ -98,7 +98,24 @@ bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& select
     }
     GlarotSignature sig;
     // Fewer than two points leave an all-zero signature of the right shape (documented in glarot.hpp).
-    (void)computeGlarot(view(pts), selection.glarot, sig);
+    if (selection.glarotScanPoints == 0) {
+      (void)computeGlarot(view(pts), selection.glarot, sig);
+    } else {
+      std::vector<std::size_t> valid;
+      for (std::size_t b = 0; b < scan->size(); ++b) {
+        if (scan->isValid(b)) {
+          valid.push_back(b);
+        }
+      }
+      std::vector<Eigen::Vector2f> spread;
+      const std::size_t m = std::min(std::min(selection.glarotScanPoints, valid.size()), kMaxKeypoints);
+      for (std::size_t k = 0; k < m; ++k) {
+        const std::size_t b = valid[k * valid.size() / m];
+        const float a = scan->angle(b);
+        spread.emplace_back(scan->ranges[b] * std::cos(a), scan->ranges[b] * std::sin(a));
+      }
+      (void)computeGlarot(view(spread), selection.glarot, sig);
+    }
     ms += msSince(t0);
     out.points.push_back(std::move(pts));
     out.scans.push_back(*scan);

@@ -48,6 +48,9 @@ struct ScanSelection {
   std::size_t maxScans = 0;  ///< 0: all
   FalkoParams falko{};
   GlarotParams glarot{};
+  /// 0: the GLAROT signature of the FALKO keypoints (thesis). n > 0: of n beam endpoints spread
+  /// evenly over the scan's valid readings instead (the association stays on the keypoints).
+  std::size_t glarotScanPoints = 0;
 };
 
 /// Detects the features of the selected scans that carry ground truth (`LogScan::groundTruth`).
@@ -79,7 +82,7 @@ struct EvalOptions {
   // were chosen on fr079 online alone (docs/loop-closure.md, "Thresholds").
   bool verify = true;
   double minOverlap = 0.6;
-  double maxConflict = 0.08;
+  double maxConflict = 0.03;
   ScanOverlapParams overlap{};
   /// When not empty: every Ok association (all candidates, methods) as one CSV line here.
   std::string dumpPath;

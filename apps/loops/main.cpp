@@ -92,7 +92,12 @@ int run(int argc, char** argv) {
   std::string dataDir = AGVNAV_DEFAULT_DATA_DIR;
   std::vector<std::string> datasets{"intel", "fr079", "mit-csail"};
   std::string mode = "both";
+  // The loop evaluation's features (docs/loop-closure.md, "What one run does"): FALKO with the
+  // unrefined candidates kept, and the GLAROT signature of 128 spread beam endpoints. The pose
+  // graph keeps its own (the thesis' keypoints and signature).
   agv::loops::ScanSelection selection;
+  selection.falko.keepFarCorners = true;
+  selection.glarotScanPoints = 128;
   agv::loops::EvalOptions eval;
   std::string jsonPath;
   std::string svgDir;
@@ -130,6 +135,12 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.01, 1.0));
   app.add_option("--dump-associations", eval.dumpPath,
                  "write every Ok association (and one line per scan) as CSV to this file (diagnosis)");
+  app.add_option("--glarot-scan-points", selection.glarotScanPoints,
+                 "GLAROT signature of this many beam endpoints spread over the scan (default 128); 0: of the "
+                 "keypoints (thesis)")
+      ->check(CLI::Range(0, 256));
+  app.add_flag("--falko-keep-far,!--no-falko-keep-far", selection.falko.keepFarCorners,
+               "FALKO keeps candidates whose walls meet away from the beam point, unrefined (thesis)");
   app.add_option("--falko-corner-ratio", selection.falko.minCornerResidualRatio,
                  "FALKO straight-wall rejection ratio (0: off, the thesis' detector)")
       ->check(CLI::Range(0.0, 1000.0));
