@@ -12,6 +12,7 @@
 #include "agv/loop/correspondence_graph.hpp"
 #include "agv/loop/glarot_database.hpp"
 #include "agv/loop/ransac_association.hpp"
+#include "agv/loop/scan_overlap.hpp"
 #include "agv/report/svg.hpp"
 
 namespace agv {
@@ -97,9 +98,27 @@ bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& select
     }
     GlarotSignature sig;
     // Fewer than two points leave an all-zero signature of the right shape (documented in glarot.hpp).
-    (void)computeGlarot(view(pts), selection.glarot, sig);
+    if (selection.glarotScanPoints == 0) {
+      (void)computeGlarot(view(pts), selection.glarot, sig);
+    } else {
+      std::vector<std::size_t> valid;
+      for (std::size_t b = 0; b < scan->size(); ++b) {
+        if (scan->isValid(b)) {
+          valid.push_back(b);
+        }
+      }
+      std::vector<Eigen::Vector2f> spread;
+      const std::size_t m = std::min(std::min(selection.glarotScanPoints, valid.size()), kMaxKeypoints);
+      for (std::size_t k = 0; k < m; ++k) {
+        const std::size_t b = valid[k * valid.size() / m];
+        const float a = scan->angle(b);
+        spread.emplace_back(scan->ranges[b] * std::cos(a), scan->ranges[b] * std::sin(a));
+      }
+      (void)computeGlarot(view(spread), selection.glarot, sig);
+    }
     ms += msSince(t0);
     out.points.push_back(std::move(pts));
+    out.scans.push_back(*scan);
     out.signatures.push_back(sig);
     out.truth.push_back(line.groundTruth);
     out.logScan.push_back(s);
@@ -125,6 +144,11 @@ void evaluate(const ScanFeatures& f, bool online, const EvalOptions& o, ModeResu
   auto ah = std::make_unique<AffineHoughMatcher>();
   auto ransac = std::make_unique<RansacMatcher>();
   auto assoc = std::make_unique<PointAssociation>();
+  auto queryScan = std::make_unique<ScanOverlap>();
+  auto candidateScan = std::make_unique<ScanOverlap>();
+  (void)queryScan->setParams(o.overlap);  // invalid parameters: the defaults stay
+  (void)candidateScan->setParams(o.overlap);
+  std::FILE* dump = o.dumpPath.empty() ? nullptr : std::fopen(o.dumpPath.c_str(), "a");
   GlarotCandidates found;
   for (std::size_t i = 0; i < n; ++i) {
     GlarotQuery q;
@@ -153,11 +177,13 @@ void evaluate(const ScanFeatures& f, bool online, const EvalOptions& o, ModeResu
     auto t0 = Clock::now();
     (void)db->query(f.signatures[i], q, found);
     out.glarotMsPerScan.push_back(msSince(t0));
+    const bool verify = o.verify || dump != nullptr;
     for (std::size_t m = 0; m < kMethods; ++m) {
       BestLoop best;
       double bestRms = 0.0;
       t0 = Clock::now();
-      for (const GlarotCandidate& c : found) {
+      for (std::size_t r = 0; r < found.size(); ++r) {
+        const GlarotCandidate& c = found[r];
         Status st = Status::InvalidArgument;
         if (m == 0) {
           st = cg->match(view(f.points[c.index]), view(f.points[i]), *assoc);
@@ -169,21 +195,61 @@ void evaluate(const ScanFeatures& f, bool online, const EvalOptions& o, ModeResu
         if (st != Status::Ok) {
           continue;
         }
+        MutualOverlap ov;
+        bool verified = true;
+        if (verify) {
+          // A scan without a valid reading verifies nothing (0 hits, all conflicts).
+          (void)mutualOverlap(*candidateScan, f.scans[c.index], *queryScan, f.scans[i], assoc->transform, ov);
+          verified = !o.verify || (ov.hitFraction >= o.minOverlap && ov.conflictFraction <= o.maxConflict);
+          if (!verified && dump == nullptr) {
+            continue;
+          }
+        }
         const std::size_t pairs = assoc->pairs.size();
+        const Pose2d aligned = f.truth[c.index].compose(assoc->transform);
+        const Pose2d err = between(f.truth[i], aligned);
+        const bool correct =
+            std::hypot(err.x, err.y) < o.correctDistance && std::fabs(normalizeAngle(err.theta)) < o.correctAngle;
+        if (dump != nullptr) {
+          const Pose2d rel = between(f.truth[c.index], f.truth[i]);
+          std::fprintf(dump, "%s,%d,%zu,%zu,%zu,%s,%zu,%.4f,%.4f,%.4f,%d,%d,%.3f,%.3f,%zu,%zu,%.3f,%.3f,%.4f\n",
+                       o.dumpName.c_str(), online ? 1 : 0, i, static_cast<std::size_t>(c.index), r, kMethodNames[m],
+                       pairs, assoc->rms, ov.hitFraction, ov.conflictFraction, correct ? 1 : 0, loop ? 1 : 0,
+                       std::hypot(rel.x, rel.y), std::fabs(normalizeAngle(rel.theta)), f.points[i].size(),
+                       f.points[c.index].size(), std::hypot(err.x, err.y), std::fabs(normalizeAngle(err.theta)),
+                       ov.inViewFraction);
+          if (!verified) {
+            continue;
+          }
+        }
         if (pairs > best.pairs || (pairs == best.pairs && assoc->rms < bestRms)) {
-          const Pose2d aligned = f.truth[c.index].compose(assoc->transform);
-          const Pose2d err = between(f.truth[i], aligned);
           best.pairs = pairs;
           best.candidate = c.index;
           best.transform = assoc->transform;
-          best.correct =
-              std::hypot(err.x, err.y) < o.correctDistance && std::fabs(normalizeAngle(err.theta)) < o.correctAngle;
+          best.correct = correct;
+          best.overlap = ov.hitFraction;
+          best.conflict = ov.conflictFraction;
           bestRms = assoc->rms;
         }
       }
       out.msPerScan[m].push_back(msSince(t0));
       out.best[m].push_back(best);
     }
+    if (dump != nullptr) {
+      // The scan's own line: keypoints, and whether a candidate was a revisit (rank -1 = none).
+      long revisitRank = -1;
+      for (std::size_t r = 0; r < found.size() && revisitRank < 0; ++r) {
+        const Pose2d rel = between(f.truth[found[r].index], f.truth[i]);
+        if (std::hypot(rel.x, rel.y) < o.revisitDistance && std::fabs(normalizeAngle(rel.theta)) < o.revisitAngle) {
+          revisitRank = static_cast<long>(r);
+        }
+      }
+      std::fprintf(dump, "%s,%d,%zu,-1,%ld,scan,0,0,0,0,0,%d,0,0,%zu,0,0,0,0\n", o.dumpName.c_str(), online ? 1 : 0, i,
+                   revisitRank, loop ? 1 : 0, f.points[i].size());
+    }
+  }
+  if (dump != nullptr) {
+    std::fclose(dump);
   }
   for (std::size_t m = 0; m < kMethods; ++m) {
     out.curves[m] = prCurve(out.best[m], out.hasLoop, o.maxMinPairs);

@@ -92,7 +92,12 @@ int run(int argc, char** argv) {
   std::string dataDir = AGVNAV_DEFAULT_DATA_DIR;
   std::vector<std::string> datasets{"intel", "fr079", "mit-csail"};
   std::string mode = "both";
+  // The loop evaluation's features (docs/loop-closure.md, "What one run does"): FALKO with the
+  // unrefined candidates kept, and the GLAROT signature of 128 spread beam endpoints. The pose
+  // graph keeps its own (the thesis' keypoints and signature).
   agv::loops::ScanSelection selection;
+  selection.falko.keepFarCorners = true;
+  selection.glarotScanPoints = 128;
   agv::loops::EvalOptions eval;
   std::string jsonPath;
   std::string svgDir;
@@ -119,6 +124,23 @@ int run(int argc, char** argv) {
   app.add_option("--revisit-distance", eval.revisitDistance,
                  "[m] a scan has a loop when an eligible reference scan was taken this close")
       ->check(CLI::PositiveNumber);
+  app.add_flag("--verify,!--no-verify", eval.verify, "verify each association by the scans' agreement");
+  app.add_option("--min-overlap", eval.minOverlap,
+                 "verification: fewest fraction of each scan's points next to the other's endpoints")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--max-conflict", eval.maxConflict,
+                 "verification: largest fraction of each scan's points in the other's free space")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--overlap-cell", eval.overlap.cell, "[m] grid cell of the verification's hit test")
+      ->check(CLI::Range(0.01, 1.0));
+  app.add_option("--dump-associations", eval.dumpPath,
+                 "write every Ok association (and one line per scan) as CSV to this file (diagnosis)");
+  app.add_option("--glarot-scan-points", selection.glarotScanPoints,
+                 "GLAROT signature of this many beam endpoints spread over the scan (default 128); 0: of the "
+                 "keypoints (thesis)")
+      ->check(CLI::Range(0, 256));
+  app.add_flag("--falko-keep-far,!--no-falko-keep-far", selection.falko.keepFarCorners,
+               "FALKO keeps candidates whose walls meet away from the beam point, unrefined (thesis)");
   app.add_option("--falko-corner-ratio", selection.falko.minCornerResidualRatio,
                  "FALKO straight-wall rejection ratio (0: off, the thesis' detector)")
       ->check(CLI::Range(0.0, 1000.0));
@@ -157,6 +179,17 @@ int run(int argc, char** argv) {
     return 2;
   }
 
+  if (!eval.dumpPath.empty()) {
+    std::FILE* dump = std::fopen(eval.dumpPath.c_str(), "w");
+    if (dump == nullptr) {
+      std::fprintf(stderr, "agvnav-loops: cannot write %s\n", eval.dumpPath.c_str());
+      return 2;
+    }
+    std::fprintf(dump,
+                 "dataset,online,query,candidate,rank,method,pairs,rms,overlap,conflict,correct,has_loop,true_dist,"
+                 "true_angle,query_keypoints,candidate_keypoints,error_m,error_rad,in_view\n");
+    std::fclose(dump);
+  }
   agv::report::Json doc = agv::report::Json::object();
   if (!skipLoops) {
     doc["loops"] = agv::report::Json::object();
@@ -194,6 +227,7 @@ int run(int argc, char** argv) {
           continue;
         }
         std::fprintf(stderr, "agvnav-loops: %s: %s evaluation\n", name.c_str(), modeNames[k]);
+        eval.dumpName = name;
         agv::loops::evaluate(features, k == 1, eval, results[k]);
         printCurves(name, modeNames[k], results[k]);
         agv::report::Json methods = agv::report::Json::object();

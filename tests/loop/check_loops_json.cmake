@@ -6,7 +6,8 @@
 #   subset of the same best loops); at N_min = 20 the precision is 1 (nothing false is accepted:
 #   the scans carry too few keypoints for 20 pairs, or what is left is right);
 # - plausible values: some method finds correct loops offline at N_min = 3 (recall > 0.05), and
-#   for every method the precision at N_min = 6 is not below the one at N_min = 0.
+#   for every method the precision at N_min = 6 is not below the one at N_min = 0;
+# - with RECALL_AT_P1 / PRECISION1_FROM set, the figures of check_loops_figures.cmake.
 expect_keys("${j}" "loops;timing_ms")
 expect_keys("${j}" "${LOG_NAME}" loops)
 expect_keys("${j}" "offline;online" loops ${LOG_NAME})
@@ -63,3 +64,4 @@ foreach(method cg ah ransac)
     message(FATAL_ERROR "JSON: timing_ms ${method}: median ${med}, p95 ${p95}")
   endif()
 endforeach()
+include("${CMAKE_CURRENT_LIST_DIR}/check_loops_figures.cmake")

@@ -519,7 +519,8 @@ float orientationOf(bool refined, const Corner& c, float sideX, float sideY) noe
 
 }  // namespace
 
-bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept {
+FalkoDetector::RefineOutcome FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY,
+                                                   FalkoKeypoint& kp) noexcept {
   const float maxShift2 = params_.subbeamMaxShift * params_.subbeamMaxShift;
   const float reach = params_.refineRadiusFactor * kp.radius;
   float* wx = leftX_.data();  // the side buffers hold the window (the side sums are in sideX/Y)
@@ -532,17 +533,20 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
   LineAcc bestR;
   const float bestCost = bestSplit(wx, wy, w, total, params_.minSidePoints + 1, bestL, bestR);
   // Pass 1, acceptance: one line explaining the window almost as well as two is a noisy straight
-  // wall, not a corner; two walls meeting farther than subbeamMaxShift away are a corner
-  // elsewhere (e.g. beside an acute corner), whose own candidates will report it.
+  // wall, not a corner (an addition to the thesis). Two walls meeting farther than
+  // subbeamMaxShift away are reported as FarCorner with that meeting point in (kp.x, kp.y): the
+  // caller decides whether the beam point is kept (the thesis keeps it, unrefined).
   const bool splitFound = bestCost < std::numeric_limits<float>::infinity();
   if (splitFound && total.residual() <= params_.minCornerResidualRatio * bestCost) {
-    return false;
+    return RefineOutcome::Rejected;
   }
   Corner corner;
   const bool ok = splitFound && bestL.fit(corner.left) && bestR.fit(corner.right) &&
                   intersect(corner.left, corner.right, corner.x, corner.y);
   if (ok && corner.x * corner.x + corner.y * corner.y > maxShift2) {
-    return false;
+    kp.x = pts.x(i) + corner.x;
+    kp.y = pts.y(i) + corner.y;
+    return RefineOutcome::FarCorner;
   }
   if (ok) {
     // Passes 2 and 3: the neighbourhood holds few points per side at long range, and the
@@ -572,7 +576,7 @@ bool FalkoDetector::refine(const ScanPoints& pts, std::size_t i, float sideX, fl
   kp.x = pts.x(i) + corner.x;
   kp.y = pts.y(i) + corner.y;
   kp.orientation = orientationOf(ok, corner, sideX, sideY);
-  return true;
+  return RefineOutcome::Accepted;
 }
 
 namespace {
@@ -743,6 +747,11 @@ bool FalkoDetector::nearAccepted(float x, float y, std::size_t kept, float nms2)
 std::size_t FalkoDetector::suppressAndRefine(const ScanPoints& pts, std::size_t candidates) noexcept {
   const float nms2 = params_.nmsRadius * params_.nmsRadius;
   std::size_t kept = 0;
+  // Pass 1: refined corners. Candidates whose walls meet farther than subbeamMaxShift away are
+  // dropped, or with keepFarCorners set aside in order_[0, farCount) (d <= o: compaction in
+  // place, still best score first), the meeting point of their walls in rightX_/rightY_ (free
+  // after the scoring stage).
+  std::size_t farCount = 0;
   for (std::size_t o = 0; o < candidates; ++o) {
     const std::size_t i = order_[o];
     if (nearAccepted(pts.x(i), pts.y(i), kept, nms2)) {
@@ -752,9 +761,32 @@ std::size_t FalkoDetector::suppressAndRefine(const ScanPoints& pts, std::size_t 
     kp.beamIndex = static_cast<std::uint32_t>(i);
     kp.radius = radius_[i];
     kp.score = score_[i];
-    if (refine(pts, i, sideX_[i], sideY_[i], kp) && !nearAccepted(kp.x, kp.y, kept, nms2)) {
+    const RefineOutcome r = refine(pts, i, sideX_[i], sideY_[i], kp);
+    if (r == RefineOutcome::Accepted && !nearAccepted(kp.x, kp.y, kept, nms2)) {
       cands_[kept++] = kp;
+    } else if (r == RefineOutcome::FarCorner && params_.keepFarCorners) {
+      rightX_[farCount] = kp.x;
+      rightY_[farCount] = kp.y;
+      order_[farCount++] = static_cast<std::uint32_t>(i);
     }
+  }
+  // Pass 2: the set-aside candidates at their beam point, unrefined (thesis), unless the beam
+  // point or the meeting point of its walls lies within nmsRadius of an accepted corner: next to
+  // a corner found in pass 1 (typically beside an acute one) the candidate only sees that corner.
+  for (std::size_t d = 0; d < farCount; ++d) {
+    const std::size_t i = order_[d];
+    if (nearAccepted(pts.x(i), pts.y(i), kept, nms2) || nearAccepted(rightX_[d], rightY_[d], kept, nms2)) {
+      continue;
+    }
+    FalkoKeypoint kp;
+    kp.beamIndex = static_cast<std::uint32_t>(i);
+    kp.radius = radius_[i];
+    kp.score = score_[i];
+    kp.x = pts.x(i);
+    kp.y = pts.y(i);
+    kp.refined = false;
+    kp.orientation = std::atan2(sideY_[i], sideX_[i]);
+    cands_[kept++] = kp;
   }
   return kept;
 }

@@ -30,8 +30,11 @@ using FalkoKeypoints = FixedVector<FalkoKeypoint, kMaxKeypoints>;
 /// go through a greedy non-maxima suppression, best score first: a candidate within nmsRadius of
 /// an accepted corner is suppressed, otherwise it is refined: the points within refineRadiusFactor * r are split in two
 /// in beam order where two fitted lines leave the least residual, the lines are intersected (accepted within
-/// subbeamMaxShift of the beam point; a corner farther away drops the candidate, one line fitting
-/// almost as well drops it too), and the fit is repeated twice on the points near each line.
+/// subbeamMaxShift of the beam point; one line fitting almost as well drops the candidate), and the
+/// fit is repeated twice on the points near each line. A candidate whose lines meet farther away
+/// is dropped, or with FalkoParams::keepFarCorners kept at its beam point, unrefined (thesis),
+/// after the refined corners, unless the beam point or the meeting point lies within nmsRadius of
+/// an accepted corner.
 /// A candidate whose refinement is rejected suppresses nothing; one that refines to within
 /// nmsRadius of an accepted corner is dropped. The orientation is
 /// the mean of the directions from the corner to the centroids of its two sides.
@@ -82,10 +85,15 @@ class FalkoDetector {
   static Side gatherSide(const ScanPoints& pts, std::size_t i, int dir, std::size_t k, float r2, float* xs,
                          float* ys) noexcept;
   float scoreOf(const Side& left, const Side& right, float c, float s) noexcept;
-  /// Sub-beam refinement and orientation; false when the points around the candidate are
-  /// explained by one line (the candidate is then dropped).
+  /// What the sub-beam refinement made of a candidate.
+  enum class RefineOutcome {
+    Accepted,   ///< kp holds the corner (refined, or the beam point when no lines fit)
+    Rejected,   ///< one line explains the points around the candidate: a wall, dropped
+    FarCorner,  ///< the two walls meet farther than subbeamMaxShift away; (kp.x, kp.y) = that point
+  };
+  /// Sub-beam refinement and orientation of candidate i.
   /// (sideX, sideY): sum of the side centroids relative to the candidate (orientation fallback).
-  bool refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept;
+  RefineOutcome refine(const ScanPoints& pts, std::size_t i, float sideX, float sideY, FalkoKeypoint& kp) noexcept;
 
   // The stages of detect, in order.
   /// Neighbourhood radius (radius_) and beam window (window_, 0 for beams that are no candidate)
@@ -114,7 +122,10 @@ class FalkoDetector {
   /// point lies within nmsRadius of an accepted corner is suppressed; otherwise it is refined, and
   /// accepted unless the refinement rejects it or it lands within nmsRadius of an accepted corner.
   /// A rejected candidate suppresses nothing, so the next best candidate of the same corner gets
-  /// its turn. O(candidates x accepted). Returns the number accepted (in cands_).
+  /// its turn. Candidates whose walls meet farther than subbeamMaxShift away are dropped, or with
+  /// keepFarCorners set aside and accepted afterwards at their beam point, unrefined, unless that
+  /// point or the meeting point lies within nmsRadius of an accepted corner.
+  /// O(candidates x accepted). Returns the number accepted (in cands_).
   std::size_t suppressAndRefine(const ScanPoints& pts, std::size_t candidates) noexcept;
   /// True when (x, y) lies within sqrt(nms2) of one of the first `kept` accepted corners.
   bool nearAccepted(float x, float y, std::size_t kept, float nms2) const noexcept;

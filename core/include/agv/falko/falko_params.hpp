@@ -38,6 +38,12 @@ struct FalkoParams {
   /// within this distance of the candidate beam point [m]; otherwise the beam point is kept.
   /// Thesis default 0.2 m.
   float subbeamMaxShift = 0.20F;
+  /// What happens to a candidate whose two walls meet farther than subbeamMaxShift away. false
+  /// (default): it is dropped (it guards against duplicates beside acute corners). true (thesis,
+  /// falkolib): it is kept at its beam point, unrefined, after the refined corners, unless the beam
+  /// point or the walls' meeting point lies within nmsRadius of an accepted corner. About 1.5-2x
+  /// the keypoints on the FLIRTLib logs (docs/falko.md, "Unrefined candidates").
+  bool keepFarCorners = false;
   /// Refinement passes 2 and 3 refit each side on the points within this factor times the
   /// neighbourhood radius of the estimated corner (more points at long range, where the
   /// neighbourhood holds only a few).
