@@ -2,6 +2,7 @@
 // tricycle rolling a known arc, a navigation laser that stamps each reflector (NAV350-like: seen
 // 20-120 ms before the reply), a PLC link that records every report and hands out commands, and a
 // clock the test sets. The truth is the exact arc (`tricycleArc`) at each instant.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -86,8 +87,31 @@ class FakeEncoders final : public agv::hal::EncoderSource {
   Timestamp next_ = kStart;
 };
 
-/// A NAV350-like reply every 125 ms: no beams, the reflectors in the sensor frame each at its own
-/// instant (20 + 20 k ms before the reply), stamped.
+/// The walls of the room the vehicle rolls in (for the beams): x in [-5, 12], y in [-5, 10].
+constexpr double kRoomX0 = -5.0;
+constexpr double kRoomX1 = 12.0;
+constexpr double kRoomY0 = -5.0;
+constexpr double kRoomY1 = 10.0;
+
+/// Range from `from` (inside the room) along `angle` to the nearest wall.
+double roomRange(const Pose2d::Vector2& from, double angle) {
+  const double dx = std::cos(angle);
+  const double dy = std::sin(angle);
+  double best = 1e9;
+  if (dx > 1e-12)
+    best = std::min(best, (kRoomX1 - from.x()) / dx);
+  if (dx < -1e-12)
+    best = std::min(best, (kRoomX0 - from.x()) / dx);
+  if (dy > 1e-12)
+    best = std::min(best, (kRoomY1 - from.y()) / dy);
+  if (dy < -1e-12)
+    best = std::min(best, (kRoomY0 - from.y()) / dy);
+  return best;
+}
+
+/// A NAV350-like reply every 125 ms: the reflectors in the sensor frame each at its own instant
+/// (20 + 20 k ms before the reply), stamped; with `beams`, also the room's walls, all beams at the
+/// reply's instant (no sweep duration).
 class FakeLaser final : public agv::hal::LaserSource {
  public:
   explicit FakeLaser(const FakeClock& clock) : clock_(clock) {}
@@ -104,6 +128,13 @@ class FakeLaser final : public agv::hal::LaserSource {
     out.scan.rangeMin = 0.5F;
     out.scan.rangeMax = 250.0F;
     out.scan.ranges.clear();
+    if (beams) {
+      const Pose2d at = truthAt(reply) * kMount;
+      for (int i = 0; i < 628; ++i) {
+        const double a = static_cast<double>(out.scan.angleMin) + i * static_cast<double>(out.scan.angleIncrement);
+        (void)out.scan.ranges.push_back(static_cast<float>(roomRange(at.translation(), at.theta + a)));
+      }
+    }
     out.reflectors.clear();
     out.hasReflectors = true;
     for (std::size_t k = 0; k < kReflectors.size(); ++k) {
@@ -122,6 +153,7 @@ class FakeLaser final : public agv::hal::LaserSource {
   }
   Status health() const noexcept override { return Status::Ok; }
   bool stamped = true;
+  bool beams = false;
 
  private:
   const FakeClock& clock_;
@@ -485,4 +517,59 @@ TEST_CASE("pipeline: relocalization switched off, or stopped by the PLC, does no
   bad.relocalization.positionStdDev = 0.0;
   Rig refused(bad);
   CHECK(refused.pipeline.configure() == Status::InvalidArgument);
+}
+
+TEST_CASE(
+    "pipeline: with the surface map alone the sweeps hold the pose that dead reckoning loses; a set-pose "
+    "drops the map",
+    "[nav][surface]") {
+  PipelineParams p = rigParams();
+  p.observations.reflectors = false;  // no landmark at all: the walls are the only reference
+  p.observations.surfaceMap = true;
+  Rig rig(p);
+  rig.laser.beams = true;
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  REQUIRE(rig.pipeline.surfaceMap() != nullptr);
+  rig.runUntil(kStart + Duration::fromMilliseconds(200));
+  rig.plc.send(agv::hal::PlcCommandKind::Localize, kStartPose);
+  rig.runUntil(kRollFrom);
+  REQUIRE(rig.pipeline.localizing());
+  const std::size_t standing = rig.pipeline.surfaceMap()->size();
+  CHECK(standing > 300U);  // the first sweep's walls
+  // Rolling 3 m on the arc with the pipeline's 1 % scale error: dead reckoning drifts 3 cm; the
+  // walls the first sweeps saw hold the pose. The map grows from the pipeline's own poses, a few
+  // millimetres off each, and a published pose carries 20-125 ms of odometry past its sweep:
+  // bound 1 cm, a third of dead reckoning's drift.
+  double worst = 0.0;
+  std::uint64_t checked = 0;
+  std::uint64_t allocations = 0;
+  for (int i = 0; i < 600; ++i) {
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    const std::uint64_t before = rig.plc.count;
+    allocations += agv::test::countAllocations([&]() { (void)rig.pipeline.cycle(); });
+    if (rig.plc.count > before && i > 100) {
+      worst = std::max(worst, positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)));
+      CHECK(std::fabs(agv::angleDiff(rig.plc.last.pose.theta, truthAt(rig.plc.last.stamp).theta)) < 0.002);
+      ++checked;
+    }
+  }
+  INFO("worst position error " << worst << " m over " << checked << " reports");
+  CHECK(checked > 100U);
+  CHECK(worst < 0.01);
+  CHECK(allocations == 0U);
+  CHECK(rig.pipeline.localizer().health().scanMatch.fused);
+  const Pose2d dr = kStartPose * agv::tricycleArc(travelAt(rig.plc.last.stamp) * 1.01, kTrueSteering, kWheelbase);
+  CHECK(positionError(dr, truthAt(rig.plc.last.stamp)) > 0.025);
+  const std::size_t rolled = rig.pipeline.surfaceMap()->size();
+  CHECK(rolled > standing);  // walls seen from the new places
+  // A set-pose drops the map: right after it, at most one sweep's surfaces are in it.
+  rig.plc.send(agv::hal::PlcCommandKind::Localize, truthAt(rig.clock.now()));
+  rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+  (void)rig.pipeline.cycle();
+  CHECK(rig.pipeline.surfaceMap()->size() <= 628U);
+  CHECK(rig.pipeline.surfaceMap()->size() < rolled);
+  // Without the flag there is no surface map.
+  Rig plain;
+  CHECK(plain.pipeline.surfaceMap() == nullptr);
 }

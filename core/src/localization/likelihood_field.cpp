@@ -1,5 +1,6 @@
 #include "agv/localization/likelihood_field.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace agv {
@@ -53,41 +54,65 @@ Status LikelihoodFieldBase::configure(const LikelihoodFieldParams& params, doubl
 }
 
 Status LikelihoodFieldBase::addPoint(double x, double y, double normalX, double normalY) noexcept {
+  return addSegment(x, y, x, y, normalX, normalY);
+}
+
+Status LikelihoodFieldBase::addSegment(double ax, double ay, double bx, double by, double normalX,
+                                       double normalY) noexcept {
   if (width_ == 0) {
     return Status::NotInitialized;
   }
-  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(normalX) || !std::isfinite(normalY)) {
+  if (!std::isfinite(ax) || !std::isfinite(ay) || !std::isfinite(bx) || !std::isfinite(by) || !std::isfinite(normalX) ||
+      !std::isfinite(normalY)) {
     return Status::NonFiniteInput;
   }
   if (normalX == 0.0 && normalY == 0.0) {
     return Status::InvalidArgument;
   }
-  const double u = (x - originX_) / params_.resolution;
-  const double v = (y - originY_) / params_.resolution;
-  if (!(u >= 0.0) || !(v >= 0.0) || u >= static_cast<double>(width_) || v >= static_cast<double>(height_)) {
+  // Grid coordinates of both ends; both must lie inside the area.
+  const double ua = (ax - originX_) / params_.resolution;
+  const double va = (ay - originY_) / params_.resolution;
+  const double ub = (bx - originX_) / params_.resolution;
+  const double vb = (by - originY_) / params_.resolution;
+  const double W = static_cast<double>(width_);
+  const double H = static_cast<double>(height_);
+  if (!(ua >= 0.0) || !(va >= 0.0) || ua >= W || va >= H || !(ub >= 0.0) || !(vb >= 0.0) || ub >= W || vb >= H) {
     ++pointsOutside_;
     return Status::OutOfRange;
   }
   const double normalLength = std::hypot(normalX, normalY);
   const auto w = static_cast<long>(std::ceil(params_.maxDistance / params_.resolution));
-  const auto cx = static_cast<long>(u);
-  const auto cy = static_cast<long>(v);
-  const auto W = static_cast<long>(width_);
-  const auto H = static_cast<long>(height_);
-  const long y0 = cy - w < 0 ? 0 : cy - w;
-  const long y1 = cy + w >= H ? H - 1 : cy + w;
-  const long x0 = cx - w < 0 ? 0 : cx - w;
-  const long x1 = cx + w >= W ? W - 1 : cx + w;
+  const long iw = static_cast<long>(width_);
+  const long ih = static_cast<long>(height_);
+  const long xa = static_cast<long>(ua);
+  const long xb = static_cast<long>(ub);
+  const long ya = static_cast<long>(va);
+  const long yb = static_cast<long>(vb);
+  const long x0 = std::max(0L, std::min(xa, xb) - w);
+  const long x1 = std::min(iw - 1, std::max(xa, xb) + w);
+  const long y0 = std::max(0L, std::min(ya, yb) - w);
+  const long y1 = std::min(ih - 1, std::max(ya, yb) + w);
+  // In the area's frame (metres from the origin).
+  const double px = ax - originX_;
+  const double py = ay - originY_;
+  const double ex = bx - ax;
+  const double ey = by - ay;
+  const double e2 = ex * ex + ey * ey;
   for (long iy = y0; iy <= y1; ++iy) {
-    const double dy = (static_cast<double>(iy) + 0.5) * params_.resolution - (y - originY_);
+    const double cy = (static_cast<double>(iy) + 0.5) * params_.resolution;
     for (long ix = x0; ix <= x1; ++ix) {
-      const double dx = (static_cast<double>(ix) + 0.5) * params_.resolution - (x - originX_);
+      const double cx = (static_cast<double>(ix) + 0.5) * params_.resolution;
+      // The nearest point of the segment to the cell centre.
+      double t = e2 > 0.0 ? ((cx - px) * ex + (cy - py) * ey) / e2 : 0.0;
+      t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
+      const double dx = cx - (px + t * ex);
+      const double dy = cy - (py + t * ey);
       const double d = std::sqrt(dx * dx + dy * dy);
       if (d >= params_.maxDistance) {
         continue;
       }
       const long q = std::lround(d / quantum_);
-      std::int8_t& cell = cells_[static_cast<std::size_t>(ix + iy * W)];
+      std::int8_t& cell = cells_[static_cast<std::size_t>(ix + iy * iw)];
       if (q < (cell < 0 ? -cell : cell)) {
         // Behind only when clearly so (within 45 deg of straight behind): beyond the end of a face
         // (the corner of a box seen from outside) the nearest point's own normal says nothing.

@@ -53,10 +53,11 @@ Status SurfaceMapBase::recentre(double x, double y) noexcept {
     return s;
   }
   for (std::size_t k = 0; k < size_; ++k) {
-    const SurfacePoint& p = points_[(head_ + k) % capacity_];
-    // Points outside the new area stay in the ring (they return when the vehicle does).
-    static_cast<void>(field_.addPoint(static_cast<double>(p.x), static_cast<double>(p.y), static_cast<double>(p.nx),
-                                      static_cast<double>(p.ny)));
+    const SurfacePiece& p = pieces_[(head_ + k) % capacity_];
+    // Pieces outside the new area stay in the ring (they return when the vehicle does).
+    static_cast<void>(field_.addSegment(static_cast<double>(p.ax), static_cast<double>(p.ay), static_cast<double>(p.bx),
+                                        static_cast<double>(p.by), static_cast<double>(p.nx),
+                                        static_cast<double>(p.ny)));
   }
   if (size_ > 0) {
     static_cast<void>(field_.build());
@@ -92,23 +93,29 @@ bool SurfaceMapBase::prepare(const Pose2d& sensor, SurfaceInsert& out) noexcept 
   return true;
 }
 
-bool SurfaceMapBase::offer(double x, double y, double nx, double ny) noexcept {
+bool SurfaceMapBase::offer(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& n) noexcept {
   if (field_.built()) {
-    const FieldSample f = field_.sample(x, y);
-    if (f.inside && std::fabs(f.distance) < params_.newSurfaceDistance) {
+    const Eigen::Vector2d mid = 0.5 * (a + b);
+    bool known = true;
+    for (const Eigen::Vector2d& q : {a, mid, b}) {
+      const FieldSample f = field_.sample(q.x(), q.y());
+      known = known && f.inside && std::fabs(f.distance) < params_.newSurfaceDistance;
+    }
+    if (known) {
       return false;
     }
   }
-  if (field_.addPoint(x, y, nx, ny) != Status::Ok) {
-    return false;  // outside the field (beyond maxRange of a recentred field cannot happen) or degenerate
+  if (field_.addSegment(a.x(), a.y(), b.x(), b.y(), n.x(), n.y()) != Status::Ok) {
+    return false;  // an end outside the field, or a degenerate normal
   }
-  const SurfacePoint p{static_cast<float>(x), static_cast<float>(y), static_cast<float>(nx), static_cast<float>(ny)};
+  const SurfacePiece piece{static_cast<float>(a.x()), static_cast<float>(a.y()), static_cast<float>(b.x()),
+                           static_cast<float>(b.y()), static_cast<float>(n.x()), static_cast<float>(n.y())};
   if (size_ == capacity_) {
-    points_[head_] = p;  // overwrite the oldest
+    pieces_[head_] = piece;  // overwrite the oldest
     head_ = (head_ + 1) % capacity_;
     ++dropped_;
   } else {
-    points_[(head_ + size_) % capacity_] = p;
+    pieces_[(head_ + size_) % capacity_] = piece;
     ++size_;
   }
   ++added_;
@@ -146,32 +153,31 @@ SurfaceInsert SurfaceMapBase::insert(const MatchPoints& points, const Pose2d& se
     return p.allFinite() && p.squaredNorm() <= r2max;
   };
   const std::size_t n = points.size();
+  bool previousJoined = false;  // beam i - 1 and beam i lie on one surface
   for (std::size_t i = 0; i < n; ++i) {
     Eigen::Vector2d p;
     if (!usable(i, p)) {
+      previousJoined = false;
       continue;
     }
     ++out.beams;
-    // The surface's direction from the neighbouring beams on it (laser frame): the normal is
-    // across it, on the sensor's side.
-    Eigen::Vector2d before = p;
-    Eigen::Vector2d after = p;
+    // The surface between this beam and the next one on it (laser frame), its normal across it
+    // on the sensor's side; a beam with no neighbour on its surface is a point facing back along
+    // the beam.
     Eigen::Vector2d q;
-    if (i > 0 && usable(i - 1, q) && (q - p).squaredNorm() <= span2) {
-      before = q;
-    }
-    if (i + 1 < n && usable(i + 1, q) && (q - p).squaredNorm() <= span2) {
-      after = q;
-    }
-    const Eigen::Vector2d tangent = after - before;
-    Eigen::Vector2d normal = -p;  // with no neighbour on its surface: back along the beam
-    if (tangent.squaredNorm() > 0.0) {
-      const Eigen::Vector2d across(-tangent.y(), tangent.x());
+    const bool joined = i + 1 < n && usable(i + 1, q) && (q - p).squaredNorm() <= span2;
+    Eigen::Vector2d end = p;
+    Eigen::Vector2d normal = -p;
+    if (joined) {
+      end = q;
+      const Eigen::Vector2d across(-(q - p).y(), (q - p).x());
       normal = across.dot(-p) >= 0.0 ? across : Eigen::Vector2d(-across);
+    } else if (previousJoined) {
+      previousJoined = false;
+      continue;  // the end of a surface already added with the beam before
     }
-    const Eigen::Vector2d w = sensor.transformPoint(p);
-    const Eigen::Vector2d wn = sensor.rotation() * normal;
-    if (offer(w.x(), w.y(), wn.x(), wn.y())) {
+    previousJoined = joined;
+    if (offer(sensor.transformPoint(p), sensor.transformPoint(end), sensor.rotation() * normal)) {
       ++out.added;
     }
   }

@@ -724,6 +724,10 @@ Span<const MatchPoint> Pipeline::sweepPoints() const noexcept {
   return Span<const MatchPoint>(impl_->matchPoints->data(), impl_->matchPoints->size());
 }
 
+const SurfaceMapBase* Pipeline::surfaceMap() const noexcept {
+  return impl_->surface.get();
+}
+
 void Pipeline::setLikelihoodField(const LikelihoodFieldBase* field) noexcept {
   impl_->field = field;
 }

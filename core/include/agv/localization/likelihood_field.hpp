@@ -72,6 +72,14 @@ class LikelihoodFieldBase {
   /// `InvalidArgument` (zero normal), `OutOfRange` (outside the area; counted in `pointsOutside()`), `NotInitialized`.
   Status addPoint(double x, double y, double normalX, double normalY) noexcept;
 
+  /// Adds the straight surface from (ax, ay) to (bx, by) facing (`normalX`, `normalY`): as
+  /// `addPoint` with the distance of each cell to the nearest point of the segment (the point's
+  /// case when both ends coincide). For surfaces sampled sparsely (beams 10 cm apart on a wall at
+  /// 12 m), where the distance to the points alone would be up to half their spacing too large
+  /// on the wall itself. Both ends must lie inside the area (`OutOfRange` otherwise); counted as
+  /// one surface point. Work: the cells within maxDistance of the segment's bounding box.
+  Status addSegment(double ax, double ay, double bx, double by, double normalX, double normalY) noexcept;
+
   /// Makes the field ready for `sample`. `NotInitialized` (not configured), `EmptyInput` (no
   /// surface point). Points may still be added afterwards (the field stays usable).
   Status build() noexcept;

@@ -63,11 +63,15 @@ struct SurfaceMapParams {
   Status validate() const noexcept;
 };
 
-/// A kept surface point (world frame) and the direction it was seen from.
-struct SurfacePoint {
-  float x = 0.0F;
-  float y = 0.0F;
-  float nx = 0.0F;  ///< surface normal on the side it was seen from (not normalised)
+/// A kept piece of surface (world frame): the straight stretch between two neighbouring beams
+/// (a and b), or one beam's point (a = b), and its normal on the side it was seen from (not
+/// normalised).
+struct SurfacePiece {
+  float ax = 0.0F;
+  float ay = 0.0F;
+  float bx = 0.0F;
+  float by = 0.0F;
+  float nx = 0.0F;
   float ny = 0.0F;
 };
 
@@ -97,19 +101,19 @@ class SurfaceMapBase {
 
   /// The field to match against (not `built()` before the first insert with a surface).
   const LikelihoodFieldBase& field() const noexcept { return field_; }
-  /// Surface points kept, and the capacity.
+  /// Surface pieces kept, and the capacity.
   std::size_t size() const noexcept { return size_; }
   std::size_t capacity() const noexcept { return capacity_; }
-  /// Points added since construction or `clear`, dropped from a full ring, and recentres.
+  /// Pieces added since construction or `clear`, dropped from a full ring, and recentres.
   std::size_t added() const noexcept { return added_; }
   std::size_t dropped() const noexcept { return dropped_; }
   std::size_t recentres() const noexcept { return recentres_; }
   const SurfaceMapParams& params() const noexcept { return params_; }
 
  protected:
-  SurfaceMapBase(LikelihoodFieldBase& field, SurfacePoint* points, std::size_t capacity,
+  SurfaceMapBase(LikelihoodFieldBase& field, SurfacePiece* pieces, std::size_t capacity,
                  const SurfaceMapParams& params) noexcept
-      : field_(field), points_(points), capacity_(capacity), params_(params), valid_(params.validate()) {}
+      : field_(field), pieces_(pieces), capacity_(capacity), params_(params), valid_(params.validate()) {}
   ~SurfaceMapBase() = default;
 
  private:
@@ -117,13 +121,15 @@ class SurfaceMapBase {
   bool prepare(const Pose2d& sensor, SurfaceInsert& out) noexcept;
   /// Configures the field around (x, y) and re-adds the points kept.
   Status recentre(double x, double y) noexcept;
-  /// Offers one world point with its surface normal (world frame); true when it was added.
-  bool offer(double x, double y, double nx, double ny) noexcept;
+  /// Offers a piece of surface from `a` to `b` with normal `n` (world frame); true when it was
+  /// added (not added: the field already has a surface within newSurfaceDistance of its ends and
+  /// middle, or an end lies outside the field).
+  bool offer(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& n) noexcept;
   /// Builds the field once it holds a surface.
   void finish() noexcept;
 
   LikelihoodFieldBase& field_;
-  SurfacePoint* points_;
+  SurfacePiece* pieces_;
   std::size_t capacity_;
   SurfaceMapParams params_;
   Status valid_;
@@ -153,17 +159,17 @@ ScanMatchParams surfaceMapMatching(const ScanMatchParams& base) noexcept;
 
 /// A surface map with a field of `FieldCells` cells and a ring of `MaxPoints` points inside the
 /// object (`FieldCells` bytes + 16 `MaxPoints` bytes): give it static storage or allocate it once.
-template <std::size_t FieldCells, std::size_t MaxPoints>
+template <std::size_t FieldCells, std::size_t MaxPieces>
 class SurfaceMap : public SurfaceMapBase {
-  static_assert(MaxPoints >= 1, "a surface map keeps at least one point");
+  static_assert(MaxPieces >= 1, "a surface map keeps at least one piece");
 
  public:
   explicit SurfaceMap(const SurfaceMapParams& params = SurfaceMapParams{}) noexcept
-      : SurfaceMapBase(field_, points_, MaxPoints, params) {}
+      : SurfaceMapBase(field_, pieces_, MaxPieces, params) {}
 
  private:
   LikelihoodField<FieldCells> field_;
-  SurfacePoint points_[MaxPoints] = {};
+  SurfacePiece pieces_[MaxPieces] = {};
 };
 
 /// The size the programs use: the default 40 m square at 5 cm (640 000 of 1 M cells) and 65 536

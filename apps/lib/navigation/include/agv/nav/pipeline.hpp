@@ -231,8 +231,11 @@ class Pipeline {
   /// (empty unless corners are detected, see `ObservationParams`).
   Span<const Pose2d::Vector2> sweepCorners() const noexcept;
   /// The valid beams of the last sweep as points in the sensor frame at
-  /// `lastCycle().sweepReference` (empty unless `collectScanPoints` or a likelihood field is set).
+  /// `lastCycle().sweepReference` (empty unless `collectScanPoints`, a likelihood field or the
+  /// surface map is set; with the surface map alone only the beams within its range).
   Span<const MatchPoint> sweepPoints() const noexcept;
+  /// The surface map of the earlier sweeps (`ObservationParams::surfaceMap`), null without one.
+  const SurfaceMapBase* surfaceMap() const noexcept;
   /// The localizer's pose carried to `t` with the odometry's motion between its stamp and `t`
   /// (within the motion history's reach, 0.5 s). `NotEnoughData` without a history, `Lost` when not
   /// localizing.
