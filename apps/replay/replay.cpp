@@ -776,7 +776,7 @@ std::string resultText(const ReplayResult& r) {
   }
   if (r.surfaceMap) {
     o << "surface map (the earlier scans' surfaces): " << r.surfaceAdded
-      << " surface points; scan matching: " << r.matchAttempts << " attempts, " << r.matchFused << " fused, "
+      << " surface pieces; scan matching: " << r.matchAttempts << " attempts, " << r.matchFused << " fused, "
       << r.matchGated << " gated, " << r.matchRefused << " refused by the matcher\n";
   }
   o << (r.staticMap ? "static map (built from the corrected poses): " : "dynamic map: ") << r.mapSize
@@ -826,7 +826,7 @@ report::Json resultJson(const ReplayResult& r) {
                 {"wrong", r.relocWrong},
                 {"unconfirmed", r.relocUnconfirmed},
                 {"seconds", r.relocSeconds}}},
-              {"surface_map", {{"enabled", r.surfaceMap}, {"points", r.surfaceAdded}}},
+              {"surface_map", {{"enabled", r.surfaceMap}, {"pieces", r.surfaceAdded}}},
               {"laser_x_m", r.laserX},
               {"odometry_noise",
                {{"fitted_steps", r.odometryNoiseSteps},

@@ -7,23 +7,27 @@
 /// the heading and position to what the laser resolves instead of what the wheels say, and the
 /// first scans anchor the map, so the vehicle drifts only where it sees nothing it saw before.
 ///
-/// Model: every valid beam of an inserted scan (up to `maxRange`) is a world point on a surface
-/// through its neighbouring beams, facing the sensor. A point is *new* when the field has no
-/// surface within `newSurfaceDistance` of it; new points are added to the field
-/// (`LikelihoodFieldBase::addPoint`)
-/// and kept in a ring of `MaxPoints`, so the map grows with the area seen, not with time spent
-/// in it. The field covers a square of `side` around the sensor; when the sensor comes within
-/// `recentreMargin` of its edge, the field is rebuilt around the sensor from the points kept.
-/// When the ring is full the oldest point is dropped (it leaves the field at the next recentre).
+/// Model: the valid beams of an inserted scan (up to `maxRange`) are world points; two
+/// neighbouring beams within `normalSpan` lie on one surface, and the straight *piece* between
+/// them is added to the field (`LikelihoodFieldBase::addSegment`), its normal across it on the
+/// sensor's side; a beam with no such neighbour is a point facing back along the beam. Pieces,
+/// because distances to the beam points alone would be up to half their spacing (10 cm at 12 m)
+/// too large on the wall itself. A piece is *new* when the field has no surface within
+/// `newSurfaceDistance` of its ends and middle; new pieces are added to the field and kept in a
+/// ring of `MaxPieces`, so the map grows with the area seen, not with time spent in it. The field
+/// covers a square of `side` around the sensor; when the sensor comes within `recentreMargin` of
+/// its edge, the field is rebuilt around the sensor from the pieces kept. When the ring is full
+/// the oldest piece is dropped (it leaves the field at the next recentre).
 ///
 /// What it cannot do: a surface inserted at a wrong pose stays wrong (the caller inserts only
-/// scans whose pose it trusts), and a place left and re-entered after the ring has dropped it is
-/// mapped again from the current estimate (no loop closure).
+/// scans whose pose it trusts), a wall is kept as first seen (later views do not refine it), and a
+/// place left and re-entered after the ring has dropped it is mapped again from the current
+/// estimate (no loop closure).
 ///
 /// Heap-free: the field, the ring and a scan's worth of points (16 KB, for `LaserScan` input) live
-/// inside `SurfaceMap<FieldCells, MaxPoints>`. Work per
-/// insert: the scan's beams x one field sample, plus (2 w + 1)^2 cell updates per new point,
-/// w = ceil(maxDistance / resolution); a recentre re-adds at most `MaxPoints` points.
+/// inside `SurfaceMap<FieldCells, MaxPieces>`. Work per insert: the scan's beams x three field
+/// samples, plus the cells within maxDistance of each new piece's bounding box; a recentre
+/// re-adds at most `MaxPieces` pieces.
 
 #include <cstddef>
 #include <cstdint>
@@ -46,17 +50,16 @@ struct SurfaceMapParams {
   /// [m] the field is rebuilt around the sensor when it comes this close to an edge (a laser
   /// that reaches `maxRange` then still has the surfaces it sees inside the field).
   double recentreMargin = 12.0;
-  /// [m] a beam's point farther than this from every stored surface is new. A quarter of the
-  /// field's 0.5 m saturation keeps a point per cell or two along a wall.
+  /// [m] a piece whose ends or middle lie farther than this from every stored surface is new. A
+  /// tenth of the field's 0.5 m saturation: a wall seen again from nearby adds nothing.
   double newSurfaceDistance = 0.05;
   /// [m] beams beyond this are not inserted: at 0.5 deg beam spacing and 0.25 deg of heading
   /// uncertainty a point at 12 m is placed within 5 cm across the beam; farther ones add more
   /// error than surface.
   double maxRange = 12.0;
-  /// [m] a point's surface runs through its neighbouring beams within this distance (the normal
-  /// the field signs its distances with is across that line); with none that near, the normal is
-  /// the beam's direction back to the sensor. A normal along the beam instead of across the
-  /// surface would sign the field wrongly along walls seen at a grazing angle.
+  /// [m] two neighbouring beams closer than this lie on one surface (a piece between them, the
+  /// normal the field signs its distances with across it); a beam with no neighbour that near is
+  /// a point whose normal is the beam's direction back to the sensor.
   double normalSpan = 0.3;
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (invalid field, a non-positive side, distance
   /// or range, a margin of half the side or more).
@@ -79,7 +82,7 @@ struct SurfacePiece {
 struct SurfaceInsert {
   Status status = Status::Ok;
   std::uint16_t beams = 0;  ///< valid beams within maxRange
-  std::uint16_t added = 0;  ///< new surface points
+  std::uint16_t added = 0;  ///< new surface pieces
   bool recentred = false;   ///< the field was rebuilt around the sensor first
 };
 
@@ -89,7 +92,7 @@ class SurfaceMapBase {
   SurfaceMapBase(const SurfaceMapBase&) = delete;
   SurfaceMapBase& operator=(const SurfaceMapBase&) = delete;
 
-  /// Adds the new surface points of `scan` seen by the laser at world pose `sensor`.
+  /// Adds the new surface pieces of `scan` seen by the laser at world pose `sensor`.
   /// `InvalidArgument` (invalid parameters), `NonFiniteInput` (sensor pose), `CapacityExceeded`
   /// (the field storage is smaller than `side` needs); nothing is changed then.
   SurfaceInsert insert(const LaserScan& scan, const Pose2d& sensor) noexcept;
@@ -119,7 +122,7 @@ class SurfaceMapBase {
  private:
   /// Recentres when needed; false with `out.status` set when the field cannot cover the sensor.
   bool prepare(const Pose2d& sensor, SurfaceInsert& out) noexcept;
-  /// Configures the field around (x, y) and re-adds the points kept.
+  /// Configures the field around (x, y) and re-adds the pieces kept.
   Status recentre(double x, double y) noexcept;
   /// Offers a piece of surface from `a` to `b` with normal `n` (world frame); true when it was
   /// added (not added: the field already has a surface within newSurfaceDistance of its ends and
@@ -134,7 +137,7 @@ class SurfaceMapBase {
   SurfaceMapParams params_;
   Status valid_;
   MatchPoints scratch_;   // a `LaserScan` as points
-  std::size_t head_ = 0;  // index of the oldest point
+  std::size_t head_ = 0;  // index of the oldest piece
   std::size_t size_ = 0;
   std::size_t added_ = 0;
   std::size_t dropped_ = 0;
@@ -157,8 +160,9 @@ bool mayExtendSurfaceMap(const LocalizerHealth& health) noexcept;
 /// identical pallet blocks), not a slip: it is refused, never forced.
 ScanMatchParams surfaceMapMatching(const ScanMatchParams& base) noexcept;
 
-/// A surface map with a field of `FieldCells` cells and a ring of `MaxPoints` points inside the
-/// object (`FieldCells` bytes + 16 `MaxPoints` bytes): give it static storage or allocate it once.
+/// A surface map with a field of `FieldCells` cells and a ring of `MaxPieces` pieces inside the
+/// object (`FieldCells` bytes + 24 `MaxPieces` bytes + 16 KB): give it static storage or allocate
+/// it once.
 template <std::size_t FieldCells, std::size_t MaxPieces>
 class SurfaceMap : public SurfaceMapBase {
   static_assert(MaxPieces >= 1, "a surface map keeps at least one piece");
@@ -173,7 +177,7 @@ class SurfaceMap : public SurfaceMapBase {
 };
 
 /// The size the programs use: the default 40 m square at 5 cm (640 000 of 1 M cells) and 65 536
-/// points (about 2 MB in all).
+/// pieces (about 2.6 MB in all).
 using HallSurfaceMap = SurfaceMap<std::size_t{1} << 20U, std::size_t{1} << 16U>;
 
 }  // namespace agv
