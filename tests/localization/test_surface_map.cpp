@@ -316,16 +316,16 @@ TEST_CASE("surface map: the map-less localizer holds its pose on biased odometry
     worstHeading = std::max(worstHeading, std::fabs(normalizeAngle(run.loc->pose().theta - run.truth.theta)));
   }
   CHECK(fused >= 58);  // every scan after the first
-  // Dead reckoning ends 18 cm and 0.7 deg off. The map is made of the same beams (1 cm range
-  // noise, each wall kept as first seen), so a match is aligned to walls rough by about 1 cm:
-  // at the hall's 3-6 m ranges that is 0.1-0.2 deg of heading, 3 times the 0.05 deg the match
-  // covariance claims for the scan's own noise. Bounds: 2 cm, 0.3 deg.
+  // Dead reckoning ends 18 cm and 0.7 deg off; the walls of the first scans hold the pose to the
+  // requirement, 2 cm / 0.1 deg (measured 9 mm / 0.054 deg: the map is made of the same 1 cm-noise
+  // beams, each wall kept as first seen). With each beam a point instead of the piece between
+  // neighbouring beams this run scattered to 0.24 deg.
   const double drError = std::hypot(run.deadReckoning.x - run.truth.x, run.deadReckoning.y - run.truth.y);
   const double drHeading = std::fabs(normalizeAngle(run.deadReckoning.theta - run.truth.theta));
   CHECK(drError > 0.15);
   CHECK(drHeading > 0.6 * kPiD / 180.0);
   CHECK(worst < 0.02);
-  CHECK(worstHeading < 0.3 * kPiD / 180.0);
+  CHECK(worstHeading < 0.1 * kPiD / 180.0);
   CHECK(run.surface->size() > 500U);
 }
 
