@@ -522,15 +522,7 @@ class ScanReplay {
     if (!surface_) {
       return localizer_->correct(*obs_, *scan_, *map_);
     }
-    surfacePoints_->clear();
-    for (std::size_t b = 0; b < scan_->size(); ++b) {
-      const double r = static_cast<double>(scan_->ranges[b]);
-      if (scan_->isValid(b) && r <= options_.surface.maxRange) {
-        const double a = static_cast<double>(scan_->angle(b));
-        (void)surfacePoints_->push_back(
-            MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))});
-      }
-    }
+    surface_->takenBeams(*scan_, *surfacePoints_);
     return surface_->field().built() ? localizer_->correct(*obs_, *scan_, *surfacePoints_, *map_, surface_->field())
                                      : localizer_->correct(*obs_, *scan_, *map_);
   }

@@ -42,14 +42,7 @@ struct LaneSweeps {
       static_cast<void>(laser.scan(pose, Timestamp{}, *m));
       static_cast<void>(map->insert(m->scan, pose));
       auto pts = std::make_unique<MatchPoints>();
-      for (std::size_t i = 0; i < m->scan.size(); ++i) {
-        const double r = static_cast<double>(m->scan.ranges[i]);
-        if (m->scan.isValid(i) && r <= map->params().maxRange) {
-          const double a = static_cast<double>(m->scan.angle(i));
-          static_cast<void>(
-              pts->push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))}));
-        }
-      }
+      map->takenBeams(m->scan, *pts);
       points.push_back(std::move(pts));
       sweeps.push_back(std::move(m));
       poses.push_back(pose);

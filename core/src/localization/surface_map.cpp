@@ -128,16 +128,20 @@ void SurfaceMapBase::finish() noexcept {
   }
 }
 
-SurfaceInsert SurfaceMapBase::insert(const LaserScan& scan, const Pose2d& sensor) noexcept {
-  scratch_.clear();
+void SurfaceMapBase::takenBeams(const LaserScan& scan, MatchPoints& out) const noexcept {
+  out.clear();
   for (std::size_t i = 0; i < scan.size(); ++i) {
-    if (scan.isValid(i)) {
+    const double r = static_cast<double>(scan.ranges[i]);
+    if (scan.isValid(i) && r <= params_.maxRange) {
       const double a = static_cast<double>(scan.angle(i));
-      const double r = static_cast<double>(scan.ranges[i]);
       static_cast<void>(
-          scratch_.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))}));
+          out.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))}));
     }
   }
+}
+
+SurfaceInsert SurfaceMapBase::insert(const LaserScan& scan, const Pose2d& sensor) noexcept {
+  takenBeams(scan, scratch_);
   return insert(scratch_, sensor);
 }
 

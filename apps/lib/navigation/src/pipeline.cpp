@@ -275,10 +275,11 @@ void Pipeline::Impl::readSweep() noexcept {
   observe(sweep);
   MatchPoints& points = *matchPoints;
   points.clear();
+  // Without a mapping run's field the sweep is matched against the surface map, with only the
+  // beams it takes (farther surfaces are not in it, and would count as off the map).
+  const bool surfaceMatching = field == nullptr && surface;
   if (field != nullptr || params.observations.collectScanPoints || surface) {
-    // Matched against the surface map: only the beams it takes (farther surfaces are not in it,
-    // and would count as off the map).
-    const double maxRange = field == nullptr && surface ? params.surface.maxRange : 1e300;
+    const double maxRange = surfaceMatching ? params.surface.maxRange : 1e300;
     for (std::size_t i = 0; i < meas.scan.size(); ++i) {
       if (meas.scan.isValid(i) && static_cast<double>(meas.scan.ranges[i]) <= maxRange) {
         const double a = static_cast<double>(meas.scan.angle(i));
@@ -291,13 +292,13 @@ void Pipeline::Impl::readSweep() noexcept {
   if (localizing) {
     // The sweep's ranges let the localizer tell hidden landmarks from missed ones.
     const LikelihoodFieldBase* against = field;
-    if (against == nullptr && surface && surface->field().built()) {
+    if (surfaceMatching && surface->field().built()) {
       against = &surface->field();
     }
     const LocalizerHealth& h = against != nullptr
                                    ? localizer->correct(*observations, meas.scan, *matchPoints, map, *against)
                                    : localizer->correct(*observations, meas.scan, map);
-    if (field == nullptr && surface && mayExtendSurfaceMap(h)) {
+    if (surfaceMatching && mayExtendSurfaceMap(h)) {
       (void)surface->insert(*matchPoints, h.scanPose.compose(params.localizer.laser.mounting));
     }
     ++counters.corrections;

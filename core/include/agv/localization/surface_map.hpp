@@ -99,6 +99,10 @@ class SurfaceMapBase {
   /// The same with the scan's points in the laser frame (e.g. de-skewed; non-finite ones skipped).
   SurfaceInsert insert(const MatchPoints& points, const Pose2d& sensor) noexcept;
 
+  /// The beams of `scan` this map takes (valid, within `maxRange`) as points in the laser frame,
+  /// in scan order, into `out` (cleared first): what a scan is matched against it with.
+  void takenBeams(const LaserScan& scan, MatchPoints& out) const noexcept;
+
   /// Forgets every surface (the field is unconfigured until the next insert).
   void clear() noexcept;
 
