@@ -15,6 +15,7 @@
 #include "agv/localization/likelihood_field.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/scan_matcher.hpp"
+#include "agv/localization/surface_map.hpp"
 #include "agv_test.hpp"
 #include "scan_hall.hpp"
 
@@ -407,6 +408,53 @@ TEST_CASE(
   }
   CHECK(std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y) < 0.02);
   CHECK(std::fabs(normalizeAngle(run.loc->pose().theta - run.truth.theta)) < 0.1 * kPiD / 180.0);
+}
+
+TEST_CASE("localizer with a likelihood field: the soft gate pulls an overconfident filter back, a few sigmas a cycle",
+          "[localization][scanmatch][localizer]") {
+  // The settings of a map with no authority over the filter (`surfaceMapMatching`): no
+  // re-synchronisation, no widened search, the soft gate on.
+  const auto slipThenDrive = [](const ScanMatchParams& settings, double& firstCorrection, bool& firstSoft) {
+    FieldRun run(settings);
+    for (int c = 0; c < 5; ++c) {
+      REQUIRE(run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0}).scanMatch.fused);
+    }
+    // A 5 cm sideways slip the odometry never reports: far outside the filter's millimetre
+    // covariance, so the gate refuses the (right) match.
+    const LocalizerHealth& h = run.step(Pose2d{0.0, 0.05, 0.0}, Pose2d{0.0, 0.0, 0.0});
+    firstCorrection = h.correction;
+    firstSoft = h.scanMatch.softGated;
+    if (h.scanMatch.softGated) {
+      CHECK(h.scanMatch.fused);
+      CHECK(h.scanMatch.status == Status::Ok);
+      CHECK(h.scanMatch.mahalanobis2 > run.params.scanMatchGate);
+    }
+    for (int c = 0; c < 12; ++c) {
+      (void)run.step(Pose2d{0.05, 0.0, 0.0}, Pose2d{0.05, 0.0, 0.0});
+    }
+    return std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y);
+  };
+  const ScanMatchParams soft = surfaceMapMatching(ScanMatchParams{});
+  REQUIRE(soft.softGate);
+  double correction = 0.0;
+  bool softGated = false;
+  const double softError = slipThenDrive(soft, correction, softGated);
+  CHECK(softGated);
+  // Never a jump: the first cycle moves the pose by a fraction of the 5 cm offset (gate / d^2 of
+  // the gated correction), and later cycles finish the job.
+  CHECK(correction > 0.002);
+  CHECK(correction < 0.025);
+  CHECK(softError < 0.01);
+
+  // Off, or with a fit limit no match meets: every match refused, the 5 cm stay.
+  ScanMatchParams hard = soft;
+  hard.softGate = false;
+  CHECK(slipThenDrive(hard, correction, softGated) > 0.045);
+  CHECK_FALSE(softGated);
+  ScanMatchParams strict = soft;
+  strict.resyncMaxRms = 0.001;
+  CHECK(slipThenDrive(strict, correction, softGated) > 0.045);
+  CHECK_FALSE(softGated);
 }
 
 TEST_CASE("localizer with a likelihood field: a slip beyond the search window is found by the widened search",

@@ -246,6 +246,8 @@ TEST_CASE("surface map: which cycles may write their scan, and the matcher setti
   const ScanMatchParams m = surfaceMapMatching(base);
   CHECK(m.resyncAfter == 0U);
   CHECK(m.widenAfter == 0U);
+  CHECK(m.softGate);
+  CHECK_FALSE(base.softGate);
   CHECK(m.inlierDistance == 0.25);
   CHECK(m.validate() == Status::Ok);
 }

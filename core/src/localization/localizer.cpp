@@ -8,6 +8,9 @@
 namespace agv {
 
 namespace {
+/// The soft gate puts a match this far inside the gate (d^2 = 0.95 gate after the scaling).
+constexpr double kSoftGateMargin = 0.95;
+
 double largestEigen2(double a, double b, double c) noexcept {
   // symmetric [[a, b], [b, c]]
   const double h = 0.5 * (a - c);
@@ -434,6 +437,20 @@ void Localizer::matchScan(const Rewind& at, const LaserScan& beams, const MatchP
       gatedRun_ = 0;
       failedRun_ = 0;
       return;
+    }
+    if (u == Status::Rejected && sp.softGate && m.rmsResidual <= sp.resyncMaxRms && h.mahalanobis2 > 0.0) {
+      // The innovation covariance scaled so that the match lies just inside the gate:
+      // S' = k S, i.e. R' = k R + (k - 1) P.
+      const double k = h.mahalanobis2 / (kSoftGateMargin * params_.scanMatchGate);
+      const Eigen::Matrix3d soft = k * m.covariance + (k - 1.0) * ekf_.covariance();
+      if (ekf_.updatePose(m.pose, soft, params_.scanMatchGate) == Status::Ok) {
+        h.fused = true;
+        h.softGated = true;
+        h.correction = std::hypot(ekf_.pose().x - before.x, ekf_.pose().y - before.y);
+        gatedRun_ = 0;
+        failedRun_ = 0;
+        return;
+      }
     }
     h.status = u;
   }

@@ -32,6 +32,7 @@ ScanMatchParams surfaceMapMatching(const ScanMatchParams& base) noexcept {
   ScanMatchParams p = base;
   p.resyncAfter = 0;
   p.widenAfter = 0;
+  p.softGate = true;
   return p;
 }
 

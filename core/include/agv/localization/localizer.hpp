@@ -263,6 +263,9 @@ struct ScanMatchHealth {
   /// confirm it).
   bool hypothesisChecked = false;
   bool resynced = false;  ///< this cycle reset the pose to the match
+  /// The gate refused the match and it was fused through the soft gate
+  /// (`ScanMatchParams::softGate`; `fused` is set too).
+  bool softGated = false;
   /// The search window was widened for recovery (`ScanMatchParams::widenAfter`).
   bool widened = false;
   double window = 0.0;  ///< [m] the larger translation half-width searched

@@ -117,6 +117,14 @@ struct ScanMatchParams {
   /// [m] a match bypasses the gate only through the resync, and only when its inliers fit at
   /// least this well (RMS): far stricter than `maxRmsResidual`, which the gate backs up.
   double resyncMaxRms = 0.06;
+  /// Soft gate (used by the localizer): a match the gate refuses that fits within `resyncMaxRms`
+  /// is fused with the innovation covariance scaled up to just inside the gate instead of being
+  /// dropped, so it moves the pose by the gated correction times gate / d^2: a few of the
+  /// filter's own sigmas per cycle at most, never a jump. For a map with no authority over the
+  /// filter (a `SurfaceMap`, `surfaceMapMatching`), whose matches must not reset it but which
+  /// may tell a filter that became overconfident (odometry errors its model does not cover) where
+  /// it drifts. Off by default: against a surveyed map the re-synchronisation decides.
+  bool softGate = false;
   /// Recovery (used by the localizer): the prior's covariance bounds the search, so a filter that
   /// has drifted while believing itself (refused matches and wrong corner fixes shrink the
   /// covariance while the pose walks off) can no longer find the map. After `widenAfter` cycles in

@@ -56,7 +56,7 @@ struct SurfaceMapParams {
   /// [m] beams beyond this are not inserted: at 0.5 deg beam spacing and 0.25 deg of heading
   /// uncertainty a point at 12 m is placed within 5 cm across the beam; farther ones add more
   /// error than surface.
-  double maxRange = 12.0;
+  double maxRange = 20.0;
   /// [m] two neighbouring beams closer than this lie on one surface (a piece between them, the
   /// normal the field signs its distances with across it); a beam with no neighbour that near is
   /// a point whose normal is the beam's direction back to the sensor.
