@@ -107,7 +107,7 @@ Status loadWorldFile(const std::string& path, World& out, WorldParseError& error
 
 /// The built-in warehouse: a 40 m x 25 m hall with racks, pillars, a block storage of pallet
 /// blocks with four lanes, 18 reflector poles, the four reference paths P1..P4 (three of 12 m,
-/// one of 7 m) ending inside the block storage and three missions M1..M3 (60-91 m, 3-4 operation
+/// one of 7 m) ending inside the block storage and three missions M1..M3 (60-94 m, 3-4 operation
 /// points at lanes and rack faces). The main job's embedded default.
 std::string_view defaultWorldText() noexcept;
 
