@@ -1,5 +1,7 @@
 #include "hil_report.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <utility>
 
 #include "agv/core/angle.hpp"
@@ -91,7 +93,195 @@ void appendDeadReckoning(const RunResult& r, Json& runs) {
   }
 }
 
+Json poseErrorJson(const Pose2d& estimate, const Pose2d& truth) {
+  return Json{{"position_error_m", positionError(estimate, truth)},
+              {"heading_error_deg", rad2deg(headingError(estimate, truth))}};
+}
+
+Json missionRunJson(const RunResult& r) {
+  Json stops = Json::array();
+  double maxP = 0.0;
+  double maxH = 0.0;
+  double sumP2 = 0.0;
+  double sumH2 = 0.0;
+  for (const OperationPoint& op : r.stops) {
+    const double e = positionError(op.localized, op.truth);
+    const double h = rad2deg(headingError(op.localized, op.truth));
+    maxP = std::max(maxP, e);
+    maxH = std::max(maxH, h);
+    sumP2 += e * e;
+    sumH2 += h * h;
+    stops.push_back(Json{{"index", op.index},
+                         {"distance_m", op.distance},
+                         {"x_m", op.truth.x},
+                         {"y_m", op.truth.y},
+                         {"heading_deg", rad2deg(op.truth.theta)},
+                         {"position_error_m", e},
+                         {"heading_error_deg", h},
+                         {"lost", op.lost},
+                         {"within_requirement", stopMeetsRequirement(op)},
+                         {"dead_reckoning",
+                          {{"truth", poseErrorJson(op.withTruth, op.truth)},
+                           {"nominal", poseErrorJson(op.withNominal, op.truth)},
+                           {"estimate", poseErrorJson(op.withEstimate, op.truth)}}}});
+  }
+  const double n = std::max<double>(1.0, static_cast<double>(r.stops.size()));
+  return Json{{"mode", modeName(r.mode)},
+              {"mission", r.path},
+              {"run", r.run},
+              {"finished", r.finished},
+              {"lost", r.localizerLost},
+              {"distance_m", r.distance},
+              {"sim_seconds", r.simSeconds},
+              {"landmarks_used_per_scan", r.meanUsedPerScan},
+              {"scans_without_fix", r.scansWithoutFix},
+              {"max_position_error_m", maxP},
+              {"rms_position_error_m", std::sqrt(sumP2 / n)},
+              {"max_heading_error_deg", maxH},
+              {"rms_heading_error_deg", std::sqrt(sumH2 / n)},
+              {"within_requirement", missionRunMeetsRequirement(r)},
+              {"pallets",
+               {{"boxes", r.pallets.boxes},
+                {"moved", r.pallets.moved},
+                {"removed", r.pallets.removed},
+                {"added", r.pallets.added},
+                {"kept_for_clearance", r.pallets.keptForClearance},
+                {"max_shift_m", r.pallets.maxShift},
+                {"layout_fingerprint", r.palletFingerprint}}},
+              {"operation_points", std::move(stops)}};
+}
+
+/// Per mode and mission: max / RMS over every operation point of every run, and how many meet
+/// the requirement; per mission the same for dead reckoning (the reflector-mode runs).
+Json missionSummaryJson(const SessionResults& s) {
+  Json summary = Json::object();
+  const auto stats = [](const std::vector<std::pair<double, double>>& errors, int within) {
+    double maxP = 0.0;
+    double maxH = 0.0;
+    double sumP2 = 0.0;
+    double sumH2 = 0.0;
+    for (const auto& [e, h] : errors) {
+      maxP = std::max(maxP, e);
+      maxH = std::max(maxH, h);
+      sumP2 += e * e;
+      sumH2 += h * h;
+    }
+    const double n = std::max<double>(1.0, static_cast<double>(errors.size()));
+    return Json{{"operation_points", errors.size()}, {"within_requirement", within},
+                {"max_position_error_m", maxP},      {"rms_position_error_m", std::sqrt(sumP2 / n)},
+                {"max_heading_error_deg", maxH},     {"rms_heading_error_deg", std::sqrt(sumH2 / n)}};
+  };
+  std::vector<std::string> missions;
+  for (const RunResult& r : s.missionRuns) {
+    if (std::find(missions.begin(), missions.end(), r.path) == missions.end()) {
+      missions.push_back(r.path);
+    }
+  }
+  for (const LocalizationMode mode : {LocalizationMode::Reflectors, LocalizationMode::StaticFalko,
+                                      LocalizationMode::Natural, LocalizationMode::Dynamic}) {
+    Json perMission = Json::object();
+    for (const std::string& name : missions) {
+      std::vector<std::pair<double, double>> errors;
+      int within = 0;
+      for (const RunResult& r : s.missionRuns) {
+        if (r.mode != mode || r.path != name) {
+          continue;
+        }
+        for (const OperationPoint& op : r.stops) {
+          errors.emplace_back(positionError(op.localized, op.truth), rad2deg(headingError(op.localized, op.truth)));
+          within += stopMeetsRequirement(op) ? 1 : 0;
+        }
+      }
+      if (!errors.empty()) {
+        perMission[name] = stats(errors, within);
+      }
+    }
+    summary[modeName(mode)] = std::move(perMission);
+  }
+  Json dr = Json::object();
+  const std::pair<const char*, Pose2d OperationPoint::*> params[3] = {{"truth", &OperationPoint::withTruth},
+                                                                      {"nominal", &OperationPoint::withNominal},
+                                                                      {"estimate", &OperationPoint::withEstimate}};
+  for (const auto& [key, member] : params) {
+    Json perMission = Json::object();
+    for (const std::string& name : missions) {
+      std::vector<std::pair<double, double>> errors;
+      int within = 0;
+      for (const RunResult& r : s.missionRuns) {
+        if (r.mode != LocalizationMode::Reflectors || r.path != name) {
+          continue;  // every mode repeats these vehicle runs (same seeds)
+        }
+        for (const OperationPoint& op : r.stops) {
+          errors.emplace_back(positionError(op.*member, op.truth), rad2deg(headingError(op.*member, op.truth)));
+          within += meetsRequirement(op.*member, op.truth) ? 1 : 0;
+        }
+      }
+      if (!errors.empty()) {
+        perMission[name] = stats(errors, within);
+      }
+    }
+    dr[key] = std::move(perMission);
+  }
+  summary["dead_reckoning"] = std::move(dr);
+  return summary;
+}
+
+Json missionsJson(const ScenarioConfig& cfg, const SessionResults& s) {
+  Json runs = Json::array();
+  bool met = true;
+  for (const RunResult& r : s.missionRuns) {
+    runs.push_back(missionRunJson(r));
+    if (requiredMode(r.mode)) {
+      met = met && missionRunMeetsRequirement(r);
+    }
+  }
+  Json mapping = Json::array();
+  for (const RunResult& r : s.missionMappingRuns) {
+    mapping.push_back(missionRunJson(r));
+  }
+  const sim::PalletMoveParams& pm = cfg.palletMoves;
+  return Json{{"ran", s.missionsRan},
+              {"runs_per_mission", cfg.runsPerMission},
+              {"dwell_s", cfg.dwellSeconds},
+              {"required", missionsRequired()},
+              {"requirement_met", s.missionsRan && met && s.missionNaturalError.empty()},
+              {"pallet_moves",
+               {{"remove_probability", pm.removeProbability},
+                {"move_probability", pm.moveProbability},
+                {"max_shift_m", pm.maxShift},
+                {"max_rotation_deg", rad2deg(pm.maxRotation)},
+                {"added", pm.added},
+                {"clearance_m", pm.clearance}}},
+              {"mapping",
+               {{"frozen_corners", s.missionMapCorners},
+                {"field_surface_cells", s.missionFieldSurfacePoints},
+                {"natural_error", s.missionNaturalError},
+                {"runs", std::move(mapping)}}},
+              {"summary", missionSummaryJson(s)},
+              {"runs", std::move(runs)}};
+}
+
 }  // namespace
+
+bool missionsRequired() noexcept {
+  return false;
+}
+
+bool stopMeetsRequirement(const OperationPoint& op) {
+  return !op.lost && meetsRequirement(op.localized, op.truth);
+}
+
+bool missionRunMeetsRequirement(const RunResult& r) {
+  if (!r.finished || r.stops.empty()) {
+    return false;
+  }
+  for (const OperationPoint& op : r.stops) {
+    if (!stopMeetsRequirement(op)) {
+      return false;
+    }
+  }
+  return true;
+}
 
 bool meetsRequirement(const Pose2d& estimate, const Pose2d& truth) {
   return positionError(estimate, truth) <= kPositionRequirement &&
@@ -108,7 +298,7 @@ bool runMeetsRequirement(const RunResult& r) {
 
 sim::CanBusCounters canTotals(const SessionResults& s) {
   sim::CanBusCounters c = s.calibration.can;
-  for (const std::vector<RunResult>* set : {&s.runs, &s.mappingRuns}) {
+  for (const std::vector<RunResult>* set : {&s.runs, &s.mappingRuns, &s.missionRuns, &s.missionMappingRuns}) {
     for (const RunResult& r : *set) {
       c += r.can;
     }
@@ -164,6 +354,7 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                 {"runs", std::move(mappingRuns)}}},
               {"relocalization",
                {{"trials", std::move(trials)}, {"found", found}, {"wrong", wrong}, {"count", s.reloc.size()}}},
+              {"missions", missionsJson(cfg, s)},
               {"requirement_met", requirementMet}};
 }
 

@@ -40,7 +40,26 @@ struct SessionResults {
   std::size_t fieldSurfacePoints = 0;  ///< surface points of the natural mode's likelihood field
   std::string naturalError;            ///< why the natural mode could not run (empty: it ran)
   std::vector<RelocTrial> reloc;       ///< the relocalization stage's trials
+  /// Missions (docs/hil.md, "Missions"): the runs of every mode with the pallets rearranged, the
+  /// mapping runs on the original layout, and the maps built from them.
+  std::vector<RunResult> missionRuns;
+  std::vector<RunResult> missionMappingRuns;
+  std::size_t missionMapCorners = 0;
+  std::size_t missionFieldSurfacePoints = 0;
+  std::string missionNaturalError;  ///< why the natural mode could not run on the missions
+  bool missionsRan = false;         ///< the world has missions and they were driven
 };
+
+/// Whether the missions' operation points count toward `requirement_met` (reflectors and natural;
+/// docs/hil.md, "Missions": measured on seeds 1-20).
+bool missionsRequired() noexcept;
+
+/// An operation point within 2 cm / 0.1 deg, the localizer not lost there.
+bool stopMeetsRequirement(const OperationPoint& op);
+
+/// A mission run meets the requirement when it reached its last operation point and met it at
+/// every one.
+bool missionRunMeetsRequirement(const RunResult& r);
 
 /// Within 2 cm / 0.1 deg of the truth (dead reckoning and localizer poses).
 bool meetsRequirement(const Pose2d& estimate, const Pose2d& truth);

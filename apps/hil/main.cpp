@@ -59,6 +59,10 @@ struct Options {
   int minHitsToCorrect = ScenarioConfig{}.dynamicMinHitsToCorrect;
   bool dynamicSurfaceMap = ScenarioConfig{}.dynamicSurfaceMap;
   bool canSync = false;
+  int missionRuns = ScenarioConfig{}.runsPerMission;
+  bool missionRunsGiven = false;
+  bool missions = true;
+  bool movePallets = true;
 };
 
 /// False with `exitCode` set when the program ends here (help, or a refused command line).
@@ -82,6 +86,12 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
                "dynamic mode: FALKO corners alone, no scan matching against the surfaces of the earlier sweeps");
   app.add_flag("--can-sync", o.canSync,
                "encoders send synchronous TPDOs on the vehicle's SYNC (every encoder period) instead of cyclic ones");
+  app.add_option("--mission-runs", o.missionRuns,
+                 "runs per mission, the pallets rearranged for each (default 4; --short: 1)")
+      ->check(CLI::Range(1, 1000));
+  app.add_flag("!--no-missions", o.missions, "skip the missions (the paths only)");
+  app.add_flag("!--no-pallet-moves", o.movePallets,
+               "missions on the mapped pallet layout (no pallet moved, removed or added between runs)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -89,6 +99,7 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
     return false;
   }
   o.runsGiven = app.count("--runs") != 0;
+  o.missionRunsGiven = app.count("--mission-runs") != 0;
   return true;
 }
 
@@ -96,6 +107,12 @@ ScenarioConfig scenarioConfig(const Options& o) {
   ScenarioConfig cfg;
   cfg.runsPerPath = o.shortScenario && !o.runsGiven ? 1 : o.runs;
   cfg.seed = o.seed;
+  cfg.runsPerMission = o.shortScenario && !o.missionRunsGiven ? 1 : o.missionRuns;
+  if (!o.movePallets) {
+    cfg.palletMoves.removeProbability = 0.0;
+    cfg.palletMoves.moveProbability = 0.0;
+    cfg.palletMoves.added = 0;
+  }
   cfg.dynamicMinHitsToCorrect = static_cast<std::int16_t>(o.minHitsToCorrect);
   cfg.dynamicSurfaceMap = o.dynamicSurfaceMap;
   if (o.canSync) {
@@ -371,13 +388,134 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
   }
 }
 
-bool runLocalizationStages(const agv::sim::World& world, const ScenarioConfig& cfg, SessionResults& s) {
+// ---- missions: several operation points over 50-100 m, pallets moved between runs -------------
+
+void printMissionRun(const RunResult& r, int index, int total) {
+  double maxP = 0.0;
+  double maxH = 0.0;
+  double sumP2 = 0.0;
+  double drP = 0.0;
+  double drH = 0.0;
+  double drTrueP = 0.0;
+  int within = 0;
+  for (const agv::hil::OperationPoint& op : r.stops) {
+    const double e = agv::hil::positionError(op.localized, op.truth);
+    maxP = std::max(maxP, e);
+    sumP2 += e * e;
+    maxH = std::max(maxH, agv::rad2deg(agv::hil::headingError(op.localized, op.truth)));
+    drP = std::max(drP, agv::hil::positionError(op.withEstimate, op.truth));
+    drH = std::max(drH, agv::rad2deg(agv::hil::headingError(op.withEstimate, op.truth)));
+    drTrueP = std::max(drTrueP, agv::hil::positionError(op.withTruth, op.truth));
+    within += agv::hil::stopMeetsRequirement(op) ? 1 : 0;
+  }
+  const double rms = r.stops.empty() ? 0.0 : std::sqrt(sumP2 / static_cast<double>(r.stops.size()));
+  std::printf(
+      "[%2d/%2d] %-12s %-4s run %d: %5.1f m in %5.1f s%s | %zu stops, localizer max %6.1f mm (rms %5.1f) %6.3f deg%s, "
+      "%d within (%.1f landmarks/scan, %zu without fix) | DR estimated max %6.1f mm %6.3f deg | DR true max %5.1f mm "
+      "| pallets moved %d removed %d added %d\n",
+      index, total, agv::hil::modeName(r.mode), r.path.c_str(), r.run, r.distance, r.simSeconds,
+      r.finished ? "" : " (NOT FINISHED)", r.stops.size(), 1000.0 * maxP, 1000.0 * rms, maxH,
+      r.localizerLost ? " LOST" : "", within, r.meanUsedPerScan, r.scansWithoutFix, 1000.0 * drP, drH, 1000.0 * drTrueP,
+      r.pallets.moved, r.pallets.removed, r.pallets.added);
+  std::fflush(stdout);
+}
+
+bool runMissionMode(const agv::sim::World& world, const ScenarioConfig& cfg, LocalizationMode mode,
+                    agv::LandmarkMap& map, const agv::hil::RunMaps& maps, int runs, std::uint64_t seedSalt,
+                    bool movePallets, std::vector<RunResult>& results) {
+  std::string error;
+  if (!agv::hil::runMissions(world, cfg, mode, map, maps, runs, seedSalt, movePallets, printMissionRun, &results,
+                             &error)) {
+    std::fprintf(stderr, "agvnav-hil: missions: %s\n", error.c_str());
+    return false;
+  }
+  return true;
+}
+
+/// The missions in every mode: reflectors on the surveyed map; one mapping run per mission on the
+/// original layout (reflectors for the pose, FALKO corners and scans accumulated as for the
+/// paths) whose frozen corners and likelihood field the static_falko and natural runs use; the
+/// dynamic map. Every localizing run meets its own seeded rearrangement of the pallets.
+bool runMissionStages(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& reflectorMap,
+                      SessionResults& s) {
+  if (world.missions.empty()) {
+    std::printf("missions: none in the world\n");
+    return true;
+  }
+  double length = 0.0;
+  std::size_t stops = 0;
+  for (const agv::sim::Mission& m : world.missions) {
+    length += m.length;
+    stops += m.legs.size();
+  }
+  const agv::sim::PalletMoveParams& pm = cfg.palletMoves;
+  std::printf(
+      "missions: %zu (%.1f m, %zu operation points in all), %d runs each; %zu pallet boxes, for each run: removed with "
+      "p = %.2f, else moved with p = %.2f by up to +-%.2f m and +-%.1f deg, %d pallets added (clearance %.1f m from "
+      "the route); %.0f s standstill at each operation point\n",
+      world.missions.size(), length, stops, cfg.runsPerMission, world.pallets.size(), pm.removeProbability,
+      pm.moveProbability, pm.maxShift, agv::rad2deg(pm.maxRotation), pm.added, pm.clearance, cfg.dwellSeconds);
+  if (!runMissionMode(world, cfg, LocalizationMode::Reflectors, reflectorMap, {}, cfg.runsPerMission, 0, true,
+                      s.missionRuns)) {
+    return false;
+  }
+  constexpr int kMinMapHits = 5;
+  constexpr double kMaxCornerScatter = 0.015;  // [m] per coordinate, as for the paths
+  constexpr std::size_t kFieldMinScans = 2;
+  agv::hil::CornerMapper mapper;
+  const agv::LikelihoodFieldParams fieldParams{};
+  agv::mapping::SurfaceMapper surfaces(fieldParams.resolution);
+  agv::hil::RunMaps mapping;
+  mapping.corners = &mapper;
+  mapping.surfaces = &surfaces;
+  std::printf("missions: mapping runs on the original pallet layout, 1 per mission\n");
+  if (!runMissionMode(world, cfg, LocalizationMode::Mapping, reflectorMap, mapping, 1, 0xA11CEU, false,
+                      s.missionMappingRuns)) {
+    return false;
+  }
+  auto falkoMap = std::make_unique<agv::LandmarkMap>();
+  s.missionMapCorners = mapper.freeze(kMinMapHits, kMaxCornerScatter, *falkoMap);
+  std::printf("missions static_falko: %zu of %zu corner clusters frozen\n", s.missionMapCorners, mapper.clusters());
+  if (!runMissionMode(world, cfg, LocalizationMode::StaticFalko, *falkoMap, {}, cfg.runsPerMission, 0, true,
+                      s.missionRuns)) {
+    return false;
+  }
+  auto field = std::make_unique<HilField>();
+  std::string error;
+  if (surfaces.build(fieldParams, kFieldMinScans, *field, error) != agv::Status::Ok) {
+    s.missionNaturalError = "no likelihood field from the mission mapping runs: " + error;
+    std::printf("missions natural: NOT RUN (%s)\n", s.missionNaturalError.c_str());
+  } else {
+    s.missionFieldSurfacePoints = field->surfacePoints();
+    std::printf("missions natural: likelihood field of the mapping runs, %zu surface cells\n", field->surfacePoints());
+    agv::hil::RunMaps natural;
+    natural.field = field.get();
+    if (!runMissionMode(world, cfg, LocalizationMode::Natural, *falkoMap, natural, cfg.runsPerMission, 0, true,
+                        s.missionRuns)) {
+      return false;
+    }
+  }
+  auto dynamicMap = std::make_unique<agv::LandmarkMap>();
+  std::printf("missions dynamic: %s, empty at the start of each run\n",
+              cfg.dynamicSurfaceMap ? "FALKO corners and the surface map of the sweeps" : "FALKO corners only");
+  if (!runMissionMode(world, cfg, LocalizationMode::Dynamic, *dynamicMap, {}, cfg.runsPerMission, 0, true,
+                      s.missionRuns)) {
+    return false;
+  }
+  s.missionsRan = true;
+  return true;
+}
+
+bool runLocalizationStages(const agv::sim::World& world, const ScenarioConfig& cfg, bool missions, SessionResults& s) {
   auto reflectorMap = std::make_unique<agv::LandmarkMap>();
   if (!runReflectorMode(world, cfg, *reflectorMap, s)) {
     return false;
   }
   runRelocalizationStage(world, cfg, *reflectorMap, s);
-  return runStaticMapModes(world, cfg, *reflectorMap, s) && runDynamicMode(world, cfg, s);
+  if (!runStaticMapModes(world, cfg, *reflectorMap, s) || !runDynamicMode(world, cfg, s)) {
+    return false;
+  }
+  return !missions || runMissionStages(world, cfg, *reflectorMap, s);
 }
 
 // ---- summary -----------------------------------------------------------------------------------
@@ -444,6 +582,65 @@ void printLocalizerSummary(const agv::sim::World& world, const std::vector<RunRe
   }
 }
 
+/// Per mode and mission: max and RMS over the operation points of every run, and dead reckoning.
+void printMissionSummary(const SessionResults& s) {
+  if (s.missionRuns.empty()) {
+    return;
+  }
+  std::vector<std::string> names;
+  for (const RunResult& r : s.missionRuns) {
+    if (std::find(names.begin(), names.end(), r.path) == names.end()) {
+      names.push_back(r.path);
+    }
+  }
+  std::printf("missions, every operation point of every run: %-14s %-4s %s\n", "mode", "mission",
+              "position max / rms [mm], heading max / rms [deg], operation points within requirement");
+  const auto line = [&](const char* label, const std::string& name, LocalizationMode mode,
+                        agv::Pose2d agv::hil::OperationPoint::*member) {
+    double maxP = 0.0;
+    double maxH = 0.0;
+    double sumP2 = 0.0;
+    double sumH2 = 0.0;
+    int n = 0;
+    int met = 0;
+    for (const RunResult& r : s.missionRuns) {
+      if (r.path != name || r.mode != mode) {
+        continue;
+      }
+      for (const agv::hil::OperationPoint& op : r.stops) {
+        const double e = agv::hil::positionError(op.*member, op.truth);
+        const double h = agv::rad2deg(agv::hil::headingError(op.*member, op.truth));
+        maxP = std::max(maxP, e);
+        maxH = std::max(maxH, h);
+        sumP2 += e * e;
+        sumH2 += h * h;
+        ++n;
+        met += (member == &agv::hil::OperationPoint::localized ? agv::hil::stopMeetsRequirement(op)
+                                                               : agv::hil::meetsRequirement(op.*member, op.truth))
+                   ? 1
+                   : 0;
+      }
+    }
+    if (n == 0) {
+      return;
+    }
+    std::printf(
+        "                                               %-14s %-7s %7.1f / %6.1f mm  %6.3f / %6.3f deg  %d of %d\n",
+        label, name.c_str(), 1000.0 * maxP, 1000.0 * std::sqrt(sumP2 / n), maxH, std::sqrt(sumH2 / n), met, n);
+  };
+  for (const LocalizationMode mode : {LocalizationMode::Reflectors, LocalizationMode::StaticFalko,
+                                      LocalizationMode::Natural, LocalizationMode::Dynamic}) {
+    for (const std::string& name : names) {
+      line(agv::hil::modeName(mode), name, mode, &agv::hil::OperationPoint::localized);
+    }
+  }
+  for (const std::string& name : names) {
+    line("DR true", name, LocalizationMode::Reflectors, &agv::hil::OperationPoint::withTruth);
+    line("DR nominal", name, LocalizationMode::Reflectors, &agv::hil::OperationPoint::withNominal);
+    line("DR estimated", name, LocalizationMode::Reflectors, &agv::hil::OperationPoint::withEstimate);
+  }
+}
+
 /// The verdict over every run of every mode.
 struct Verdict {
   bool allFinished = true;
@@ -491,7 +688,26 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
     cold += tr.kidnapped ? 0U : 1U;
     coldFound += !tr.kidnapped && tr.found ? 1U : 0U;
   }
-  v.requirementMet = v.allFinished && localizerMeets && s.naturalError.empty() && relocWrong == 0;
+  int missionRequiredRuns = 0;
+  int missionRequiredMet = 0;
+  std::size_t missionStops[2] = {0, 0};  // required modes: operation points, within
+  std::size_t otherStops[2] = {0, 0};    // static_falko and dynamic
+  for (const RunResult& r : s.missionRuns) {
+    v.allFinished = v.allFinished && r.finished;
+    std::size_t* counts = agv::hil::requiredMode(r.mode) ? missionStops : otherStops;
+    for (const agv::hil::OperationPoint& op : r.stops) {
+      ++counts[0];
+      counts[1] += agv::hil::stopMeetsRequirement(op) ? 1U : 0U;
+    }
+    if (agv::hil::requiredMode(r.mode)) {
+      ++missionRequiredRuns;
+      missionRequiredMet += agv::hil::missionRunMeetsRequirement(r) ? 1 : 0;
+    }
+  }
+  const bool missionsMet =
+      s.missionRuns.empty() || (missionRequiredMet == missionRequiredRuns && s.missionNaturalError.empty());
+  v.requirementMet = v.allFinished && localizerMeets && s.naturalError.empty() && relocWrong == 0 &&
+                     (!agv::hil::missionsRequired() || missionsMet);
   std::printf(
       "%.0f cm / %.1f deg met by dead reckoning with the true parameters in %d of %d runs, with the "
       "estimated parameters in %d\n",
@@ -511,6 +727,14 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
   std::printf("dynamic map (%s; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
               cfg.dynamicSurfaceMap ? "FALKO corners and the surface map of the run's sweeps" : "FALKO corners alone",
               dynamicMeetCount, dynamicRuns, kPositionRequirement * 100.0, kHeadingRequirementDeg);
+  if (!s.missionRuns.empty()) {
+    std::printf(
+        "missions (%s): reflector and natural modes %zu of %zu operation points within %.0f cm / %.1f deg (%d of %d "
+        "runs at every one); static_falko and dynamic %zu of %zu\n",
+        agv::hil::missionsRequired() ? "required" : "measured, not required", missionStops[1], missionStops[0],
+        kPositionRequirement * 100.0, kHeadingRequirementDeg, missionRequiredMet, missionRequiredRuns, otherStops[1],
+        otherStops[0]);
+  }
   std::printf(
       "requirement (pose sent to the PLC by the localizer, every run of the reflector and natural modes): %s (%d of %d "
       "runs)\n",
@@ -584,7 +808,7 @@ int main(int argc, char** argv) {
   session.calibrationStatus = applyCalibration(session.calibration, cfg, stages[0]);
   printSetup(options, world, stages, cfg, session);
 
-  if (!runLocalizationStages(world, cfg, session)) {
+  if (!runLocalizationStages(world, cfg, options.missions, session)) {
     return 2;
   }
   for (agv::hil::Stage& st : stages) {
@@ -595,6 +819,7 @@ int main(int argc, char** argv) {
 
   printDeadReckoningSummary(world, session.runs);
   printLocalizerSummary(world, session.runs);
+  printMissionSummary(session);
   const Verdict verdict = printVerdict(cfg, session);
   int rc = verdict.requirementMet ? 0 : 1;
   if (!verdict.allFinished) {

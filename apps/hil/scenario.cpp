@@ -235,10 +235,15 @@ void collectSurfaces(const nav::Pipeline& pipeline, mapping::SurfaceMapper& surf
 /// One run of `path`: place the vehicle near the start, steer at rest, set the pose through the
 /// PLC, follow the path to its end and stop. The navigation is the vehicle's pipeline on the
 /// simulated devices (encoders through CAN frames, laser, PLC peer, clock).
-RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, const ScenarioConfig& cfg,
-                 LocalizationMode mode, LandmarkMap& map, const RunMaps& maps, std::uint64_t seed) {
+RunResult runOne(const sim::RayCaster& caster, const std::string& name, const std::vector<const sim::Path*>& legs,
+                 int run, const ScenarioConfig& cfg, LocalizationMode mode, LandmarkMap& map, const RunMaps& maps,
+                 std::uint64_t seed) {
   RunResult r;
-  r.path = path.name;
+  r.path = name;
+  if (legs.empty()) {
+    return r;
+  }
+  const sim::Path& path = *legs.front();
   r.run = run;
   r.mode = mode;
   if (mode == LocalizationMode::Dynamic) {
@@ -275,11 +280,12 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   sim::PathFollowerParams fp;
   fp.wheelbase = cfg.estimate.kinematics.wheelbase;
   fp.steerOffset = cfg.estimate.kinematics.steerOffsetForward;
-  sim::PathFollower follower(path, fp);
+  std::size_t leg = 0;
+  auto follower = std::make_unique<sim::PathFollower>(path, fp);
 
   // At rest: turn the steering to the first command; the pipeline reads every sample of that
   // second (idle), then the PLC sets the pose at the newest one.
-  hal::DriveCommand first = follower.update(vehicle.truePose());
+  hal::DriveCommand first = follower->update(vehicle.truePose());
   first.speed = 0.0;
   static_cast<void>(drive.command(first));
   t = t + Duration::fromSeconds(1.0);
@@ -316,10 +322,15 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
   double validSum = 0.0;
   r.minReflectorsPerScan = static_cast<std::size_t>(-1);
   const Timestamp tStart = t;
-  const Timestamp deadline = t + Duration::fromSeconds(cfg.maxRunSeconds);
+  // A run of several legs (a mission) has the time of a run per leg, and its standstills.
+  const double legs1 = static_cast<double>(legs.size());
+  const Timestamp deadline =
+      t + Duration::fromSeconds(legs1 * cfg.maxRunSeconds + (legs1 - 1.0) * std::max(0.0, cfg.dwellSeconds));
+  Timestamp dwellEnd = t;
+  bool stopped = false;  // at the current leg's operation point
 
   while (t < deadline) {
-    const hal::DriveCommand cmd = follower.update(vehicle.truePose());
+    const hal::DriveCommand cmd = follower->update(vehicle.truePose());
     if (drive.command(cmd) != Status::Ok) {
       break;
     }
@@ -366,9 +377,29 @@ RunResult runOne(const sim::RayCaster& caster, const sim::Path& path, int run, c
     }
     r.history.push_back(TrajectorySample{r.distance, vehicle.truePose(), withTruth.pose(), withNominal.pose(),
                                          withEstimate.pose(), pipeline.localizer().pose()});
-    if (follower.finished() && drive.isStandstill()) {
-      r.finished = true;
-      break;
+    if (!stopped && follower->finished() && drive.isStandstill()) {
+      // At the operation point: what the PLC has, against the truth.
+      stopped = true;
+      OperationPoint op;
+      op.index = static_cast<int>(leg) + 1;
+      op.distance = r.distance;
+      op.truth = vehicle.truePose();
+      op.localized = plc.reports().empty() ? pipeline.localizer().pose() : plc.reports().back().pose;
+      op.withTruth = withTruth.pose();
+      op.withNominal = withNominal.pose();
+      op.withEstimate = withEstimate.pose();
+      op.lost = pipeline.localizer().lost();
+      r.stops.push_back(op);
+      if (leg + 1 == legs.size()) {
+        r.finished = true;
+        break;
+      }
+      dwellEnd = t + Duration::fromSeconds(cfg.dwellSeconds);  // the pick or drop
+    }
+    if (stopped && t >= dwellEnd) {
+      ++leg;
+      follower = std::make_unique<sim::PathFollower>(*legs[leg], fp);
+      stopped = false;
     }
   }
   r.simSeconds = (t - tStart).seconds();
@@ -536,10 +567,85 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
     for (int run = 1; run <= runsPerPath; ++run) {
       const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
       const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + p * 1000U + runIndex;
-      results->push_back(runOne(caster, world.paths[p], run, config, mode, map, maps, seed));
+      results->push_back(runOne(caster, world.paths[p].name, {&world.paths[p]}, run, config, mode, map, maps, seed));
       ++index;
       if (progress) {
         progress(results->back(), index, total);
+      }
+    }
+  }
+  return true;
+}
+
+std::vector<sim::Point2> missionKeepClear(const sim::World& world) {
+  constexpr double kLaserAhead = 1.7;  // [m] the laser mount ahead of the logical point, and margin
+  std::vector<sim::Point2> points;
+  for (const sim::Mission& m : world.missions) {
+    for (const sim::Path& leg : m.legs) {
+      for (const Pose2d& q : leg.points) {
+        points.push_back(sim::Point2{q.x, q.y});
+        points.push_back(sim::Point2{q.x + kLaserAhead * std::cos(q.theta), q.y + kLaserAhead * std::sin(q.theta)});
+      }
+    }
+  }
+  return points;
+}
+
+bool runMissions(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
+                 const RunMaps& maps, int runsPerMission, std::uint64_t seedSalt, bool movePallets,
+                 const std::function<void(const RunResult&, int index, int total)>& progress,
+                 std::vector<RunResult>* results, std::string* error) {
+  if (world.missions.empty()) {
+    *error = "the world has no mission to drive";
+    return false;
+  }
+  const Status laserStatus = config.laser.validate();
+  if (laserStatus != Status::Ok) {
+    *error = std::string("laser parameters: ") + toString(laserStatus);
+    return false;
+  }
+  if (sim::validateSimCanEncoders(config.can) != Status::Ok) {
+    *error = "encoder CAN bus parameters refused by the decoder";
+    return false;
+  }
+  if (runsPerMission < 1) {
+    *error = "runs per mission must be >= 1";
+    return false;
+  }
+  if (mode == LocalizationMode::Natural && (maps.field == nullptr || !maps.field->built())) {
+    *error = "natural navigation needs the likelihood field of a mapping run";
+    return false;
+  }
+  const std::vector<sim::Point2> keepClear = movePallets ? missionKeepClear(world) : std::vector<sim::Point2>{};
+  const int total = static_cast<int>(world.missions.size()) * runsPerMission;
+  int index = 0;
+  for (std::size_t m = 0; m < world.missions.size(); ++m) {
+    const sim::Mission& mission = world.missions[m];
+    std::vector<const sim::Path*> legs;
+    for (const sim::Path& leg : mission.legs) {
+      legs.push_back(&leg);
+    }
+    for (int run = 1; run <= runsPerMission; ++run) {
+      const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
+      // Vehicle seeds apart from the paths' (path index * 1000 + run, paths < 500).
+      const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + (500U + m) * 1000U + runIndex;
+      sim::World moved;
+      sim::PalletChanges changes;
+      if (movePallets) {
+        // The layout depends on the session, the mission and the run only: every mode meets it.
+        const std::uint64_t layoutSeed = config.seed * 2654435761U + m * 7919U + runIndex * 104729U + 0x9A11E7U;
+        sim::rearrangePallets(world, config.palletMoves, layoutSeed, keepClear, moved, changes);
+      }
+      const sim::World& runWorld = movePallets ? moved : world;
+      const sim::RayCaster caster(runWorld, 1.0);
+      results->push_back(runOne(caster, mission.name, legs, run, config, mode, map, maps, seed));
+      RunResult& r = results->back();
+      r.mission = true;
+      r.pallets = changes;
+      r.palletFingerprint = sim::palletFingerprint(runWorld);
+      ++index;
+      if (progress) {
+        progress(r, index, total);
       }
     }
   }

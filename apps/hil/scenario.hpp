@@ -15,6 +15,7 @@
 #include "agv/localization/likelihood_field.hpp"
 #include "agv/mapping/surface_mapper.hpp"
 #include "agv/sim/can_encoder_source.hpp"
+#include "agv/sim/pallet_moves.hpp"
 #include "agv/sim/sim_laser.hpp"
 #include "agv/sim/sim_vehicle.hpp"
 #include "agv/sim/world.hpp"
@@ -108,6 +109,11 @@ struct ScenarioConfig {
   double relocSeconds = 4.0;  ///< [s] of simulated time per trial at most
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
   std::int16_t dynamicMinHitsToCorrect = 10;
+  /// Missions (`runMissions`): runs per mission, standstill at each operation point (pick or drop)
+  /// before the next leg, and how the pallets are rearranged for each run.
+  int runsPerMission = 4;
+  double dwellSeconds = 2.0;
+  sim::PalletMoveParams palletMoves;
   /// Dynamic mode: scan matching against the surfaces of the run's earlier sweeps
   /// (`ObservationParams::surfaceMap`) next to the dynamic corner map; off: the corners alone.
   bool dynamicSurfaceMap = true;
@@ -123,7 +129,19 @@ struct TrajectorySample {
   Pose2d localized;     ///< the localizer's pose (what the PLC receives)
 };
 
-/// Result of one run along one path.
+/// Where a run stopped at an operation point (the end of a path, every `stop` of a mission).
+struct OperationPoint {
+  int index = 0;          ///< 1-based
+  double distance = 0.0;  ///< [m] travelled since the start of the run
+  Pose2d truth;
+  Pose2d localized;  ///< the last pose the PLC received at the stop
+  Pose2d withTruth;
+  Pose2d withNominal;
+  Pose2d withEstimate;
+  bool lost = false;  ///< the localizer was lost at the stop
+};
+
+/// Result of one run along one path (or one mission).
 struct RunResult {
   std::string path;
   int run = 0;
@@ -147,6 +165,10 @@ struct RunResult {
   double meanValidBeamFraction = 0.0;
   sim::CanBusCounters can;  ///< the encoder frames of the run
   std::vector<TrajectorySample> history;
+  std::vector<OperationPoint> stops;  ///< one per operation point reached (a path: its end)
+  bool mission = false;               ///< `path` names a mission
+  sim::PalletChanges pallets;         ///< missions: how the pallets were rearranged for this run
+  double palletFingerprint = 0.0;     ///< missions: `sim::palletFingerprint` of the run's layout
 };
 
 /// Runs `runsPerPath` runs of `mode` on each path of `world` listed in `pathIndices` (all when
@@ -159,6 +181,21 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
                  const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,
                  std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
                  std::vector<RunResult>* results, std::string* error);
+
+/// Runs `runsPerMission` runs of `mode` on each mission of `world` (the maps as in `runScenario`).
+/// Each run drives the mission's legs one after the other with one pipeline, standing
+/// `dwellSeconds` at each operation point; with `movePallets` the run's world is `world` with its
+/// pallets rearranged (`sim::rearrangePallets`, seeded by the session seed, the mission and the
+/// run, not by the mode: every mode meets the same layouts), else `world` itself (mapping runs).
+/// Returns false (with `error`) on a setup problem (no mission, invalid laser parameters, ...).
+bool runMissions(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
+                 const RunMaps& maps, int runsPerMission, std::uint64_t seedSalt, bool movePallets,
+                 const std::function<void(const RunResult&, int index, int total)>& progress,
+                 std::vector<RunResult>* results, std::string* error);
+
+/// The points the rearranged pallets keep clear of: every sample of the missions' legs and the
+/// laser's position 1.7 m ahead of it.
+std::vector<sim::Point2> missionKeepClear(const sim::World& world);
 
 /// One relocalization trial: the vehicle standing at `truth`, the pipeline on the surveyed
 /// reflector map with no set-pose (a cold start), or localized by a set-pose elsewhere and then

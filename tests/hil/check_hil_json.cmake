@@ -31,7 +31,7 @@ endforeach()
 file(READ "${json_file}" j)
 
 include("${CMAKE_CURRENT_LIST_DIR}/../support/JsonChecks.cmake")
-expect_keys("${j}" "calibration;requirement;can_encoders;stages;runs;static_falko_mapping;relocalization;requirement_met")
+expect_keys("${j}" "calibration;requirement;can_encoders;stages;runs;static_falko_mapping;relocalization;missions;requirement_met")
 expect_keys("${j}" "truth;estimate;nominal;estimate_error;nominal_error;estimate_source;status;segments_used"
             calibration)
 expect_type("${j}" OBJECT calibration truth)
@@ -284,3 +284,6 @@ endif()
 if(found_count LESS 3)
   message(FATAL_ERROR "JSON: relocalization: only ${found_count} of 6 trials found the pose")
 endif()
+
+# The missions: end to end in every mode, operation points reached, pallets moved between runs.
+include("${CMAKE_CURRENT_LIST_DIR}/check_hil_missions.cmake")

@@ -1,6 +1,7 @@
 // World text format: the built-in warehouse and the error reports.
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "agv/core/angle.hpp"
 #include "agv/sim/world.hpp"
@@ -129,4 +130,70 @@ TEST_CASE("A missing world file is reported as not found", "[sim][world]") {
   WorldParseError e;
   CHECK(agv::sim::loadWorldFile("/nonexistent/dir/world.txt", w, e) == Status::NotFound);
   CHECK(e.message.find("/nonexistent/dir/world.txt") != std::string::npos);
+}
+
+TEST_CASE("The built-in missions stop where their pieces put them", "[sim][world][missions]") {
+  World w;
+  WorldParseError e;
+  REQUIRE(agv::sim::parseWorld(agv::sim::defaultWorldText(), w, e) == Status::Ok);
+  REQUIRE(w.missions.size() == 3U);
+  struct Stop {
+    double x;
+    double y;
+    double headingDeg;
+  };
+  // Operation points from the geometry of the pieces (docs/hil.md, "Missions").
+  const std::vector<std::vector<Stop>> expected = {
+      {{30.0, 10.0, 0.0}, {32.0, 14.0, 180.0}, {12.0, 22.2, 180.0}},
+      {{3.5, 12.0, 90.0}, {3.5, 17.0, 90.0}, {10.0, 22.2, 0.0}, {30.0, 18.0, 0.0}},
+      {{30.0, 6.0, 0.0}, {33.0, 18.0, 180.0}, {3.5, 12.0, -90.0}, {13.0, 5.5, 0.0}}};
+  for (std::size_t m = 0; m < 3; ++m) {
+    const agv::sim::Mission& mission = w.missions[m];
+    CHECK(mission.name == "M" + std::to_string(m + 1));
+    CHECK(mission.length >= 50.0);
+    CHECK(mission.length <= 100.0);
+    REQUIRE(mission.legs.size() == expected[m].size());
+    double sum = 0.0;
+    for (std::size_t k = 0; k < mission.legs.size(); ++k) {
+      const agv::sim::Path& leg = mission.legs[k];
+      sum += leg.length;
+      CHECK(leg.name == mission.name + "/" + std::to_string(k + 1));
+      const agv::Pose2d& begin = k == 0 ? mission.start : mission.legs[k - 1].points.back();
+      CHECK(leg.start.x == begin.x);  // a leg starts where the previous one ended
+      CHECK(leg.start.y == begin.y);
+      CHECK(leg.points.back().x == Approx(expected[m][k].x).margin(1e-4));
+      CHECK(leg.points.back().y == Approx(expected[m][k].y).margin(1e-4));
+      CHECK(std::fabs(agv::angleDiff(leg.points.back().theta, agv::deg2rad(expected[m][k].headingDeg))) < 1e-5);
+    }
+    CHECK(sum == Approx(mission.length));
+  }
+  // The pallet blocks of the block storage are the world's movable objects.
+  CHECK(w.pallets.size() == 25U);
+  CHECK(w.findMission("M2") == &w.missions[1]);
+  CHECK(w.findMission("P1") == nullptr);
+}
+
+TEST_CASE("Bad missions are refused with their line", "[sim][world][missions]") {
+  checkError("wall 0 0 1 1\nmission A 0 0 0 S 1 stop S 2\n", Status::InvalidArgument, 2, "must end with stop");
+  checkError("wall 0 0 1 1\n\nmission A 0 0 0 stop S 1 stop\n", Status::InvalidArgument, 3, "stop 1 has no piece");
+  checkError("wall 0 0 1 1\nmission A 0 0 0 S 1 stop stop\n", Status::InvalidArgument, 2, "stop 2 has no piece");
+  checkError("wall 0 0 1 1\nmission A 0 0 0 S 1 halt\n", Status::Malformed, 2, "unknown piece 'halt'");
+  checkError("wall 0 0 1 1\nmission A 0 0 0 S\n", Status::Malformed, 2, "mission needs NAME");
+  checkError("wall 0 0 1 1\nmission A 0 0 0 S x stop\n", Status::Malformed, 2, "S length: 'x' is not a number");
+  checkError("wall 0 0 1 1\nmission A 0 0 0 R 0 90 stop\n", Status::InvalidArgument, 2, "radius must be > 0");
+  checkError("wall 0 0 1 1\npath A 0 0 0 S 1\nmission A 0 0 0 S 1 stop\n", Status::InvalidArgument, 3,
+             "duplicate name 'A'");
+  checkError("wall 0 0 1 1\nmission A 0 0 0 S 1 stop\npath A 0 0 0 S 1\n", Status::InvalidArgument, 3,
+             "duplicate name 'A'");
+  // `stop` is a mission piece only.
+  checkError("wall 0 0 1 1\npath A 0 0 0 S 1 stop\n", Status::Malformed, 2, "unknown piece 'stop'");
+  World w;
+  WorldParseError e;
+  REQUIRE(agv::sim::parseWorld("wall 0 0 1 1\nmission A 1 2 90 S 2 stop L 1 90 stop\n", w, e) == Status::Ok);
+  REQUIRE(w.missions.size() == 1U);
+  REQUIRE(w.missions[0].legs.size() == 2U);
+  CHECK(w.missions[0].legs[0].points.back().y == Approx(4.0));
+  CHECK(w.missions[0].legs[1].points.back().x == Approx(0.0).margin(1e-9));
+  CHECK(w.missions[0].legs[1].points.back().y == Approx(5.0));
+  CHECK(w.paths.empty());
 }

@@ -124,7 +124,90 @@ void samplePiece(Path& path, double k, double len) {
   }
 }
 
+/// Parses the path pieces tok[i..] (S len | L r deg | R r deg) into `path` (its points start with
+/// the start pose). With `mission`, `stop` ends a leg at an operation point: `path` is moved into
+/// the mission's legs and restarted at its end; the mission must end with `stop`.
+Status parsePieces(const LineParser& p, const std::vector<std::string_view>& tok, std::size_t i, Path& path,
+                   Mission* mission) {
+  double v[2] = {};
+  Status s = Status::Ok;
+  const char* what = mission != nullptr ? "mission" : "path";
+  bool legOpen = false;  // a piece since the last stop
+  while (i < tok.size()) {
+    const std::string_view piece = tok[i];
+    if (piece == "S") {
+      if (i + 1 >= tok.size()) {
+        return p.fail(Status::Malformed, std::string(what) + " piece S needs a length");
+      }
+      s = p.number(tok[i + 1], "S length", v);
+      if (s != Status::Ok) {
+        return s;
+      }
+      if (v[0] < kMinLength) {
+        return p.fail(Status::InvalidArgument, std::string(what) + " piece S: length must be > 0");
+      }
+      samplePiece(path, 0.0, v[0]);
+      path.length += v[0];
+      i += 2;
+      legOpen = true;
+    } else if (piece == "L" || piece == "R") {
+      if (i + 2 >= tok.size()) {
+        return p.fail(Status::Malformed,
+                      std::string(what) + " piece " + std::string(piece) + " needs radius and angle_deg");
+      }
+      s = p.number(tok[i + 1], "arc radius", v);
+      if (s == Status::Ok) {
+        s = p.number(tok[i + 2], "arc angle_deg", v + 1);
+      }
+      if (s != Status::Ok) {
+        return s;
+      }
+      if (v[0] < kMinLength || v[1] <= 0.0 || v[1] > 360.0) {
+        return p.fail(Status::InvalidArgument,
+                      std::string(what) + " arc: radius must be > 0 and angle in (0, 360] deg");
+      }
+      const double len = v[0] * deg2rad(v[1]);
+      samplePiece(path, (piece == "L" ? 1.0 : -1.0) / v[0], len);
+      path.length += len;
+      i += 3;
+      legOpen = true;
+    } else if (mission != nullptr && piece == "stop") {
+      if (!legOpen) {
+        return p.fail(Status::InvalidArgument, "mission: stop " + std::to_string(mission->legs.size() + 1) +
+                                                   " has no piece before it (a leg must move)");
+      }
+      const Pose2d end = path.points.back();
+      path.name = mission->name + "/" + std::to_string(mission->legs.size() + 1);
+      mission->length += path.length;
+      mission->legs.push_back(std::move(path));
+      path = Path{};
+      path.start = end;
+      path.points.push_back(end);
+      ++i;
+      legOpen = false;
+    } else {
+      return p.fail(Status::Malformed,
+                    std::string(what) + ": unknown piece '" + std::string(piece) +
+                        (mission != nullptr ? "' (expected S, L, R or stop)" : "' (expected S, L or R)"));
+    }
+  }
+  if (mission != nullptr && (legOpen || mission->legs.empty())) {
+    return p.fail(Status::InvalidArgument,
+                  "mission: must end with stop (its last operation point); pieces after the last stop go nowhere");
+  }
+  return Status::Ok;
+}
+
 }  // namespace
+
+const Mission* World::findMission(std::string_view name) const noexcept {
+  for (const Mission& m : missions) {
+    if (m.name == name) {
+      return &m;
+    }
+  }
+  return nullptr;
+}
 
 const Path* World::findPath(std::string_view name) const noexcept {
   for (const Path& p : paths) {
@@ -206,6 +289,9 @@ Status parseWorld(std::string_view text, World& out, WorldParseError& error) {
       if (v[2] - v[0] < kMinLength || v[3] - v[1] < kMinLength) {
         return p.fail(Status::InvalidArgument, std::string(key) + ": needs xmax > xmin and ymax > ymin");
       }
+      if (key == "pallet") {
+        w.pallets.push_back(PalletBox{v[0], v[1], v[2], v[3], w.segments.size()});
+      }
       addBox(w, v[0], v[1], v[2], v[3], key == "hall" ? ObstacleKind::Wall : ObstacleKind::Pallet);
     } else if (key == "rack") {
       s = p.numbers(tok, {"x0", "y0", "x1", "y1", "depth", "pitch"}, v);
@@ -252,7 +338,7 @@ Status parseWorld(std::string_view text, World& out, WorldParseError& error) {
       }
       Path path;
       path.name = std::string(tok[1]);
-      if (w.findPath(path.name) != nullptr) {
+      if (w.findPath(path.name) != nullptr || w.findMission(path.name) != nullptr) {
         return p.fail(Status::InvalidArgument, "path: duplicate name '" + path.name + "'");
       }
       for (int i = 0; i < 3; ++i) {
@@ -264,50 +350,41 @@ Status parseWorld(std::string_view text, World& out, WorldParseError& error) {
       }
       path.start = Pose2d{v[0], v[1], normalizeAngle(deg2rad(v[2]))};
       path.points.push_back(path.start);
-      std::size_t i = 5;
-      while (i < tok.size()) {
-        const std::string_view piece = tok[i];
-        if (piece == "S") {
-          if (i + 1 >= tok.size()) {
-            return p.fail(Status::Malformed, "path piece S needs a length");
-          }
-          s = p.number(tok[i + 1], "S length", v);
-          if (s != Status::Ok) {
-            return s;
-          }
-          if (v[0] < kMinLength) {
-            return p.fail(Status::InvalidArgument, "path piece S: length must be > 0");
-          }
-          samplePiece(path, 0.0, v[0]);
-          path.length += v[0];
-          i += 2;
-        } else if (piece == "L" || piece == "R") {
-          if (i + 2 >= tok.size()) {
-            return p.fail(Status::Malformed,
-                          std::string("path piece ") + std::string(piece) + " needs radius and angle_deg");
-          }
-          s = p.number(tok[i + 1], "arc radius", v);
-          if (s == Status::Ok) {
-            s = p.number(tok[i + 2], "arc angle_deg", v + 1);
-          }
-          if (s != Status::Ok) {
-            return s;
-          }
-          if (v[0] < kMinLength || v[1] <= 0.0 || v[1] > 360.0) {
-            return p.fail(Status::InvalidArgument, "path arc: radius must be > 0 and angle in (0, 360] deg");
-          }
-          const double len = v[0] * deg2rad(v[1]);
-          samplePiece(path, (piece == "L" ? 1.0 : -1.0) / v[0], len);
-          path.length += len;
-          i += 3;
-        } else {
-          return p.fail(Status::Malformed, "path: unknown piece '" + std::string(piece) + "' (expected S, L or R)");
-        }
+      s = parsePieces(p, tok, 5, path, nullptr);
+      if (s != Status::Ok) {
+        return s;
       }
       w.paths.push_back(std::move(path));
+    } else if (key == "mission") {
+      if (tok.size() < 8) {
+        return p.fail(Status::Malformed,
+                      "mission needs NAME x y heading_deg and pieces with at least one stop (S len | L r deg | R r deg "
+                      "| stop)");
+      }
+      Mission mission;
+      mission.name = std::string(tok[1]);
+      if (w.findMission(mission.name) != nullptr || w.findPath(mission.name) != nullptr) {
+        return p.fail(Status::InvalidArgument, "mission: duplicate name '" + mission.name + "' (paths and missions)");
+      }
+      for (int i = 0; i < 3; ++i) {
+        static const char* const kFields[3] = {"x", "y", "heading_deg"};
+        s = p.number(tok[static_cast<std::size_t>(i) + 2], kFields[i], v + i);
+        if (s != Status::Ok) {
+          return s;
+        }
+      }
+      mission.start = Pose2d{v[0], v[1], normalizeAngle(deg2rad(v[2]))};
+      Path leg;
+      leg.start = mission.start;
+      leg.points.push_back(leg.start);
+      s = parsePieces(p, tok, 5, leg, &mission);
+      if (s != Status::Ok) {
+        return s;
+      }
+      w.missions.push_back(std::move(mission));
     } else {
       return p.fail(Status::Malformed, "unknown keyword '" + std::string(key) +
-                                           "' (expected wall, hall, pallet, rack, pillar, reflector or path)");
+                                           "' (expected wall, hall, pallet, rack, pillar, reflector, path or mission)");
     }
   }
   if (w.segments.empty() && w.circles.empty()) {
@@ -393,6 +470,10 @@ path P1 18 10 0 S 12
 path P2 18.490371 12 0 L 4 41.409622 R 4 41.409622 S 6.218126
 path P3 20.712389 2 90 S 1 R 3 90 S 6.287611
 path P4 23 18 0 S 7
+# missions: operation points (stop) in lanes and at rack faces, through the far aisle (x = 38.6)
+mission M1 14 10 0 S 16 stop S 7.4 L 1.2 90 S 1.6 L 1.2 90 S 5.4 stop S 10 R 3 90 S 2.7 L 2.5 90 S 4.5 stop
+mission M2 20 5.5 180 S 13.5 R 3 90 S 3.5 stop S 5 stop S 2.2 R 3 90 S 3.5 stop S 10 R 2.1 90 L 2.1 90 S 5.8 stop
+mission M3 14 2 0 S 6.6 L 2 90 R 2 90 S 5.4 stop S 7.4 L 1.2 90 S 9.6 L 1.2 90 S 4.4 stop S 9 R 3 41.409622 L 3 41.409622 S 13.031373 L 3.5 90 S 4 stop S 3.5 L 3 90 S 6.5 stop
 )WORLD";
   return std::string_view(kText + 1, sizeof(kText) - 2);  // without the leading newline and the NUL
 }

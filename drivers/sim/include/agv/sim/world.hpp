@@ -52,12 +52,36 @@ struct Path {
 /// Spacing of the path samples [m].
 inline constexpr double kPathSampleStep = 0.02;
 
+/// A mission: one drive from a start pose through several operation points (stops where the
+/// vehicle stands for a pick or a drop and its pose error is measured), as consecutive legs. Leg
+/// k ends at operation point k and starts where leg k-1 ended; the last leg ends at the last one.
+struct Mission {
+  std::string name;
+  Pose2d start;            ///< start pose of the logical point
+  double length = 0.0;     ///< [m] sum of the legs
+  std::vector<Path> legs;  ///< one per operation point, named NAME/1, NAME/2, ...
+};
+
+/// A `pallet` box of the world file: a movable object (a pallet block, a staged pallet), the four
+/// segments `firstSegment`..`firstSegment + 3` of `World::segments`.
+struct PalletBox {
+  double xmin = 0.0;
+  double ymin = 0.0;
+  double xmax = 0.0;
+  double ymax = 0.0;
+  std::size_t firstSegment = 0;
+};
+
 /// The whole warehouse.
 struct World {
   std::vector<Segment> segments;
   std::vector<Circle> circles;
   std::vector<Path> paths;
+  std::vector<Mission> missions;   ///< `mission` statements, in file order
+  std::vector<PalletBox> pallets;  ///< the `pallet` boxes (movable objects), in file order
 
+  /// The mission named `name`, or nullptr.
+  const Mission* findMission(std::string_view name) const noexcept;
   /// The path named `name`, or nullptr.
   const Path* findPath(std::string_view name) const noexcept;
   /// Axis-aligned bounding box of every obstacle (min corner, max corner). Zero box when empty.
@@ -82,8 +106,9 @@ Status parseWorld(std::string_view text, World& out, WorldParseError& error);
 Status loadWorldFile(const std::string& path, World& out, WorldParseError& error);
 
 /// The built-in warehouse: a 40 m x 25 m hall with racks, pillars, a block storage of pallet
-/// blocks with four lanes, 18 reflector poles and the four reference paths P1..P4 (three of 12 m,
-/// one of 7 m) ending inside the block storage. The main job's embedded default.
+/// blocks with four lanes, 18 reflector poles, the four reference paths P1..P4 (three of 12 m,
+/// one of 7 m) ending inside the block storage and three missions M1..M3 (60-94 m, 3-4 operation
+/// points at lanes and rack faces). The main job's embedded default.
 std::string_view defaultWorldText() noexcept;
 
 }  // namespace agv::sim
