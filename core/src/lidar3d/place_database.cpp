@@ -14,7 +14,9 @@ bool positiveFinite(float v) noexcept {
 bool isValid(const PlaceParams& p) noexcept {
   return positiveFinite(p.keyThreshold) && positiveFinite(p.chiSquareThreshold) &&
          positiveFinite(p.sorensenThreshold) && p.minYawOverlap >= 1 && p.minYawOverlap <= kOrientationBins &&
-         std::isfinite(p.maxOrientationCost) && p.maxOrientationCost >= 0.0F;
+         std::isfinite(p.maxOrientationCost) && p.maxOrientationCost >= 0.0F && std::isfinite(p.maxLoopTranslation) &&
+         p.maxLoopTranslation >= 0.0F && p.minAlignedFraction >= 0.0F && p.minAlignedFraction <= 1.0F &&
+         isValid(p.align);
 }
 
 Status PlaceDatabaseBase::setParams(const PlaceParams& params) noexcept {
@@ -63,11 +65,27 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
     best[at] = Candidate{static_cast<std::uint32_t>(i), chi2, sor};
   }
   const bool check = params_.maxOrientationCost > 0.0F;
+  const bool verify = params_.maxLoopTranslation > 0.0F;
   for (std::size_t c = 0; c < kept; ++c) {
     const Result<YawEstimate> yaw = relativeYaw(keys_[best[c].key].orientation, orientation, params_.minYawOverlap);
     if (check && (!yaw.ok() || yaw.value().relativeCost() > params_.maxOrientationCost)) {
       ++out.rejectedByOrientation;
       continue;
+    }
+    if (verify) {
+      const Result<ProfileAlignment> al =
+          yaw.ok() ? alignProfiles(keys_[best[c].key].orientation, orientation, yaw.value().yaw, params_.align)
+                   : Result<ProfileAlignment>(Status::NotEnoughData);
+      if (!al.ok() || al.value().matchedFraction() < params_.minAlignedFraction ||
+          !(al.value().translation() <= params_.maxLoopTranslation)) {
+        ++out.rejectedByAlignment;
+        continue;
+      }
+      if (out.loop && !(al.value().translation() < out.alignment.translation())) {
+        continue;  // an earlier candidate is nearer
+      }
+      out.hasAlignment = true;
+      out.alignment = al.value();
     }
     out.loop = true;
     out.loopKey = best[c].key;
@@ -76,7 +94,9 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
     out.sorensen = best[c].sor;
     out.hasYaw = yaw.ok();
     out.yaw = yaw.valueOr(YawEstimate{});
-    break;
+    if (!verify) {
+      break;
+    }
   }
   // 2. Key decision.
   if (size_ == 0) {
