@@ -3,6 +3,8 @@
 #include <array>
 #include <cmath>
 
+#include "agv/core/angle.hpp"
+
 namespace agv {
 
 namespace {
@@ -73,9 +75,17 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
       continue;
     }
     if (verify) {
-      const Result<ProfileAlignment> al =
-          yaw.ok() ? alignProfiles(keys_[best[c].key].orientation, orientation, yaw.value().yaw, params_.align)
-                   : Result<ProfileAlignment>(Status::NotEnoughData);
+      // Two starts: the signature's yaw and the opposite heading (a road or an aisle looks much the
+      // same both ways); the alignment pairing more of the query's bins is kept.
+      Result<ProfileAlignment> al(Status::NotEnoughData);
+      for (int start = 0; start < 2 && yaw.ok(); ++start) {
+        const float y0 = yaw.value().yaw + (start == 0 ? 0.0F : kPi<float>);
+        const Result<ProfileAlignment> a =
+            alignProfiles(keys_[best[c].key].orientation, orientation, y0, params_.align);
+        if (a.ok() && (!al.ok() || a.value().matched > al.value().matched)) {
+          al = a;
+        }
+      }
       if (!al.ok() || al.value().matchedFraction() < params_.minAlignedFraction ||
           !(al.value().translation() <= params_.maxLoopTranslation)) {
         ++out.rejectedByAlignment;

@@ -84,7 +84,10 @@ Result<ProfileAlignment> alignProfiles(const OrientationSignature& a, const Orie
     const float c = std::cos(static_cast<float>(yaw));
     const float s = std::sin(static_cast<float>(yaw));
     const Eigen::Vector2f t(static_cast<float>(tx), static_cast<float>(ty));
-    const float invScale2 = 1.0F / (params.cauchyScale * params.cauchyScale);
+    // The robust scale follows the gate (half of it, at least cauchyScale): the first steps, far
+    // from the solution, must not discount the large residuals that carry it.
+    const float scale = 0.5F * gateNow > params.cauchyScale ? 0.5F * gateNow : params.cauchyScale;
+    const float invScale2 = 1.0F / (scale * scale);
     for (std::size_t j = 0; j < kN; ++j) {
       if (b.meanRange[j] <= 0.0F) {
         continue;
@@ -144,7 +147,7 @@ Result<ProfileAlignment> alignProfiles(const OrientationSignature& a, const Orie
     ty += step.y();
     yaw += step.z();
     out.iterations = static_cast<std::uint16_t>(it + 1);
-    const bool small = std::hypot(step.x(), step.y()) < 1e-3 && std::fabs(step.z()) < deg2rad(1e-3);
+    const bool small = std::hypot(step.x(), step.y()) < 2e-3 && std::fabs(step.z()) < deg2rad(1e-2);
     if (small && gate <= params.endGate) {
       out.converged = true;
       break;

@@ -32,10 +32,10 @@ namespace agv {
 struct ProfileAlignParams {
   std::uint16_t maxIterations = 30;  ///< Gauss-Newton steps at most
   std::uint16_t searchBins = 2;      ///< pairing: a's bins within +-this of the point's azimuth
-  float startGate = 2.0F;            ///< [m] pairing gate of the first step
+  float startGate = 4.0F;            ///< [m] pairing gate of the first step
   float endGate = 0.3F;              ///< [m] pairing gate of the last steps (and of matchedFraction)
   float gateDecay = 0.8F;            ///< gate of step i = max(endGate, startGate * gateDecay^i)
-  float cauchyScale = 0.1F;          ///< [m] robust weight 1 / (1 + (r / scale)^2)
+  float cauchyScale = 0.1F;          ///< [m] robust weight 1 / (1 + (r / s)^2), s = max(this, gate / 2)
   /// a's bin has a normal (is a pairing partner) when both neighbouring bins are valid and within
   /// this fraction of its range from it (no depth jump between them).
   float maxNeighbourRatio = 0.15F;
@@ -54,7 +54,7 @@ struct ProfileAlignment {
   std::uint16_t bins = 0;                   ///< b's valid bins
   float rms = 0.0F;                         ///< [m] point-to-line residual of the matched bins
   std::uint16_t iterations = 0;             ///< steps done
-  bool converged = false;                   ///< the last step moved less than 1 mm and 0.001 deg
+  bool converged = false;                   ///< the last step moved less than 2 mm and 0.01 deg
   float translation() const noexcept;       ///< [m] |(x, y)|
   float matchedFraction() const noexcept {  ///< matched / bins (0 when no bins)
     return bins > 0 ? static_cast<float>(matched) / static_cast<float>(bins) : 0.0F;
