@@ -471,10 +471,13 @@ bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error
           error = file + ": no pose for this file (frame " + std::to_string(scan.frame) + ")";
           return false;
         }
-        // On the ground: the camera's x and z; yaw about the up axis (kittiRelativeYaw from identity).
+        // On the ground, in the sensor's convention (x forward, y left, z up): x = the camera's z, y =
+        // minus the camera's x; yaw about the up axis (kittiRelativeYaw from identity). (The camera
+        // is ~0.27 m ahead of the Velodyne: at the pairs' 1-3 deg turns that moves a translation by
+        // ~1 cm.)
         const Eigen::Matrix<double, 3, 4>& p = poses[static_cast<std::size_t>(scan.frame)];
         r.truth.push_back(
-            Pose2d{p(0, 3), p(2, 3), datasets::kittiRelativeYaw(Eigen::Matrix<double, 3, 4>::Identity(), p)});
+            Pose2d{p(2, 3), -p(0, 3), datasets::kittiRelativeYaw(Eigen::Matrix<double, 3, 4>::Identity(), p)});
       }
       addRevolution(options, columns, *image, rev, scan, r);
     }
@@ -695,6 +698,8 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
         l["aligned_y_m"] = static_cast<double>(s.update.alignment.y);
         l["aligned_fraction"] = static_cast<double>(s.update.alignment.matchedFraction());
         l["aligned_rms_m"] = static_cast<double>(s.update.alignment.rms);
+        l["inlier_fraction"] = static_cast<double>(s.update.alignment.inlierFraction());
+        l["translation_observability"] = static_cast<double>(s.update.alignment.translationObservability);
       }
       l["rejected_by_orientation"] = s.update.rejectedByOrientation;
       l["rejected_by_alignment"] = s.update.rejectedByAlignment;

@@ -86,7 +86,7 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
           al = a;
         }
       }
-      if (!al.ok() || al.value().matchedFraction() < params_.minAlignedFraction ||
+      if (!al.ok() || al.value().inlierFraction() < params_.minAlignedFraction ||
           !(al.value().translation() <= params_.maxLoopTranslation)) {
         ++out.rejectedByAlignment;
         continue;

@@ -18,7 +18,8 @@ bool isValid(const ProfileAlignParams& p) noexcept {
   return p.maxIterations >= 1 && p.searchBins < kN / 4 && std::isfinite(p.startGate) && std::isfinite(p.endGate) &&
          p.endGate > 0.0F && p.startGate >= p.endGate && std::isfinite(p.gateDecay) && p.gateDecay > 0.0F &&
          p.gateDecay <= 1.0F && std::isfinite(p.cauchyScale) && p.cauchyScale > 0.0F &&
-         std::isfinite(p.maxNeighbourRatio) && p.maxNeighbourRatio > 0.0F && p.minPairs >= 3;
+         std::isfinite(p.maxNeighbourRatio) && p.maxNeighbourRatio > 0.0F && p.minPairs >= 3 &&
+         std::isfinite(p.inlierResidual) && p.inlierResidual > 0.0F;
 }
 
 float ProfileAlignment::translation() const noexcept {
@@ -76,11 +77,13 @@ Result<ProfileAlignment> alignProfiles(const OrientationSignature& a, const Orie
   const int w = static_cast<int>(params.searchBins);
   // One pairing pass at the current estimate: accumulates the normal equations (when wanted) and
   // the matched count / residual within `gateNow`.
+  std::uint32_t inliers = 0;
   auto pass = [&](float gateNow, Eigen::Matrix3d& h, Eigen::Vector3d& g, std::uint32_t& pairs, double& sumSq) {
     h.setZero();
     g.setZero();
     pairs = 0;
     sumSq = 0.0;
+    inliers = 0;
     const float c = std::cos(static_cast<float>(yaw));
     const float s = std::sin(static_cast<float>(yaw));
     const Eigen::Vector2f t(static_cast<float>(tx), static_cast<float>(ty));
@@ -124,6 +127,7 @@ Result<ProfileAlignment> alignProfiles(const OrientationSignature& a, const Orie
       g.noalias() += static_cast<double>(wgt * r) * jac;
       sumSq += static_cast<double>(r) * static_cast<double>(r);
       ++pairs;
+      inliers += std::fabs(r) <= params.inlierResidual ? 1U : 0U;
     }
   };
   Eigen::Matrix3d h;
@@ -156,10 +160,19 @@ Result<ProfileAlignment> alignProfiles(const OrientationSignature& a, const Orie
     gate = gate < params.endGate ? params.endGate : gate;
   }
   pass(params.endGate, h, g, pairs, sumSq);
+  // h's translation block is sum w n n^T; its trace is sum w (unit normals).
+  const double trace = h(0, 0) + h(1, 1);
+  if (trace > 0.0) {
+    const double half = 0.5 * trace;
+    const double diff = 0.5 * (h(0, 0) - h(1, 1));
+    const double smallest = half - std::sqrt(diff * diff + h(0, 1) * h(0, 1));
+    out.translationObservability = static_cast<float>(smallest / trace);
+  }
   out.yaw = normalizeAngle(static_cast<float>(yaw));
   out.x = static_cast<float>(tx);
   out.y = static_cast<float>(ty);
   out.matched = static_cast<std::uint16_t>(pairs);
+  out.inliers = static_cast<std::uint16_t>(inliers);
   out.rms = pairs > 0 ? static_cast<float>(std::sqrt(sumSq / static_cast<double>(pairs))) : 0.0F;
   return out;
 }

@@ -53,8 +53,9 @@ struct PlaceParams {
   /// thresholds (and the orientation check when on), up to kPlaceVerifyCandidates nearest by
   /// chi-square, is aligned to the query by `alignProfiles` (from the signatures' relative yaw); a
   /// candidate is kept when the alignment succeeds, at least `minAlignedFraction` of the query's
-  /// profile bins are paired within align.endGate, and the translation is at most this [m] (the
-  /// radius within which a loop is wanted). Of the kept ones the nearest by translation is the loop.
+  /// profile bins are inliers (ProfileAlignment::inlierFraction: paired within align.inlierResidual
+  /// of the key's profile), and the translation is at most this [m] (the radius within which a loop
+  /// is wanted). Of the kept ones the nearest by translation is the loop.
   float maxLoopTranslation = 0.0F;
   float minAlignedFraction = 0.5F;  ///< see maxLoopTranslation (0..1)
   ProfileAlignParams align{};       ///< see maxLoopTranslation

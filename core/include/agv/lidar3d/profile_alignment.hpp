@@ -13,7 +13,8 @@
 /// position in a's frame), and a yaw that accounts for it (the mean-range signature of a beam
 /// changes with the translation: its best shift is off by up to a few degrees at 5 m); and a
 /// geometric verification of a loop candidate: the share of b's bins that found a partner within
-/// `endGate` at the end (`matchedFraction`) and their residual.
+/// `endGate` at the end (`matchedFraction`), of them those within `inlierResidual` of a's profile
+/// (`inlierFraction`), and their residual.
 ///
 /// Convention: p_a = R(yaw) p_b + t, i.e. yaw as in `relativeYaw` (b turned counter-clockwise by
 /// yaw relative to a) and t = (x, y) the position of b's sensor in a's frame.
@@ -40,6 +41,9 @@ struct ProfileAlignParams {
   /// this fraction of its range from it (no depth jump between them).
   float maxNeighbourRatio = 0.15F;
   std::uint16_t minPairs = 20;  ///< fewer pairs in a step: NotEnoughData
+  /// A matched bin is an inlier when its point-to-line residual at the result is at most this [m]
+  /// (a few times the noise of a bin's mean range; a wrong pose spreads the residuals over the gate).
+  float inlierResidual = 0.1F;
 };
 
 /// True when the parameters are in their domain.
@@ -47,17 +51,25 @@ bool isValid(const ProfileAlignParams& p) noexcept;
 
 /// The alignment of b's profile to a's.
 struct ProfileAlignment {
-  float yaw = 0.0F;                         ///< [rad] in (-pi, pi], as relativeYaw
-  float x = 0.0F;                           ///< [m] b's sensor position in a's frame
-  float y = 0.0F;                           ///< [m]
-  std::uint16_t matched = 0;                ///< b's bins paired within endGate at the result
-  std::uint16_t bins = 0;                   ///< b's valid bins
-  float rms = 0.0F;                         ///< [m] point-to-line residual of the matched bins
-  std::uint16_t iterations = 0;             ///< steps done
-  bool converged = false;                   ///< the last step moved less than 2 mm and 0.01 deg
+  float yaw = 0.0F;              ///< [rad] in (-pi, pi], as relativeYaw
+  float x = 0.0F;                ///< [m] b's sensor position in a's frame
+  float y = 0.0F;                ///< [m]
+  std::uint16_t matched = 0;     ///< b's bins paired within endGate at the result
+  std::uint16_t bins = 0;        ///< b's valid bins
+  std::uint16_t inliers = 0;     ///< of the matched, those within inlierResidual of a's profile
+  float rms = 0.0F;              ///< [m] point-to-line residual of the matched bins
+  std::uint16_t iterations = 0;  ///< steps done
+  bool converged = false;        ///< the last step moved less than 2 mm and 0.01 deg
+  /// How well the translation is determined: the smaller eigenvalue of sum w n n^T over the matched
+  /// bins' normals n (weights w), divided by sum w: 0..0.5; near 0 when the matched surfaces are all
+  /// parallel (a straight road or aisle: the shift along it is not observed).
+  float translationObservability = 0.0F;
   float translation() const noexcept;       ///< [m] |(x, y)|
   float matchedFraction() const noexcept {  ///< matched / bins (0 when no bins)
     return bins > 0 ? static_cast<float>(matched) / static_cast<float>(bins) : 0.0F;
+  }
+  float inlierFraction() const noexcept {  ///< inliers / bins (0 when no bins)
+    return bins > 0 ? static_cast<float>(inliers) / static_cast<float>(bins) : 0.0F;
   }
 };
 
