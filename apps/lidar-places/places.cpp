@@ -699,6 +699,7 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
         l["aligned_fraction"] = static_cast<double>(s.update.alignment.matchedFraction());
         l["aligned_rms_m"] = static_cast<double>(s.update.alignment.rms);
         l["inlier_fraction"] = static_cast<double>(s.update.alignment.inlierFraction());
+        l["alternative_inlier_fraction"] = static_cast<double>(s.update.alternativeInlierFraction);
         l["translation_observability"] = static_cast<double>(s.update.alignment.translationObservability);
       }
       l["rejected_by_orientation"] = s.update.rejectedByOrientation;

@@ -78,13 +78,21 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
       // Two starts: the signature's yaw and the opposite heading (a road or an aisle looks much the
       // same both ways); the alignment pairing more of the query's bins is kept.
       Result<ProfileAlignment> al(Status::NotEnoughData);
+      Result<ProfileAlignment> other(Status::NotEnoughData);
       for (int start = 0; start < 2 && yaw.ok(); ++start) {
         const float y0 = yaw.value().yaw + (start == 0 ? 0.0F : kPi<float>);
         const Result<ProfileAlignment> a =
             alignProfiles(keys_[best[c].key].orientation, orientation, y0, params_.align);
         if (a.ok() && (!al.ok() || a.value().matched > al.value().matched)) {
+          other = al;
           al = a;
+        } else {
+          other = a;
         }
+      }
+      float alternative = 0.0F;
+      if (al.ok() && other.ok() && std::fabs(angleDiff(other.value().yaw, al.value().yaw)) > 0.5F * kPi<float>) {
+        alternative = other.value().inlierFraction();
       }
       if (!al.ok() || al.value().inlierFraction() < params_.minAlignedFraction ||
           !(al.value().translation() <= params_.maxLoopTranslation)) {
@@ -96,6 +104,7 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
       }
       out.hasAlignment = true;
       out.alignment = al.value();
+      out.alternativeInlierFraction = alternative;
     }
     out.loop = true;
     out.loopKey = best[c].key;

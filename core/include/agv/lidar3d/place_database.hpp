@@ -94,6 +94,9 @@ struct PlaceUpdate {
   /// position in the key's frame.
   bool hasAlignment = false;
   ProfileAlignment alignment{};
+  /// The other start's alignment of the matched key (the opposite heading of the kept one, when it
+  /// succeeded and ended more than 90 deg away from it; else 0): its inlier share.
+  float alternativeInlierFraction = 0.0F;
 };
 
 /// Capacity-independent interface of a `PlaceDatabase`. Not constructible on its own.
