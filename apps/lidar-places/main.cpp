@@ -56,6 +56,13 @@ int main(int argc, char** argv) {
   app.add_option("--orientation-check", options.place.maxOrientationCost,
                  "loop candidates need a relative orientation-signature cost <= this (0: off)")
       ->check(CLI::Range(0.0, 10.0));
+  app.add_option("--loop-translation", options.place.maxLoopTranslation,
+                 "[m] geometric verification: a loop candidate's profiles must align with a translation <= this "
+                 "(0: off)")
+      ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--aligned-fraction", options.place.minAlignedFraction,
+                 "geometric verification: share of the profile's bins paired after the alignment")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--skip-recent-keys", options.place.skipRecentKeys, "m: newest keys left out of the loop query");
   app.add_option("--laser-step", options.signature.normals.laserStep, "normal neighbours: lasers above/below")
       ->check(CLI::Range(1, 8));
@@ -109,8 +116,17 @@ int main(int argc, char** argv) {
         std::printf(", yaw %.2f deg (relative cost %.3f)", agv::rad2deg(static_cast<double>(s.update.yaw.yaw)),
                     static_cast<double>(s.update.yaw.relativeCost()));
       }
+      if (s.update.hasAlignment) {
+        std::printf(", aligned: yaw %.2f deg, x %.2f y %.2f m, paired %.2f",
+                    agv::rad2deg(static_cast<double>(s.update.alignment.yaw)),
+                    static_cast<double>(s.update.alignment.x), static_cast<double>(s.update.alignment.y),
+                    static_cast<double>(s.update.alignment.matchedFraction()));
+      }
       if (s.hasYawError) {
         std::printf(" (truth %.2f, error %.2f deg)", agv::rad2deg(s.yawTruth), agv::rad2deg(s.yawError));
+      }
+      if (s.hasTranslationError) {
+        std::printf(" (translation error %.2f m)", s.translationError);
       }
     }
     if (s.hasStepYaw) {
@@ -152,6 +168,17 @@ int main(int argc, char** argv) {
   if (result.yawCount > 0) {
     std::printf("yaw error over %zu loops: mean |e| %.3f deg, max %.3f deg\n", result.yawCount,
                 result.yawErrorMeanAbsDeg, result.yawErrorMaxDeg);
+    const auto line = [](const char* what, const agv::places::PlacesResult::YawStats& st) {
+      std::printf("  %s: %zu loops, |e| median %.2f, 90%% %.2f, max %.2f deg, within 1 deg %.1f%%\n", what, st.count,
+                  st.median, st.p90, st.max, 100.0 * st.within1);
+    };
+    line("same direction", result.yawSame);
+    line("opposite direction", result.yawOpposite);
+    line("signature yaw only", result.signatureYawAll);
+  }
+  if (result.translationCount > 0) {
+    std::printf("loop translation error over %zu aligned loops: median %.3f m, max %.3f m\n", result.translationCount,
+                result.translationErrorMedian, result.translationErrorMax);
   }
   if (!jsonPath.empty() && !agv::report::writeJsonFile(jsonPath, agv::places::placesJson(options, result), error)) {
     std::fprintf(stderr, "agvnav-lidar-places: %s\n", error.c_str());

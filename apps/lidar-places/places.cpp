@@ -394,7 +394,19 @@ PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float scale, 
       if (truth && u.loop && u.hasYaw) {
         scan.hasYawError = true;
         scan.yawTruth = angleDiff(r.truth[i].theta, r.truth[u.loopScan].theta);
-        scan.yawError = angleDiff(static_cast<double>(u.yaw.yaw), scan.yawTruth);
+        scan.signatureYawError = angleDiff(static_cast<double>(u.yaw.yaw), scan.yawTruth);
+        scan.yawError =
+            u.hasAlignment ? angleDiff(static_cast<double>(u.alignment.yaw), scan.yawTruth) : scan.signatureYawError;
+      }
+      if (truth && u.loop && u.hasAlignment) {
+        const Pose2d& k = r.truth[u.loopScan];
+        const double dx = r.truth[i].x - k.x;
+        const double dy = r.truth[i].y - k.y;
+        const double c = std::cos(k.theta);
+        const double sn = std::sin(k.theta);
+        scan.hasTranslationError = true;
+        scan.translationTruth = Eigen::Vector2d(c * dx + sn * dy, -sn * dx + c * dy);
+        scan.translationError = (Eigen::Vector2d(u.alignment.x, u.alignment.y) - scan.translationTruth).norm();
       }
     }
   }
@@ -459,10 +471,13 @@ bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error
           error = file + ": no pose for this file (frame " + std::to_string(scan.frame) + ")";
           return false;
         }
-        // On the ground: the camera's x and z; yaw about the up axis (kittiRelativeYaw from identity).
+        // On the ground, in the sensor's convention (x forward, y left, z up): x = the camera's z, y =
+        // minus the camera's x; yaw about the up axis (kittiRelativeYaw from identity). (The camera
+        // is ~0.27 m ahead of the Velodyne: at the pairs' 1-3 deg turns that moves a translation by
+        // ~1 cm.)
         const Eigen::Matrix<double, 3, 4>& p = poses[static_cast<std::size_t>(scan.frame)];
         r.truth.push_back(
-            Pose2d{p(0, 3), p(2, 3), datasets::kittiRelativeYaw(Eigen::Matrix<double, 3, 4>::Identity(), p)});
+            Pose2d{p(2, 3), -p(0, 3), datasets::kittiRelativeYaw(Eigen::Matrix<double, 3, 4>::Identity(), p)});
       }
       addRevolution(options, columns, *image, rev, scan, r);
     }
@@ -481,6 +496,49 @@ bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error
     }
   }
   r.yawErrorMeanAbsDeg = r.yawCount > 0 ? sumAbs / static_cast<double>(r.yawCount) : 0.0;
+  {
+    std::vector<double> all;
+    std::vector<double> same;
+    std::vector<double> opposite;
+    std::vector<double> coarse;
+    std::vector<double> trans;
+    for (const ScanResult& s : r.scans) {
+      if (s.hasYawError) {
+        const double e = std::fabs(rad2deg(s.yawError));
+        all.push_back(e);
+        (std::fabs(s.yawTruth) > kPi<double> / 2.0 ? opposite : same).push_back(e);
+        coarse.push_back(std::fabs(rad2deg(s.signatureYawError)));
+      }
+      if (s.hasTranslationError) {
+        trans.push_back(s.translationError);
+      }
+    }
+    auto stats = [](std::vector<double> v) {
+      PlacesResult::YawStats st;
+      st.count = v.size();
+      if (v.empty()) {
+        return st;
+      }
+      std::sort(v.begin(), v.end());
+      const auto at = [&v](double q) {
+        return v[std::min(v.size() - 1, static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())) - 1.0))];
+      };
+      st.median = at(0.5);
+      st.p90 = at(0.9);
+      st.max = v.back();
+      st.within1 = static_cast<double>(std::count_if(v.begin(), v.end(), [](double e) { return e <= 1.0; })) /
+                   static_cast<double>(v.size());
+      return st;
+    };
+    r.yawAll = stats(all);
+    r.yawSame = stats(same);
+    r.yawOpposite = stats(opposite);
+    r.signatureYawAll = stats(coarse);
+    const PlacesResult::YawStats t = stats(trans);
+    r.translationCount = t.count;
+    r.translationErrorMedian = t.median;
+    r.translationErrorMax = t.max;
+  }
   // Relative yaw between consecutive revolutions (what a recording without poses can report).
   double stepAbs = 0.0;
   for (std::size_t i = 1; i < r.scans.size(); ++i) {
@@ -534,6 +592,8 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   params["chi_square_threshold"] = report::shortestDouble(options.place.chiSquareThreshold);
   params["sorensen_threshold"] = report::shortestDouble(options.place.sorensenThreshold);
   params["orientation_check"] = report::shortestDouble(options.place.maxOrientationCost);
+  params["loop_translation_m"] = report::shortestDouble(options.place.maxLoopTranslation);
+  params["min_aligned_fraction"] = report::shortestDouble(options.place.minAlignedFraction);
   params["radius_m"] = options.radius;
   params["firing_step"] = options.signature.normals.firingStep;
   params["laser_step"] = options.signature.normals.laserStep;
@@ -554,7 +614,27 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   yaw["count"] = r.yawCount;
   yaw["max_abs_error_deg"] = r.yawErrorMaxDeg;
   yaw["mean_abs_error_deg"] = r.yawErrorMeanAbsDeg;
+  const auto statsJson = [](const PlacesResult::YawStats& st) {
+    report::Json j;
+    j["count"] = st.count;
+    j["median_abs_error_deg"] = st.median;
+    j["p90_abs_error_deg"] = st.p90;
+    j["max_abs_error_deg"] = st.max;
+    j["within_1deg"] = st.within1;
+    return j;
+  };
+  yaw["median_abs_error_deg"] = r.yawAll.median;
+  yaw["p90_abs_error_deg"] = r.yawAll.p90;
+  yaw["within_1deg"] = r.yawAll.within1;
+  yaw["same_direction"] = statsJson(r.yawSame);
+  yaw["opposite_direction"] = statsJson(r.yawOpposite);
+  yaw["signature_only"] = statsJson(r.signatureYawAll);
   doc["yaw"] = yaw;
+  report::Json tr;
+  tr["count"] = r.translationCount;
+  tr["median_error_m"] = r.translationErrorMedian;
+  tr["max_error_m"] = r.translationErrorMax;
+  doc["loop_translation"] = tr;
   report::Json step;
   step["count"] = r.stepYawCount;
   step["max_abs_deg"] = r.stepYawMaxAbsDeg;
@@ -611,9 +691,26 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
         l["yaw_deg"] = rad2deg(static_cast<double>(s.update.yaw.yaw));
         l["orientation_relative_cost"] = report::shortestDouble(s.update.yaw.relativeCost());
       }
+      if (s.update.hasAlignment) {
+        l["aligned_yaw_deg"] = rad2deg(static_cast<double>(s.update.alignment.yaw));
+        l["translation_m"] = static_cast<double>(s.update.alignment.translation());
+        l["aligned_x_m"] = static_cast<double>(s.update.alignment.x);
+        l["aligned_y_m"] = static_cast<double>(s.update.alignment.y);
+        l["aligned_fraction"] = static_cast<double>(s.update.alignment.matchedFraction());
+        l["aligned_rms_m"] = static_cast<double>(s.update.alignment.rms);
+        l["inlier_fraction"] = static_cast<double>(s.update.alignment.inlierFraction());
+        l["alternative_inlier_fraction"] = static_cast<double>(s.update.alternativeInlierFraction);
+        l["translation_observability"] = static_cast<double>(s.update.alignment.translationObservability);
+      }
+      l["rejected_by_orientation"] = s.update.rejectedByOrientation;
+      l["rejected_by_alignment"] = s.update.rejectedByAlignment;
       if (s.hasYawError) {
         l["yaw_truth_deg"] = rad2deg(s.yawTruth);
         l["yaw_error_deg"] = rad2deg(s.yawError);
+        l["signature_yaw_error_deg"] = rad2deg(s.signatureYawError);
+      }
+      if (s.hasTranslationError) {
+        l["translation_error_m"] = s.translationError;
       }
       loops.push_back(l);
     }

@@ -71,8 +71,12 @@ struct ScanResult {
   bool loopTrue = false;               ///< the detected loop's positions are within the radius
   double loopDistance = 0.0;           ///< [m] between the two positions of the detected loop
   bool hasYawError = false;
-  double yawTruth = 0.0;      ///< [rad]
-  double yawError = 0.0;      ///< [rad] estimate - truth
+  double yawTruth = 0.0;             ///< [rad]
+  double yawError = 0.0;             ///< [rad] estimate - truth (the alignment's yaw when there is one)
+  double signatureYawError = 0.0;    ///< [rad] the orientation signature's yaw - truth
+  bool hasTranslationError = false;  ///< the loop has an alignment and truth
+  Eigen::Vector2d translationTruth = Eigen::Vector2d::Zero();  ///< [m] this position in the key's frame
+  double translationError = 0.0;                               ///< [m] |alignment (x, y) - truth|
   double signatureSum = 0.0;  ///< sum of the normal signature's bins (1 when normalised, 0 when empty)
   bool hasStepYaw = false;    ///< relative yaw to the previous revolution (both orientations valid)
   double stepYaw = 0.0;       ///< [rad] counter-clockwise, this revolution w.r.t. the previous one
@@ -115,6 +119,22 @@ struct PlacesResult {
   double yawErrorMaxDeg = 0.0;
   double yawErrorMeanAbsDeg = 0.0;
   std::size_t yawCount = 0;
+  /// |yaw error| statistics of the loops [deg], all / same direction / opposite direction (|yaw
+  /// truth| > 90 deg): median, 90 %, max, share within 1 deg.
+  struct YawStats {
+    std::size_t count = 0;
+    double median = 0.0;
+    double p90 = 0.0;
+    double max = 0.0;
+    double within1 = 0.0;
+  };
+  YawStats yawAll{};
+  YawStats yawSame{};
+  YawStats yawOpposite{};
+  YawStats signatureYawAll{};           ///< the same for the orientation signature's (coarse) yaw
+  std::size_t translationCount = 0;     ///< loops with an alignment and truth
+  double translationErrorMedian = 0.0;  ///< [m]
+  double translationErrorMax = 0.0;     ///< [m]
   PacketStats packets{};
   std::size_t stepYawCount = 0;  ///< consecutive revolutions with a relative yaw
   double stepYawMaxAbsDeg = 0.0;

@@ -6,6 +6,8 @@
 //                                   ray-cast box room with a ramp, 5 mm range noise; written into the
 //                                   image cell by cell as a decoder would, so only the signature is timed).
 //   BM_OrientationSignature/compare one relativeYaw of two 360-bin orientation signatures (KITTI 94 vs 95).
+//   BM_OrientationSignature/align   one alignProfiles of the same two (from relativeYaw's estimate):
+//                                   the geometric verification of one loop candidate, one start.
 // Counters: normals = normals in the histogram; points = returns per revolution.
 #include <benchmark/benchmark.h>
 
@@ -17,6 +19,7 @@
 #include "agv/datasets/lidar3d_scans.hpp"
 #include "agv/lidar3d/normal_signature.hpp"
 #include "agv/lidar3d/orientation_signature.hpp"
+#include "agv/lidar3d/profile_alignment.hpp"
 #include "lidar3d_sim.hpp"
 
 namespace {
@@ -84,5 +87,25 @@ void BM_OrientationCompare(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_OrientationCompare)->Name("BM_OrientationSignature/compare")->Unit(benchmark::kMicrosecond);
+
+void BM_OrientationAlign(benchmark::State& state) {
+  auto image = std::make_unique<agv::Hdl64RangeImage>();
+  agv::OrientationSignature a;
+  agv::OrientationSignature b;
+  const agv::datasets::Revolution& r94 = kitti(94);
+  (void)image->buildFromRings(agv::Span<const agv::RingPoint>(r94.points.data(), r94.points.size()));
+  (void)agv::computeOrientationSignature(*image, agv::OrientationParams{}, a);
+  const agv::datasets::Revolution& r95 = kitti(95);
+  (void)image->buildFromRings(agv::Span<const agv::RingPoint>(r95.points.data(), r95.points.size()));
+  (void)agv::computeOrientationSignature(*image, agv::OrientationParams{}, b);
+  const float yaw = agv::relativeYaw(a, b).valueOr(agv::YawEstimate{}).yaw;
+  agv::ProfileAlignment last;
+  for (auto _ : state) {
+    last = agv::alignProfiles(a, b, yaw).valueOr(agv::ProfileAlignment{});
+    benchmark::DoNotOptimize(last);
+  }
+  state.counters["iterations"] = last.iterations;
+}
+BENCHMARK(BM_OrientationAlign)->Name("BM_OrientationSignature/align")->Unit(benchmark::kMicrosecond);
 
 }  // namespace

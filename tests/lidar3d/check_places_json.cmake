@@ -1,7 +1,7 @@
 # Checks of agvnav-lidar-places --json on the four KITTI 00 scans with m = 0 (included by
 # tests/support/run_json_program.cmake with the document in `j`): both consecutive pairs found as
 # true loops, nothing else; precision and recall 1; each pair's yaw within 1 deg of poses_00.txt.
-expect_keys("${j}" "program;format;parameters;scans;keys;ground_truth;source;summary;pr_curve;yaw;yaw_between_consecutive;loops;per_scan")
+expect_keys("${j}" "program;format;parameters;scans;keys;ground_truth;source;summary;pr_curve;yaw;loop_translation;yaw_between_consecutive;loops;per_scan")
 expect_number_in("${j}" 4 4 scans)
 expect_number_in("${j}" 2 2 summary detected)
 expect_number_in("${j}" 2 2 summary true_positives)

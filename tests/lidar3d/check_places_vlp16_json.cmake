@@ -5,7 +5,7 @@
 # wrap-arounds over 1.326 s at 10 Hz (13.26 turns: 13 cuts, the first revolution begun mid-turn, so
 # 12 complete ones), a static indoor scene (no poses: no precision / recall; the relative yaw of any
 # two revolutions is 0).
-expect_keys("${j}" "program;format;parameters;scans;keys;ground_truth;source;summary;pr_curve;yaw;yaw_between_consecutive;packets;loops;per_scan")
+expect_keys("${j}" "program;format;parameters;scans;keys;ground_truth;source;summary;pr_curve;yaw;loop_translation;yaw_between_consecutive;packets;loops;per_scan")
 string(JSON format GET "${j}" format)
 if(NOT format STREQUAL "vlp16-packets")
   message(FATAL_ERROR "format ${format}")

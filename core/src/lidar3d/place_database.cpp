@@ -3,6 +3,8 @@
 #include <array>
 #include <cmath>
 
+#include "agv/core/angle.hpp"
+
 namespace agv {
 
 namespace {
@@ -14,7 +16,9 @@ bool positiveFinite(float v) noexcept {
 bool isValid(const PlaceParams& p) noexcept {
   return positiveFinite(p.keyThreshold) && positiveFinite(p.chiSquareThreshold) &&
          positiveFinite(p.sorensenThreshold) && p.minYawOverlap >= 1 && p.minYawOverlap <= kOrientationBins &&
-         std::isfinite(p.maxOrientationCost) && p.maxOrientationCost >= 0.0F;
+         std::isfinite(p.maxOrientationCost) && p.maxOrientationCost >= 0.0F && std::isfinite(p.maxLoopTranslation) &&
+         p.maxLoopTranslation >= 0.0F && p.minAlignedFraction >= 0.0F && p.minAlignedFraction <= 1.0F &&
+         isValid(p.align);
 }
 
 Status PlaceDatabaseBase::setParams(const PlaceParams& params) noexcept {
@@ -63,11 +67,44 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
     best[at] = Candidate{static_cast<std::uint32_t>(i), chi2, sor};
   }
   const bool check = params_.maxOrientationCost > 0.0F;
+  const bool verify = params_.maxLoopTranslation > 0.0F;
   for (std::size_t c = 0; c < kept; ++c) {
     const Result<YawEstimate> yaw = relativeYaw(keys_[best[c].key].orientation, orientation, params_.minYawOverlap);
     if (check && (!yaw.ok() || yaw.value().relativeCost() > params_.maxOrientationCost)) {
       ++out.rejectedByOrientation;
       continue;
+    }
+    if (verify) {
+      // Two starts: the signature's yaw and the opposite heading (a road or an aisle looks much the
+      // same both ways); the alignment pairing more of the query's bins is kept.
+      Result<ProfileAlignment> al(Status::NotEnoughData);
+      Result<ProfileAlignment> other(Status::NotEnoughData);
+      for (int start = 0; start < 2 && yaw.ok(); ++start) {
+        const float y0 = yaw.value().yaw + (start == 0 ? 0.0F : kPi<float>);
+        const Result<ProfileAlignment> a =
+            alignProfiles(keys_[best[c].key].orientation, orientation, y0, params_.align);
+        if (a.ok() && (!al.ok() || a.value().matched > al.value().matched)) {
+          other = al;
+          al = a;
+        } else {
+          other = a;
+        }
+      }
+      float alternative = 0.0F;
+      if (al.ok() && other.ok() && std::fabs(angleDiff(other.value().yaw, al.value().yaw)) > 0.5F * kPi<float>) {
+        alternative = other.value().inlierFraction();
+      }
+      if (!al.ok() || al.value().inlierFraction() < params_.minAlignedFraction ||
+          !(al.value().translation() <= params_.maxLoopTranslation)) {
+        ++out.rejectedByAlignment;
+        continue;
+      }
+      if (out.loop && !(al.value().translation() < out.alignment.translation())) {
+        continue;  // an earlier candidate is nearer
+      }
+      out.hasAlignment = true;
+      out.alignment = al.value();
+      out.alternativeInlierFraction = alternative;
     }
     out.loop = true;
     out.loopKey = best[c].key;
@@ -76,7 +113,9 @@ Status PlaceDatabaseBase::add(const NormalSignature& normal, const OrientationSi
     out.sorensen = best[c].sor;
     out.hasYaw = yaw.ok();
     out.yaw = yaw.valueOr(YawEstimate{});
-    break;
+    if (!verify) {
+      break;
+    }
   }
   // 2. Key decision.
   if (size_ == 0) {

@@ -18,7 +18,8 @@
 /// result is in the update). An empty signature (no normals) is refused (EmptyInput, counted).
 ///
 /// Work per add(): O(N) chi-square + Sorensen distances (101 terms each) + one relativeYaw, or up to
-/// kPlaceVerifyCandidates relativeYaw calls with the orientation check.
+/// kPlaceVerifyCandidates relativeYaw calls with the orientation check, and as many alignProfiles
+/// calls with the geometric verification (PlaceParams::maxLoopTranslation).
 
 #include <array>
 #include <cstddef>
@@ -27,6 +28,7 @@
 #include "agv/core/status.hpp"
 #include "agv/lidar3d/normal_signature.hpp"
 #include "agv/lidar3d/orientation_signature.hpp"
+#include "agv/lidar3d/profile_alignment.hpp"
 
 namespace agv {
 
@@ -47,6 +49,16 @@ struct PlaceParams {
   /// histograms but not the same ranges around them. Up to kPlaceVerifyCandidates candidates, the
   /// nearest by chi-square first, are checked; the first that passes is the loop.
   float maxOrientationCost = 0.0F;
+  /// Geometric verification (an addition to the thesis; 0 = off): every candidate that passed the
+  /// thresholds (and the orientation check when on), up to kPlaceVerifyCandidates nearest by
+  /// chi-square, is aligned to the query by `alignProfiles` (from the signatures' relative yaw); a
+  /// candidate is kept when the alignment succeeds, at least `minAlignedFraction` of the query's
+  /// profile bins are inliers (ProfileAlignment::inlierFraction: paired within align.inlierResidual
+  /// of the key's profile), and the translation is at most this [m] (the radius within which a loop
+  /// is wanted). Of the kept ones the nearest by translation is the loop.
+  float maxLoopTranslation = 0.0F;
+  float minAlignedFraction = 0.5F;  ///< see maxLoopTranslation (0..1)
+  ProfileAlignParams align{};       ///< see maxLoopTranslation
 };
 
 /// Candidates (nearest by chi-square) an orientation check examines per query at most.
@@ -75,7 +87,16 @@ struct PlaceUpdate {
   std::uint32_t candidates = 0;             ///< keys that passed both thresholds (the best is reported)
   std::uint32_t rejectedByOrientation = 0;  ///< of those, checked and refused by the orientation check
   bool hasYaw = false;                      ///< relative yaw of this revolution w.r.t. the matched key estimated
-  YawEstimate yaw{};
+  YawEstimate yaw{};                        ///< the orientation signature's (coarse) yaw
+  std::uint32_t rejectedByAlignment = 0;    ///< candidates refused by the geometric verification
+  /// The geometric verification's alignment of this revolution to the matched key (maxLoopTranslation
+  /// > 0): its yaw accounts for the translation (prefer it to yaw.yaw), x / y = this revolution's
+  /// position in the key's frame.
+  bool hasAlignment = false;
+  ProfileAlignment alignment{};
+  /// The other start's alignment of the matched key (the opposite heading of the kept one, when it
+  /// succeeded and ended more than 90 deg away from it; else 0): its inlier share.
+  float alternativeInlierFraction = 0.0F;
 };
 
 /// Capacity-independent interface of a `PlaceDatabase`. Not constructible on its own.
