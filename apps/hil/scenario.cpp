@@ -525,14 +525,12 @@ std::vector<RelocTrial> runRelocalization(const sim::World& world, const Scenari
   return trials;
 }
 
-bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
-                 const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,
-                 std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
-                 std::vector<RunResult>* results, std::string* error) {
-  if (world.paths.empty()) {
-    *error = "the world has no path to drive";
-    return false;
-  }
+namespace {
+
+/// What runs of paths and of missions both need: valid laser and encoder-bus parameters, at least
+/// one run, and for the natural mode a built likelihood field. False with `error` set otherwise.
+bool checkRunInputs(const ScenarioConfig& config, LocalizationMode mode, const RunMaps& maps, int runs,
+                    const char* tooFewRuns, std::string* error) {
   const Status laserStatus = config.laser.validate();
   if (laserStatus != Status::Ok) {
     *error = std::string("laser parameters: ") + toString(laserStatus);
@@ -542,12 +540,28 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
     *error = "encoder CAN bus parameters refused by the decoder";
     return false;
   }
-  if (runsPerPath < 1) {
-    *error = "runs per path must be >= 1";
+  if (runs < 1) {
+    *error = tooFewRuns;
     return false;
   }
   if (mode == LocalizationMode::Natural && (maps.field == nullptr || !maps.field->built())) {
     *error = "natural navigation needs the likelihood field of a mapping run";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
+                 const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,
+                 std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
+                 std::vector<RunResult>* results, std::string* error) {
+  if (world.paths.empty()) {
+    *error = "the world has no path to drive";
+    return false;
+  }
+  if (!checkRunInputs(config, mode, maps, runsPerPath, "runs per path must be >= 1", error)) {
     return false;
   }
   const sim::RayCaster caster(world, 1.0);
@@ -599,21 +613,7 @@ bool runMissions(const sim::World& world, const ScenarioConfig& config, Localiza
     *error = "the world has no mission to drive";
     return false;
   }
-  const Status laserStatus = config.laser.validate();
-  if (laserStatus != Status::Ok) {
-    *error = std::string("laser parameters: ") + toString(laserStatus);
-    return false;
-  }
-  if (sim::validateSimCanEncoders(config.can) != Status::Ok) {
-    *error = "encoder CAN bus parameters refused by the decoder";
-    return false;
-  }
-  if (runsPerMission < 1) {
-    *error = "runs per mission must be >= 1";
-    return false;
-  }
-  if (mode == LocalizationMode::Natural && (maps.field == nullptr || !maps.field->built())) {
-    *error = "natural navigation needs the likelihood field of a mapping run";
+  if (!checkRunInputs(config, mode, maps, runsPerMission, "runs per mission must be >= 1", error)) {
     return false;
   }
   const std::vector<sim::Point2> keepClear = movePallets ? missionKeepClear(world) : std::vector<sim::Point2>{};
