@@ -72,16 +72,21 @@ void BM_NormalSignatureVlp16(benchmark::State& state) {
 }
 BENCHMARK(BM_NormalSignatureVlp16)->Name("BM_NormalSignature/vlp16")->Unit(benchmark::kMicrosecond);
 
-void BM_OrientationCompare(benchmark::State& state) {
+/// The orientation signatures of KITTI revolutions 94 (`a`) and 95 (`b`), a true revisit.
+void kittiOrientationSignatures(agv::OrientationSignature& a, agv::OrientationSignature& b) {
   auto image = std::make_unique<agv::Hdl64RangeImage>();
-  agv::OrientationSignature a;
-  agv::OrientationSignature b;
   const agv::datasets::Revolution& r94 = kitti(94);
   (void)image->buildFromRings(agv::Span<const agv::RingPoint>(r94.points.data(), r94.points.size()));
   (void)agv::computeOrientationSignature(*image, agv::OrientationParams{}, a);
   const agv::datasets::Revolution& r95 = kitti(95);
   (void)image->buildFromRings(agv::Span<const agv::RingPoint>(r95.points.data(), r95.points.size()));
   (void)agv::computeOrientationSignature(*image, agv::OrientationParams{}, b);
+}
+
+void BM_OrientationCompare(benchmark::State& state) {
+  agv::OrientationSignature a;
+  agv::OrientationSignature b;
+  kittiOrientationSignatures(a, b);
   for (auto _ : state) {
     benchmark::DoNotOptimize(agv::relativeYaw(a, b));
   }
@@ -89,15 +94,9 @@ void BM_OrientationCompare(benchmark::State& state) {
 BENCHMARK(BM_OrientationCompare)->Name("BM_OrientationSignature/compare")->Unit(benchmark::kMicrosecond);
 
 void BM_OrientationAlign(benchmark::State& state) {
-  auto image = std::make_unique<agv::Hdl64RangeImage>();
   agv::OrientationSignature a;
   agv::OrientationSignature b;
-  const agv::datasets::Revolution& r94 = kitti(94);
-  (void)image->buildFromRings(agv::Span<const agv::RingPoint>(r94.points.data(), r94.points.size()));
-  (void)agv::computeOrientationSignature(*image, agv::OrientationParams{}, a);
-  const agv::datasets::Revolution& r95 = kitti(95);
-  (void)image->buildFromRings(agv::Span<const agv::RingPoint>(r95.points.data(), r95.points.size()));
-  (void)agv::computeOrientationSignature(*image, agv::OrientationParams{}, b);
+  kittiOrientationSignatures(a, b);
   const float yaw = agv::relativeYaw(a, b).valueOr(agv::YawEstimate{}).yaw;
   agv::ProfileAlignment last;
   for (auto _ : state) {
