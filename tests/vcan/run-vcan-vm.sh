@@ -9,10 +9,12 @@
 # the test transmitted, prints one result line and powers off. See docs/vcan-testing.md.
 #
 # usage: run-vcan-vm.sh --test-binary PATH --work-dir DIR [--timeout SECONDS] [--kernel VMLINUZ]
-#                       [--companion PATH]... [-- TEST-ARGS...]
+#                       [--companion PATH]... [--program PATH]... [-- TEST-ARGS...]
 # A companion is a further, dynamically linked test program (e.g. one that needs libmodbus, which
 # Debian ships as a shared library only): it is copied into the VM with its shared libraries and
-# the loader, and run after the test binary with the same arguments.
+# the loader, and run after the test binary with the same arguments. A program is copied into the
+# VM's /test the same way (with its shared libraries when it has any) but not run: the tests start
+# it (e.g. agvnav-sim-drives).
 # Exit status: 0 when the line "AGV-VCAN-RESULT: PASS" was seen, 1 otherwise (missing packages,
 # kernel without CAN modules, test failure, VM timeout). It never skips.
 #
@@ -27,6 +29,7 @@ timeout_s=120
 kernel="${AGV_VCAN_KERNEL:-}"
 test_args=()
 companions=()
+programs=()
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --test-binary) test_binary="$2"; shift 2 ;;
@@ -34,6 +37,7 @@ while [[ $# -gt 0 ]]; do
     --timeout) timeout_s="$2"; shift 2 ;;
     --kernel) kernel="$2"; shift 2 ;;
     --companion) companions+=("$2"); shift 2 ;;
+    --program) programs+=("$2"); shift 2 ;;
     --) shift; test_args=("$@"); break ;;
     *) echo "run-vcan-vm: unknown argument '$1'" >&2; exit 1 ;;
   esac
@@ -77,6 +81,9 @@ fi
 for c in "${companions[@]}"; do
   [[ -x "$c" ]] || fail "companion '$c' not found or not executable"
   ldd "$c" >/dev/null 2>&1 || fail "companion '$c' is not a dynamically linked program"
+done
+for p in "${programs[@]}"; do
+  [[ -x "$p" ]] || fail "program '$p' not found or not executable"
 done
 
 # ---- kernel with CAN modules -------------------------------------------------------------------
@@ -292,6 +299,18 @@ for c in "${companions[@]}"; do
     mkdir -p "$run_root$(dirname "$lib")"
     cp -L "$lib" "$run_root$lib"
   done < <(libs_of "$c")
+done
+# Programs the tests start: copied the same way; not run by /init.
+for p in "${programs[@]}"; do
+  name="$(basename "$p")"
+  cp "$p" "$run_root/test/$name"
+  if command -v strip >/dev/null 2>&1; then strip --strip-debug "$run_root/test/$name"; fi
+  if ldd "$p" >/dev/null 2>&1; then
+    while IFS= read -r lib; do
+      mkdir -p "$run_root$(dirname "$lib")"
+      cp -L "$lib" "$run_root$lib"
+    done < <(libs_of "$p")
+  fi
 done
 (cd "$run_root" && find . -mindepth 1 | sed 's|^\./||' | LC_ALL=C sort | cpio -o -H newc -R 0:0 --quiet) > "$work_dir/test.cpio"
 cat "$base_cpio" "$work_dir/test.cpio" > "$work_dir/initramfs.cpio"

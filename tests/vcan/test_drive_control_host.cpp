@@ -1,7 +1,8 @@
 // Host-side checks of SocketCanDriveControl that need no CAN stack (this host's kernel has none):
 // configuration refusal, and a bus that cannot be opened: the drives cannot be started, set-points
 // are refused as a device fault, cycles report it without allocating, the open is retried, and
-// destruction is harmless. The drives on a real CAN stack are for the VM test (not written yet).
+// destruction is harmless; which bus-state reports a cycle gives the drive controller. The drives
+// on a real CAN stack: the vcan VM test (test_drive_processes_vm.cpp, test_calibration_vm.cpp).
 #include <ctime>
 
 #include "agv/drivers/linux/socketcan_drive_control.hpp"
@@ -62,4 +63,38 @@ TEST_CASE("without a CAN interface the drives are a device fault, retried, never
   CHECK(d.counters().openAttempts == 2);
   d.quickStop(agv::drivers::canopen::SafeStopReason::PlcStop);  // nothing to send: no crash
   CHECK(d.counters().framesSent == 0);
+}
+
+TEST_CASE("a bus-off seen during a cycle's read is reported even when frames after it ended it",
+          "[socketcan][drives]") {
+  using agv::drivers::busStateReports;
+  using agv::drivers::BusStateReports;
+  // Nothing happened: no report.
+  BusStateReports r = busStateReports(false, false, true);
+  CHECK_FALSE(r.off);
+  CHECK_FALSE(r.back);
+  // A bus-off report, then data frames in the same read (the transport's sign that the CAN
+  // controller is back): off and back in this cycle, so the traction is quick-stopped. Before, the
+  // usable bus at the end of the read hid the bus-off (seen in the vcan VM with the drives talking).
+  r = busStateReports(false, true, true);
+  CHECK(r.off);
+  CHECK(r.back);
+  // Still off after the read: off only; in a later cycle, usable again: back only.
+  r = busStateReports(false, true, false);
+  CHECK(r.off);
+  CHECK_FALSE(r.back);
+  r = busStateReports(true, false, true);
+  CHECK_FALSE(r.off);
+  CHECK(r.back);
+  // Still off, already reported: nothing more; a further bus-off report while off: nothing more.
+  r = busStateReports(true, false, false);
+  CHECK_FALSE(r.off);
+  CHECK_FALSE(r.back);
+  r = busStateReports(true, true, false);
+  CHECK_FALSE(r.off);
+  CHECK_FALSE(r.back);
+  // A link lost (not usable, no bus-off report): off, as before.
+  r = busStateReports(false, false, false);
+  CHECK(r.off);
+  CHECK_FALSE(r.back);
 }

@@ -76,10 +76,18 @@ void SocketCanDriveControl::quickStop(canopen::SafeStopReason reason) noexcept {
   flush();
 }
 
+BusStateReports busStateReports(bool reportedOff, bool offSeen, bool usable) noexcept {
+  BusStateReports r;
+  r.off = !reportedOff && (offSeen || !usable);
+  r.back = usable && (reportedOff || r.off);
+  return r;
+}
+
 Status SocketCanDriveControl::cycle(Timestamp now) noexcept {
   if (openStatus_ != Status::Ok && now >= nextOpen_) {
     (void)open(now);
   }
+  const std::uint64_t busOffsBefore = bus_.health().counters.busOffEvents;
   if (openStatus_ == Status::Ok) {
     for (std::uint32_t i = 0; i < config_.maxFramesPerCycle; ++i) {
       CanFrame f;
@@ -96,10 +104,13 @@ Status SocketCanDriveControl::cycle(Timestamp now) noexcept {
     bus_.maintain();
   }
   const bool usable = busUsable();
-  if (!usable && !reportedOff_) {
+  const BusStateReports reports =
+      busStateReports(reportedOff_, bus_.health().counters.busOffEvents != busOffsBefore, usable);
+  if (reports.off) {
     controller_.onBusState(true, now);
     reportedOff_ = true;
-  } else if (usable && reportedOff_) {
+  }
+  if (reports.back) {
     controller_.onBusState(false, now);
     reportedOff_ = false;
   }

@@ -11,9 +11,9 @@
 /// repeated every cycle, a lost SDO fails the bring-up by its timeout. The destructor quick-stops
 /// the traction drive through the bus directly (the drive controller's emergency sink).
 ///
-/// No heap after construction; not thread-safe (one loop owns it). Not yet run against the kernel
-/// CAN stack (the vcan VM test is still to be written); on the build hosts only its behaviour
-/// without a CAN interface is tested.
+/// No heap after construction; not thread-safe (one loop owns it). On the kernel CAN stack it runs
+/// in the vcan VM test (docs/vcan-testing.md); on the build hosts only its behaviour without a CAN
+/// interface and `busStateReports` are tested.
 
 #include <cstdint>
 
@@ -45,6 +45,18 @@ struct SocketCanDriveControlCounters {
   std::uint64_t sendFailures = 0;   ///< frames refused (bus-off, link down, queue full)
   std::uint64_t openAttempts = 0;
 };
+
+/// What one `cycle()` reports to the drive controller (`onBusState`): the bus off, then (or only)
+/// back. `reportedOff`: the controller was told the bus is off and not yet that it is back;
+/// `offSeen`: the bus counted a bus-off report while this cycle read (the transport takes a data
+/// frame received after it as the CAN controller's return, so a read that goes on past the report
+/// can end with the bus usable again: the bus-off is reported all the same); `usable`: the bus
+/// after the read (open, link up, not bus-off).
+struct BusStateReports {
+  bool off = false;   ///< report the bus off (the traction quick stop)
+  bool back = false;  ///< report it back, after `off` when both are set
+};
+BusStateReports busStateReports(bool reportedOff, bool offSeen, bool usable) noexcept;
 
 /// See the file comment.
 class SocketCanDriveControl final : public hal::DriveControl, private canopen::CanFrameSink {
