@@ -58,6 +58,7 @@ struct Options {
   std::uint64_t seed = 1;
   int minHitsToCorrect = ScenarioConfig{}.dynamicMinHitsToCorrect;
   bool dynamicSurfaceMap = ScenarioConfig{}.dynamicSurfaceMap;
+  bool adaptiveBand = ScenarioConfig{}.adaptiveBand;
   bool canSync = false;
   int missionRuns = ScenarioConfig{}.runsPerMission;
   bool missionRunsGiven = false;
@@ -84,6 +85,8 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
       ->check(CLI::Range(0, 20));
   app.add_flag("!--no-surface-map", o.dynamicSurfaceMap,
                "dynamic mode: FALKO corners alone, no scan matching against the surfaces of the earlier sweeps");
+  app.add_flag("--adaptive-band", o.adaptiveBand,
+               "scan matching: a final run in a band of 3 robust sigmas of the match's residuals (measured option)");
   app.add_flag("--can-sync", o.canSync,
                "encoders send synchronous TPDOs on the vehicle's SYNC (every encoder period) instead of cyclic ones");
   app.add_option("--mission-runs", o.missionRuns,
@@ -115,6 +118,7 @@ ScenarioConfig scenarioConfig(const Options& o) {
   }
   cfg.dynamicMinHitsToCorrect = static_cast<std::int16_t>(o.minHitsToCorrect);
   cfg.dynamicSurfaceMap = o.dynamicSurfaceMap;
+  cfg.adaptiveBand = o.adaptiveBand;
   if (o.canSync) {
     cfg.can.bus.syncPeriod = cfg.vehicle.encoderPeriod;
   }

@@ -184,6 +184,7 @@ nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode m
   p.observations.detectCorners = mode == LocalizationMode::Mapping;  // collected, not corrected with
   p.observations.collectScanPoints = mode == LocalizationMode::Mapping;
   p.observations.surfaceMap = mode == LocalizationMode::Dynamic && cfg.dynamicSurfaceMap;
+  l.scanMatch.adaptiveBand = cfg.adaptiveBand;
   // The vehicle is placed at the path start to within a few millimetres (startPositionStdDev).
   p.setPosePositionStdDev = 0.005;
   p.setPoseHeadingStdDev = deg2rad(0.05);

@@ -117,6 +117,8 @@ struct ScenarioConfig {
   /// Dynamic mode: scan matching against the surfaces of the run's earlier sweeps
   /// (`ObservationParams::surfaceMap`) next to the dynamic corner map; off: the corners alone.
   bool dynamicSurfaceMap = true;
+  /// Scan matching in every mode: `ScanMatchParams::adaptiveBand` (off by default).
+  bool adaptiveBand = false;
 };
 
 /// One sample of a run's history (every control period).

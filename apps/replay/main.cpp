@@ -109,6 +109,8 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--resync-after", options.localizer.scanMatch.resyncAfter,
                  "agreeing gated matches that resync (0: off)");
   app.add_option("--resync-max-rms", options.localizer.scanMatch.resyncMaxRms, "[m] RMS limit of a match that resyncs");
+  app.add_flag("--adaptive-band", options.localizer.scanMatch.adaptiveBand,
+               "scan matching: a final run in a band of 3 robust sigmas of the match's residuals");
   app.add_flag("!--no-field-relocalization", options.fieldRelocalization,
                "with --map-fraction: no search of the whole field when lost");
   app.add_option("--reloc-radius", options.relocRadius,

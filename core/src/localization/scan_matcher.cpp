@@ -1,5 +1,6 @@
 #include "agv/localization/scan_matcher.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "spd3.hpp"
@@ -288,9 +289,9 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
                                     double allowedRotation, const LikelihoodFieldBase& field) noexcept {
   ScanMatchResult result;
   result.pose = prior;
-  const double inlierDistance = effectiveInlierDistance(field);
-  const double outlierCost = huberCost(inlierDistance, params_.huber);
-  const auto linearise = [&](const Pose2d& x) noexcept {
+  // Points within `band` of a surface are inliers (Huber-weighted), the others cost a constant.
+  const auto linearise = [&](const Pose2d& x, double band) noexcept {
+    const double outlierCost = huberCost(band, params_.huber);
     Normal n;
     const double c = std::cos(x.theta);
     const double s = std::sin(x.theta);
@@ -300,7 +301,7 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
       const double qx = x.x + c * px - s * py;
       const double qy = x.y + s * px + c * py;
       const FieldSample f = field.sample(qx, qy);
-      if (!f.inside || !(std::fabs(f.distance) < inlierDistance)) {
+      if (!f.inside || !(std::fabs(f.distance) < band)) {
         n.cost += outlierCost;
         continue;
       }
@@ -319,73 +320,94 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
     }
     return n;
   };
-  const std::size_t minInliers = [&]() noexcept {
-    const auto byFraction =
-        static_cast<std::size_t>(std::ceil(params_.minInlierFraction * static_cast<double>(points_.size())));
-    return byFraction > params_.minInliers ? byFraction : params_.minInliers;
-  }();
   // Rank check: det(H) against the product of its diagonal (scale-free per axis, spd3.hpp).
   constexpr double kRankTolerance = 1e-9;
   // Gauss-Newton with step halving: a step that does not lower the robust cost is halved (at most
   // kHalvings times); when none lowers it, x is the minimum the field resolves (converged).
   constexpr int kHalvings = 5;
-  Pose2d x = start;
-  Normal n = linearise(x);
-  bool converged = false;
-  std::uint8_t it = 0;
-  while (it < params_.maxIterations) {
-    ++it;
-    if (n.inliers < minInliers) {
-      result.status = Status::NotEnoughData;
-      result.inliers = static_cast<std::uint16_t>(n.inliers > 65535U ? 65535U : n.inliers);
-      result.iterations = it;
-      return result;
-    }
-    Eigen::Matrix3d Hinv;
-    if (!detail::invertSpd3(n.H, kRankTolerance, Hinv)) {
-      result.status = Status::Unobservable;
-      result.iterations = it;
-      return result;
-    }
-    Eigen::Vector3d step = -(Hinv * n.g);
-    if (!step.allFinite()) {
-      result.status = Status::NonFiniteInput;
-      result.iterations = it;
-      return result;
-    }
-    bool lowered = false;
-    for (int h = 0; h <= kHalvings && !lowered; ++h) {
-      const Pose2d candidate = Pose2d(x.x + step.x(), x.y + step.y(), x.theta + step.z()).normalized();
-      const Normal m = linearise(candidate);
-      if (m.cost < n.cost) {
-        x = candidate;
-        n = m;
-        lowered = true;
-      } else {
-        step *= 0.5;
+  enum class Outcome { Converged, NotConverged, TooFew, Singular, NonFinite };
+  const auto gaussNewton = [&](Pose2d& x, Normal& n, double band, std::size_t minInliers, std::uint8_t& it) noexcept {
+    n = linearise(x, band);
+    it = 0;
+    while (it < params_.maxIterations) {
+      ++it;
+      if (n.inliers < minInliers) {
+        return Outcome::TooFew;
+      }
+      Eigen::Matrix3d Hinv;
+      if (!detail::invertSpd3(n.H, kRankTolerance, Hinv)) {
+        return Outcome::Singular;
+      }
+      Eigen::Vector3d step = -(Hinv * n.g);
+      if (!step.allFinite()) {
+        return Outcome::NonFinite;
+      }
+      bool lowered = false;
+      for (int h = 0; h <= kHalvings && !lowered; ++h) {
+        const Pose2d candidate = Pose2d(x.x + step.x(), x.y + step.y(), x.theta + step.z()).normalized();
+        const Normal m = linearise(candidate, band);
+        if (m.cost < n.cost) {
+          x = candidate;
+          n = m;
+          lowered = true;
+        } else {
+          step *= 0.5;
+        }
+      }
+      if (!lowered ||
+          (std::hypot(step.x(), step.y()) < params_.stepTranslation && std::fabs(step.z()) < params_.stepRotation)) {
+        return Outcome::Converged;
       }
     }
-    if (!lowered ||
-        (std::hypot(step.x(), step.y()) < params_.stepTranslation && std::fabs(step.z()) < params_.stepRotation)) {
-      converged = true;
-      break;
-    }
-  }
+    return Outcome::NotConverged;
+  };
+  const std::size_t minInliers = [&]() noexcept {
+    const auto byFraction =
+        static_cast<std::size_t>(std::ceil(params_.minInlierFraction * static_cast<double>(points_.size())));
+    return byFraction > params_.minInliers ? byFraction : params_.minInliers;
+  }();
+  const double inlierDistance = effectiveInlierDistance(field);
+  Pose2d x = start;
+  Normal n;
+  std::uint8_t it = 0;
+  const Outcome o = gaussNewton(x, n, inlierDistance, minInliers, it);
   result.iterations = it;
+  if (o == Outcome::TooFew) {
+    result.status = Status::NotEnoughData;
+    result.inliers = static_cast<std::uint16_t>(n.inliers > 65535U ? 65535U : n.inliers);
+    return result;
+  }
+  if (o == Outcome::Singular || o == Outcome::NonFinite) {
+    result.status = o == Outcome::Singular ? Status::Unobservable : Status::NonFiniteInput;
+    return result;
+  }
   result.pose = x;
   result.inliers = static_cast<std::uint16_t>(n.inliers > 65535U ? 65535U : n.inliers);
   result.rmsResidual = n.inliers > 0 ? std::sqrt(n.inlierSquares / static_cast<double>(n.inliers)) : 0.0;
-  if (!converged) {
+  if (o == Outcome::NotConverged) {
     result.status = Status::NotConverged;
-    return result;
-  }
-  if (n.inliers < minInliers) {
-    result.status = Status::NotEnoughData;
     return result;
   }
   if (result.rmsResidual > params_.maxRmsResidual) {
     result.status = Status::IllConditioned;
     return result;
+  }
+  if (params_.adaptiveBand) {
+    // The residual scale of this scan against this map: where most surfaces are as mapped, the
+    // points on them fit within the range noise, and the points 3 robust sigmas beyond are on
+    // surfaces that moved or were never mapped (a pallet put next to a mapped one); in the wide
+    // band they pull at Huber's constant force and bias the pose by centimetres.
+    const double band = residualBand(x, field, inlierDistance);
+    if (band < inlierDistance) {
+      Pose2d y = x;
+      Normal k;
+      std::uint8_t jt = 0;
+      if (gaussNewton(y, k, band, params_.minInliers, jt) == Outcome::Converged) {
+        x = y;  // the covariance stays the wide band's (its scatter includes the changed surfaces)
+        result.pose = x;
+        result.iterations = static_cast<std::uint8_t>(it + jt < 255 ? it + jt : 255);
+      }
+    }
   }
   Eigen::Matrix3d Hinv;
   if (!detail::invertSpd3(n.H, kRankTolerance, Hinv)) {
@@ -410,6 +432,30 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
   result.covariance = 0.5 * (cov + cov.transpose());
   result.status = Status::Ok;
   return result;
+}
+
+double ScanMatcher::residualBand(const Pose2d& x, const LikelihoodFieldBase& field, double inlierDistance) noexcept {
+  residuals_.clear();
+  const double c = std::cos(x.theta);
+  const double s = std::sin(x.theta);
+  for (const MatchPoint& pt : points_) {
+    const double px = static_cast<double>(pt.x);
+    const double py = static_cast<double>(pt.y);
+    const FieldSample f = field.sample(x.x + c * px - s * py, x.y + s * px + c * py);
+    if (f.inside && std::fabs(f.distance) < inlierDistance) {
+      static_cast<void>(residuals_.push_back(static_cast<float>(std::fabs(f.distance))));
+    }
+  }
+  if (residuals_.empty()) {
+    return inlierDistance;
+  }
+  float* const mid = residuals_.begin() + residuals_.size() / 2U;
+  std::nth_element(residuals_.begin(), mid, residuals_.end());
+  // Median absolute residual -> sigma of a normal (1.4826), 3 sigmas; never below the floor of
+  // the residual's sigma (the field's quantisation).
+  const double band = 3.0 * 1.4826 * static_cast<double>(*mid);
+  const double floor = 3.0 * params_.sigmaFloor;
+  return band > floor ? band : floor;
 }
 
 }  // namespace agv

@@ -51,6 +51,13 @@ struct ScanMatchParams {
   /// exceed the field's maxDistance (the field cannot tell farther distances apart).
   double inlierDistance = 0.30;
   double huber = 0.05;  ///< [m] Huber threshold of the residual weights
+  /// After convergence, one more Gauss-Newton run in a band of 3 robust sigmas of this match's
+  /// own residuals (1.4826 x their median; at least 3 `sigmaFloor`): points on surfaces that
+  /// moved or were never mapped, which the wide band keeps, stop biasing the pose. The result
+  /// (pose, covariance) is that run's when it converges with `minInliers`; the checks on the
+  /// fit (`minInlierFraction`, `maxRmsResidual`) and the covariance are the wide band's. Off by
+  /// default: measured as an option (docs/localization.md, "Adaptive band").
+  bool adaptiveBand = false;
   /// Fewer inliers than this (absolute, and as a fraction of the points) refuse the match.
   std::size_t minInliers = 30;
   double minInlierFraction = 0.40;
@@ -234,8 +241,12 @@ class ScanMatcher {
   ScanMatchResult refine(const Pose2d& prior, const Pose2d& start, double allowedTranslation, double allowedRotation,
                          const LikelihoodFieldBase& field) noexcept;
 
+  /// The band of the final run: 3 robust sigmas of the inliers' residuals at `x`.
+  double residualBand(const Pose2d& x, const LikelihoodFieldBase& field, double inlierDistance) noexcept;
+
   ScanMatchParams params_{};
-  MatchPoints points_;  // vehicle frame, thinned
+  MatchPoints points_;                             // vehicle frame, thinned
+  FixedVector<float, kMaxScanBeams> residuals_{};  // |residual| of the inliers, for the band
 };
 
 }  // namespace agv
