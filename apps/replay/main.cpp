@@ -109,6 +109,9 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--resync-after", options.localizer.scanMatch.resyncAfter,
                  "agreeing gated matches that resync (0: off)");
   app.add_option("--resync-max-rms", options.localizer.scanMatch.resyncMaxRms, "[m] RMS limit of a match that resyncs");
+  app.add_option("--on-route-distance", options.onRouteDistance,
+                 "[m] a localized scan within this of a mapping scan is on the mapping run's route")
+      ->check(CLI::PositiveNumber);
   app.add_flag("--adaptive-band", options.localizer.scanMatch.adaptiveBand,
                "scan matching: a final run in a band of 3 robust sigmas of the match's residuals");
   app.add_flag("!--no-field-relocalization", options.fieldRelocalization,

@@ -640,6 +640,27 @@ class ScanReplay {
 
 }  // namespace
 
+namespace {
+
+/// `ReplayResult::onRoute` of the localized scans against the mapping run's scans [0, mapping).
+void markRoute(const datasets::CarmenLog& log, std::size_t mapping, double distance, ReplayResult& r) {
+  r.onRouteDistance = distance;
+  r.onRoute.assign(r.truth.size(), false);
+  r.onRouteScans = 0;
+  for (std::size_t k = 0; k < r.truth.size(); ++k) {
+    const Eigen::Vector2d p = r.truth[k].translation();
+    for (std::size_t m = 0; m < mapping; ++m) {
+      if ((log.scans[m].robotPose.translation() - p).norm() <= distance) {
+        r.onRoute[k] = true;
+        ++r.onRouteScans;
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace
+
 bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, ReplayResult& r, std::string& error) {
   if (!datasets::checkCorrectedLog(log, error)) {
     return false;
@@ -702,6 +723,9 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
   if (!r.onMap.empty()) {
     r.localizerOnMap = datasets::absoluteErrorOf(r.truth, r.localizer, r.onMap);
     r.odometryOnMap = datasets::absoluteErrorOf(r.truth, r.odometry, r.onMap);
+    markRoute(log, start, options.onRouteDistance, r);
+    r.localizerOnRoute = datasets::absoluteErrorOf(r.truth, r.localizer, r.onRoute);
+    r.odometryOnRoute = datasets::absoluteErrorOf(r.truth, r.odometry, r.onRoute);
   }
   return true;
 }
@@ -757,6 +781,13 @@ std::string resultText(const ReplayResult& r) {
         << fmt("%.2f / %.2f deg rms / max", r.localizerOnMap.heading.rms * kDeg, r.localizerOnMap.heading.max * kDeg)
         << fmt("; odometry %.3f m rms, %.2f deg rms\n", r.odometryOnMap.position.rms,
                r.odometryOnMap.heading.rms * kDeg);
+      o << "on the mapping run's route (" << r.onRouteScans << " of " << r.scans << " scans): localizer "
+        << fmt("%.3f / %.3f / %.3f m rms / median / max, ", r.localizerOnRoute.position.rms,
+               r.localizerOnRoute.position.median, r.localizerOnRoute.position.max)
+        << fmt("%.2f / %.2f deg rms / max", r.localizerOnRoute.heading.rms * kDeg,
+               r.localizerOnRoute.heading.max * kDeg)
+        << fmt("; odometry %.3f m rms, %.2f deg rms\n", r.odometryOnRoute.position.rms,
+               r.odometryOnRoute.heading.rms * kDeg);
     }
     o << "scan matching: " << r.matchAttempts << " attempts, " << r.matchFused << " fused, " << r.matchGated
       << " gated, " << r.matchRefused << " refused by the matcher, " << r.matchResyncs << " resyncs (" << r.resyncWrong
@@ -802,6 +833,11 @@ report::Json resultJson(const ReplayResult& r) {
                {{"scans", r.onMapScans},
                 {"localizer", errors(r.localizerOnMap.position, r.localizerOnMap.heading)},
                 {"odometry", errors(r.odometryOnMap.position, r.odometryOnMap.heading)}}},
+              {"on_route",
+               {{"scans", r.onRouteScans},
+                {"distance_m", r.onRouteDistance},
+                {"localizer", errors(r.localizerOnRoute.position, r.localizerOnRoute.heading)},
+                {"odometry", errors(r.odometryOnRoute.position, r.odometryOnRoute.heading)}}},
               {"scan_matching",
                {{"attempts", r.matchAttempts},
                 {"fused", r.matchFused},

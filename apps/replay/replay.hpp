@@ -76,7 +76,8 @@ struct ReplayOptions {
   std::size_t fieldMinScans = 2;
   /// Scan-to-map matching on the field (with `mapFraction`); off: the corner map alone.
   bool scanMatching = true;
-  double onMapFraction = 0.5;  ///< see `ReplayResult::onMap`
+  double onMapFraction = 0.5;    ///< see `ReplayResult::onMap`
+  double onRouteDistance = 1.0;  ///< [m] see `ReplayResult::onRoute`
   /// With the field: when the localizer is lost, search the whole field for the scan
   /// (`FieldRelocalizer`), confirm the candidate on `relocConfirmations` further scans carried by
   /// the odometry, then restart the localizer there. Off: the lost localizer is restarted at its
@@ -168,6 +169,16 @@ struct ReplayResult {
   std::size_t onMapScans = 0;
   AbsoluteError localizerOnMap;  ///< absolute error over the on-map scans
   AbsoluteError odometryOnMap;
+  /// Per localized scan: on the mapping run's route, i.e. its true position within
+  /// `onRouteDistance` of a mapping scan's true position (any heading). A stricter subset of
+  /// where a map-based localizer can be asked to hold: where the mapping run drove, as a natural
+  /// navigation product is taught its routes, rather than wherever the scan overlaps the map (a
+  /// room seen through its door from the corridor is on the map, not on the route).
+  std::vector<bool> onRoute;
+  std::size_t onRouteScans = 0;
+  double onRouteDistance = 0.0;    ///< [m] the distance used
+  AbsoluteError localizerOnRoute;  ///< absolute error over the on-route scans
+  AbsoluteError odometryOnRoute;
   std::size_t noFixCycles = 0;  ///< cycles without a fix (no landmark and no match)
   double meanTestRatio = 0.0;   ///< over cycles with used observations
   double seconds = 0.0;         ///< wall time of the replay loop

@@ -8,6 +8,9 @@
 # 0.42-0.45 m RMS and 6-7 cm median on the on-map scans at map fractions 0.4-0.6, the RMS from
 # a few excursions; before it, 0.6-5.6 m): median below 10 cm, RMS below 1 m. The matcher's
 # accuracy on these logs is checked apart from the tracking by replay.scan_match_real.
+# On the mapping run's route (the localized scans within 1 m of a mapping scan, where a taught
+# natural-navigation vehicle drives) the issue's figures are checked as they stand: 10 cm and
+# 1 deg RMS (measured 0.053 m and 0.61 deg on 727 of 2396 scans, docs/localization.md).
 expect_keys("${j}" "scans;static_corners;field_surface_cells;field_width_m;field_height_m" mapping_run)
 expect_number_in("${j}" 1 1000000000 mapping_run field_surface_cells)
 expect_number_in("${j}" 1 1000000000 mapping_run static_corners)
@@ -45,4 +48,16 @@ if(NOT resyncWrong EQUAL 0)
 endif()
 if(medPos GREATER_EQUAL 0.10 OR rmsPos GREATER_EQUAL 1.0)
   message(FATAL_ERROR "JSON: ${LOG_NAME}: on-map tracking median ${medPos} m / RMS ${rmsPos} m (regression bound 0.10 / 1.0 m)")
+endif()
+expect_keys("${j}" "scans;distance_m;localizer;odometry" on_route)
+string(JSON onRoute GET "${j}" on_route scans)
+string(JSON routeRms GET "${j}" on_route localizer position_m rms)
+string(JSON routeHdg GET "${j}" on_route localizer heading_deg rms)
+message(STATUS "${LOG_NAME}: on the route ${onRoute}/${scans}: localizer RMS ${routeRms} m, ${routeHdg} deg")
+math(EXPR needRoute "${scans} / 5")
+if(onRoute LESS needRoute)
+  message(FATAL_ERROR "JSON: ${LOG_NAME}: ${onRoute} of ${scans} scans on the route (expected >= ${needRoute})")
+endif()
+if(routeRms GREATER_EQUAL 0.10 OR routeHdg GREATER_EQUAL 1.0)
+  message(FATAL_ERROR "JSON: ${LOG_NAME}: on-route RMS ${routeRms} m / ${routeHdg} deg (target 0.10 m / 1 deg)")
 endif()
