@@ -384,7 +384,16 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
     if (tr.kidnapped) {
       std::printf(" (lost %s)", tr.lostDetected ? "detected" : "NOT detected");
     }
-    std::printf("%s\n", tr.ambiguous > 0 ? " (ambiguous searches refused)" : "");
+    std::printf("%s; %s (%zu visible, a distinct pose explains %zu)\n",
+                tr.ambiguous > 0 ? " (ambiguous searches refused)" : "", tr.unique ? "unique" : "NOT unique",
+                tr.visibleReflectors, tr.otherSupport);
+    if (!tr.found) {
+      // Why: the last sweep searched again with the pipeline's parameters.
+      std::printf("        not found: %" PRIu64 " searches, %" PRIu64 " candidates, %" PRIu64
+                  " unconfirmed; last sweep %zu reflectors, search %s with %zu inliers, runner-up %zu\n",
+                  tr.searches, tr.candidates, tr.unconfirmed, tr.detected, agv::hil::relocOutcomeName(tr.lastOutcome),
+                  tr.lastInliers, tr.lastSecondInliers);
+    }
   }
 }
 
@@ -722,6 +731,10 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
               can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
   std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
               relocFound, s.reloc.size(), coldFound, cold, relocWrong);
+  const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(s.reloc);
+  std::printf(
+      "cold starts: found %zu of %zu where unique (within 3 sweeps: %zu), refused %zu of %zu ambiguous, wrong %zu\n",
+      cs.uniqueFound, cs.unique, cs.uniqueWithin3, cs.ambiguousRefused, cs.ambiguous, cs.wrong);
   std::printf("FALKO corners alone (static_falko; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
               falkoMeetCount, falkoRuns, kPositionRequirement * 100.0, kHeadingRequirementDeg);
   std::printf("dynamic map (%s; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",

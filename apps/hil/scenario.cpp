@@ -16,6 +16,7 @@
 #include "agv/sim/sim_clock.hpp"
 #include "agv/sim/sim_plc.hpp"
 #include "dead_reckoning.hpp"
+#include "reloc_oracle.hpp"
 
 namespace agv::hil {
 
@@ -428,6 +429,25 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
   RelocTrial trial;
   trial.kidnapped = kidnapFrom != nullptr;
   trial.truth = start;
+  {
+    // The oracle: the reflectors visible from the truth, noise-free, in the vehicle frame, against
+    // the surveyed map's reflectors.
+    std::vector<OraclePoint> landmarks;
+    map.forEach([&](LandmarkIndex, const Landmark& l) {
+      if (l.kind == LandmarkKind::Reflector) {
+        landmarks.push_back(OraclePoint{l.x, l.y});
+      }
+    });
+    std::vector<OraclePoint> seen = visibleReflectors(caster, cfg.laser, start.compose(cfg.vehicle.laserMount));
+    for (OraclePoint& p : seen) {
+      const Pose2d::Vector2 v = start.inverseTransformPoint(Pose2d::Vector2(p.x, p.y));
+      p = OraclePoint{v.x(), v.y()};
+    }
+    const Uniqueness u = judgeUniqueness(landmarks, seen, start);
+    trial.unique = u.unique;
+    trial.visibleReflectors = u.visible;
+    trial.otherSupport = u.otherSupport;
+  }
   sim::SimVehicleParams truth = cfg.vehicle;
   sim::SimVehicle vehicle(truth, seed ^ 0x9E3779B97F4A7C15ULL);
   sim::SimLaser laser(caster, cfg.laser, seed ^ 0xC2B2AE3D27D4EB4FULL);
@@ -482,6 +502,27 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
   });
   trial.found = pipeline.counters().relocalizations > 0;
   trial.ambiguous = pipeline.counters().ambiguous;
+  trial.searches = pipeline.counters().searches;
+  trial.candidates = pipeline.counters().candidates;
+  trial.unconfirmed = pipeline.counters().unconfirmed;
+  if (!trial.found) {
+    // The last sweep searched again with the pipeline's parameters: why it was refused.
+    const hal::LaserMeasurement& meas = pipeline.lastMeasurement();
+    std::vector<PointObservation> obs;
+    for (std::size_t i = 0; i < meas.reflectors.size(); ++i) {
+      obs.push_back(PointObservation{static_cast<double>(meas.reflectors[i].x),
+                                     static_cast<double>(meas.reflectors[i].y), LandmarkKind::Reflector});
+    }
+    trial.detected = obs.size();
+    GlobalLocalizerParams search = pipelineParams(cfg, LocalizationMode::Reflectors).relocalization.search;
+    search.laserMount = cfg.estimate.laserMount;
+    const auto reloc = std::make_unique<GlobalLocalizer>(search);
+    RelocReport rr;
+    (void)reloc->localize(map, Span<const PointObservation>(obs.data(), obs.size()), rr);
+    trial.lastOutcome = rr.outcome;
+    trial.lastInliers = rr.inliers;
+    trial.lastSecondInliers = rr.hasSecond ? rr.secondInliers : 0U;
+  }
   if (trial.found) {
     trial.sweeps =
         static_cast<std::size_t>(pipeline.counters().sweeps - (trial.kidnapped ? searchStart : sweepsBefore));

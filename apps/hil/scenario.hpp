@@ -13,6 +13,7 @@
 #include "agv/kinematics/tricycle.hpp"
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/likelihood_field.hpp"
+#include "agv/loop/global_localizer.hpp"
 #include "agv/mapping/surface_mapper.hpp"
 #include "agv/sim/can_encoder_source.hpp"
 #include "agv/sim/pallet_moves.hpp"
@@ -210,6 +211,19 @@ struct RelocTrial {
   double headingError = 0.0;    ///< [rad]
   bool wrong = false;           ///< found, but more than 0.1 m or 1 deg from the truth
   std::uint64_t ambiguous = 0;  ///< searches refused as ambiguous
+  // The uniqueness oracle (reloc_oracle.hpp) at `truth`, independent of the localizer.
+  bool unique = false;                ///< no pose 0.5 m / 10 deg away explains the same reflectors
+  std::size_t visibleReflectors = 0;  ///< reflectors visible from `truth` (noise-free)
+  std::size_t otherSupport = 0;       ///< of those, the most a distinct pose puts on the map
+  // Why a trial was not found: the pipeline's counters and, on the last sweep, a search of the
+  // same observations with the pipeline's parameters.
+  std::uint64_t searches = 0;
+  std::uint64_t candidates = 0;                         ///< searches that gave a candidate
+  std::uint64_t unconfirmed = 0;                        ///< candidates a later sweep rejected
+  std::size_t detected = 0;                             ///< reflectors reported on the last sweep
+  RelocOutcome lastOutcome = RelocOutcome::EmptyInput;  ///< of that search
+  std::size_t lastInliers = 0;                          ///< its best pose's inliers
+  std::size_t lastSecondInliers = 0;                    ///< its runner-up's inliers
 };
 
 /// `count` cold starts and `kidnaps` kidnappings at poses drawn on the world's paths (free space)
