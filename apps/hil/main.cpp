@@ -63,6 +63,7 @@ struct Options {
   bool missionRunsGiven = false;
   bool missions = true;
   bool movePallets = true;
+  bool relocalizationOnly = false;
 };
 
 /// False with `exitCode` set when the program ends here (help, or a refused command line).
@@ -92,6 +93,9 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
   app.add_flag("!--no-missions", o.missions, "skip the missions (the paths only)");
   app.add_flag("!--no-pallet-moves", o.movePallets,
                "missions on the mapped pallet layout (no pallet moved, removed or added between runs)");
+  app.add_flag("--relocalization-only", o.relocalizationOnly,
+               "calibration and the relocalization stage only (stdout; no JSON, no verdict): for measuring it "
+               "over many seeds");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -290,9 +294,10 @@ bool runMode(const agv::sim::World& world, const ScenarioConfig& cfg, Localizati
 }
 
 /// Reflectors against the surveyed map: the poles as a surveyor measured them (1 mm per coordinate).
+constexpr double kSurveySigma = 0.001;  ///< [m] of the surveyed reflector map, per coordinate
+
 bool runReflectorMode(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& reflectorMap,
                       SessionResults& s) {
-  constexpr double kSurveySigma = 0.001;  // [m]
   if (agv::hil::buildSurveyedReflectorMap(world, kSurveySigma, cfg.seed ^ 0x5EEDU, reflectorMap) != agv::Status::Ok) {
     std::fprintf(stderr, "agvnav-hil: the world's reflectors do not fit the landmark map\n");
     return false;
@@ -395,6 +400,39 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
                   tr.lastInliers, tr.lastSecondInliers);
     }
   }
+}
+
+/// The relocalization stage's two summary lines; returns the wrong poses.
+std::size_t printRelocalizationSummary(const SessionResults& s) {
+  std::size_t found = 0;
+  std::size_t wrong = 0;
+  std::size_t coldFound = 0;
+  std::size_t cold = 0;
+  for (const agv::hil::RelocTrial& tr : s.reloc) {
+    found += tr.found ? 1U : 0U;
+    wrong += tr.wrong ? 1U : 0U;
+    cold += tr.kidnapped ? 0U : 1U;
+    coldFound += !tr.kidnapped && tr.found ? 1U : 0U;
+  }
+  std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
+              found, s.reloc.size(), coldFound, cold, wrong);
+  const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(s.reloc);
+  std::printf(
+      "cold starts: found %zu of %zu where unique (within 3 sweeps: %zu), refused %zu of %zu ambiguous, wrong %zu\n",
+      cs.uniqueFound, cs.unique, cs.uniqueWithin3, cs.ambiguousRefused, cs.ambiguous, cs.wrong);
+  return wrong;
+}
+
+/// `--relocalization-only`: the surveyed map and the relocalization stage, its summary lines; 1
+/// when a pose was wrong.
+int runRelocalizationOnly(const agv::sim::World& world, const ScenarioConfig& cfg, SessionResults& s) {
+  auto reflectorMap = std::make_unique<agv::LandmarkMap>();
+  if (agv::hil::buildSurveyedReflectorMap(world, kSurveySigma, cfg.seed ^ 0x5EEDU, *reflectorMap) != agv::Status::Ok) {
+    std::fprintf(stderr, "agvnav-hil: the world's reflectors do not fit the landmark map\n");
+    return 2;
+  }
+  runRelocalizationStage(world, cfg, *reflectorMap, s);
+  return printRelocalizationSummary(s) == 0 ? 0 : 1;
 }
 
 // ---- missions: several operation points over 50-100 m, pallets moved between runs -------------
@@ -687,15 +725,9 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
       estimateMeetCount += agv::hil::meetsRequirement(r.finalWithEstimate, r.finalTruth) ? 1 : 0;
     }
   }
-  std::size_t relocFound = 0;
   std::size_t relocWrong = 0;
-  std::size_t coldFound = 0;
-  std::size_t cold = 0;
   for (const agv::hil::RelocTrial& tr : s.reloc) {
-    relocFound += tr.found ? 1U : 0U;
     relocWrong += tr.wrong ? 1U : 0U;
-    cold += tr.kidnapped ? 0U : 1U;
-    coldFound += !tr.kidnapped && tr.found ? 1U : 0U;
   }
   int missionRequiredRuns = 0;
   int missionRequiredMet = 0;
@@ -729,12 +761,7 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
               unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
               cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", can.framesDecoded(), can.drivePositions,
               can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
-  std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
-              relocFound, s.reloc.size(), coldFound, cold, relocWrong);
-  const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(s.reloc);
-  std::printf(
-      "cold starts: found %zu of %zu where unique (within 3 sweeps: %zu), refused %zu of %zu ambiguous, wrong %zu\n",
-      cs.uniqueFound, cs.unique, cs.uniqueWithin3, cs.ambiguousRefused, cs.ambiguous, cs.wrong);
+  (void)printRelocalizationSummary(s);
   std::printf("FALKO corners alone (static_falko; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
               falkoMeetCount, falkoRuns, kPositionRequirement * 100.0, kHeadingRequirementDeg);
   std::printf("dynamic map (%s; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
@@ -821,6 +848,9 @@ int main(int argc, char** argv) {
   session.calibrationStatus = applyCalibration(session.calibration, cfg, stages[0]);
   printSetup(options, world, stages, cfg, session);
 
+  if (options.relocalizationOnly) {
+    return runRelocalizationOnly(world, cfg, session);
+  }
   if (!runLocalizationStages(world, cfg, options.missions, session)) {
     return 2;
   }
