@@ -392,7 +392,9 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                                                    : Json{{"detected", tr.detected},
                                                           {"outcome", relocOutcomeName(tr.lastOutcome)},
                                                           {"inliers", tr.lastInliers},
-                                                          {"runner_up_inliers", tr.lastSecondInliers}}}});
+                                                          {"runner_up_inliers", tr.lastSecondInliers},
+                                                          {"missed", tr.lastMissed},
+                                                          {"runner_up_missed", tr.lastSecondMissed}}}});
   }
   Json mappingRuns = Json::array();
   for (const RunResult& r : s.mappingRuns) {

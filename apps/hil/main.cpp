@@ -395,9 +395,10 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
     if (!tr.found) {
       // Why: the last sweep searched again with the pipeline's parameters.
       std::printf("        not found: %" PRIu64 " searches, %" PRIu64 " candidates, %" PRIu64
-                  " unconfirmed; last sweep %zu reflectors, search %s with %zu inliers, runner-up %zu\n",
+                  " unconfirmed; last sweep %zu reflectors, search %s with %zu inliers (%zu missed), runner-up %zu "
+                  "(%zu missed)\n",
                   tr.searches, tr.candidates, tr.unconfirmed, tr.detected, agv::hil::relocOutcomeName(tr.lastOutcome),
-                  tr.lastInliers, tr.lastSecondInliers);
+                  tr.lastInliers, tr.lastMissed, tr.lastSecondInliers, tr.lastSecondMissed);
     }
   }
 }

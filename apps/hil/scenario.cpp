@@ -518,10 +518,12 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
     search.laserMount = cfg.estimate.laserMount;
     const auto reloc = std::make_unique<GlobalLocalizer>(search);
     RelocReport rr;
-    (void)reloc->localize(map, Span<const PointObservation>(obs.data(), obs.size()), rr);
+    (void)reloc->localize(map, Span<const PointObservation>(obs.data(), obs.size()), meas.scan, rr);
     trial.lastOutcome = rr.outcome;
     trial.lastInliers = rr.inliers;
     trial.lastSecondInliers = rr.hasSecond ? rr.secondInliers : 0U;
+    trial.lastMissed = rr.missed;
+    trial.lastSecondMissed = rr.hasSecond ? rr.secondMissed : 0U;
   }
   if (trial.found) {
     trial.sweeps =

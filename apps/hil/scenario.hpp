@@ -224,6 +224,8 @@ struct RelocTrial {
   RelocOutcome lastOutcome = RelocOutcome::EmptyInput;  ///< of that search
   std::size_t lastInliers = 0;                          ///< its best pose's inliers
   std::size_t lastSecondInliers = 0;                    ///< its runner-up's inliers
+  std::size_t lastMissed = 0;                           ///< landmarks its best pose expects, undetected
+  std::size_t lastSecondMissed = 0;                     ///< the same for the runner-up
 };
 
 /// `count` cold starts and `kidnaps` kidnappings at poses drawn on the world's paths (free space)

@@ -380,7 +380,7 @@ void Pipeline::Impl::relocalize() noexcept {
     ++counters.unconfirmed;  // Rejected: search again on this sweep
   }
   RelocReport rr;
-  (void)globalLocalizer->localize(map, obs, rr);
+  (void)globalLocalizer->localize(map, obs, measurement->scan, rr);  // the sweep: negative evidence
   ++counters.searches;
   report.searched = true;
   report.searchOutcome = rr.outcome;
