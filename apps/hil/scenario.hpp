@@ -215,17 +215,19 @@ struct RelocTrial {
   bool unique = false;                ///< no pose 0.5 m / 10 deg away explains the same reflectors
   std::size_t visibleReflectors = 0;  ///< reflectors visible from `truth` (noise-free)
   std::size_t otherSupport = 0;       ///< of those, the most a distinct pose puts on the map
-  // Why a trial was not found: the pipeline's counters and, on the last sweep, a search of the
-  // same observations with the pipeline's parameters.
+  // Why a trial was not found: the pipeline's counters (searches, those that gave a candidate,
+  // candidates a later sweep rejected) and, on the last sweep, a search of the same reflectors
+  // with the pipeline's parameters: their count, its outcome, its best pose's inliers and the
+  // landmarks that pose expects in clear view undetected, the same for its runner-up.
   std::uint64_t searches = 0;
-  std::uint64_t candidates = 0;                         ///< searches that gave a candidate
-  std::uint64_t unconfirmed = 0;                        ///< candidates a later sweep rejected
-  std::size_t detected = 0;                             ///< reflectors reported on the last sweep
-  RelocOutcome lastOutcome = RelocOutcome::EmptyInput;  ///< of that search
-  std::size_t lastInliers = 0;                          ///< its best pose's inliers
-  std::size_t lastSecondInliers = 0;                    ///< its runner-up's inliers
-  std::size_t lastMissed = 0;                           ///< landmarks its best pose expects, undetected
-  std::size_t lastSecondMissed = 0;                     ///< the same for the runner-up
+  std::uint64_t candidates = 0;
+  std::uint64_t unconfirmed = 0;
+  std::size_t detected = 0;
+  RelocOutcome lastOutcome = RelocOutcome::EmptyInput;
+  std::size_t lastInliers = 0;
+  std::size_t lastMissed = 0;
+  std::size_t lastSecondInliers = 0;
+  std::size_t lastSecondMissed = 0;
 };
 
 /// `count` cold starts and `kidnaps` kidnappings at poses drawn on the world's paths (free space)
