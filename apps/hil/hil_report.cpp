@@ -306,7 +306,7 @@ sim::CanBusCounters canTotals(const SessionResults& s) {
   return c;
 }
 
-ColdStartSummary coldStartSummary(const std::vector<RelocTrial>& trials) {
+ColdStartSummary coldStartSummary(const std::vector<RelocTrial>& trials, std::size_t ambiguityMargin) {
   ColdStartSummary c;
   for (const RelocTrial& tr : trials) {
     if (tr.kidnapped) {
@@ -321,6 +321,10 @@ ColdStartSummary coldStartSummary(const std::vector<RelocTrial>& trials) {
       c.ambiguousRefused += tr.found ? 0U : 1U;
     }
     c.wrong += tr.wrong ? 1U : 0U;
+    if (tr.unique && tr.otherSupport + ambiguityMargin < tr.visibleReflectors) {
+      ++c.uniqueBeyondMargin;
+      c.uniqueBeyondMarginFound += tr.found ? 1U : 0U;
+    }
   }
   return c;
 }
@@ -365,7 +369,7 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
     }
   }
   Json trials = Json::array();
-  const ColdStartSummary cs = coldStartSummary(s.reloc);
+  const ColdStartSummary cs = coldStartSummary(s.reloc, GlobalLocalizerParams{}.ambiguityMargin);
   std::size_t found = 0;
   std::size_t wrong = 0;
   for (const RelocTrial& tr : s.reloc) {
@@ -420,7 +424,9 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                   {"found_unique_within_3_sweeps", cs.uniqueWithin3},
                   {"ambiguous", cs.ambiguous},
                   {"refused_ambiguous", cs.ambiguousRefused},
-                  {"wrong", cs.wrong}}}}},
+                  {"wrong", cs.wrong},
+                  {"unique_beyond_margin", cs.uniqueBeyondMargin},
+                  {"found_unique_beyond_margin", cs.uniqueBeyondMarginFound}}}}},
               {"missions", missionsJson(cfg, s)},
               {"requirement_met", requirementMet}};
 }

@@ -87,8 +87,12 @@ struct ColdStartSummary {
   std::size_t ambiguous = 0;         ///< cold starts whose pose is not unique
   std::size_t ambiguousRefused = 0;  ///< ... not found (refused)
   std::size_t wrong = 0;             ///< cold starts found at a wrong pose
+  /// Unique beyond the localizer's ambiguity margin: every distinct pose explains at least
+  /// margin + 1 fewer reflectors than the truth (`RelocTrial::otherSupport`), and of those found.
+  std::size_t uniqueBeyondMargin = 0;
+  std::size_t uniqueBeyondMarginFound = 0;
 };
-ColdStartSummary coldStartSummary(const std::vector<RelocTrial>& trials);
+ColdStartSummary coldStartSummary(const std::vector<RelocTrial>& trials, std::size_t ambiguityMargin);
 
 /// Name of a relocalization outcome, as in the JSON ("found", "ambiguous", "weak_support", ...).
 const char* relocOutcomeName(RelocOutcome outcome) noexcept;

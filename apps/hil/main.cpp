@@ -417,10 +417,14 @@ std::size_t printRelocalizationSummary(const SessionResults& s) {
   }
   std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
               found, s.reloc.size(), coldFound, cold, wrong);
-  const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(s.reloc);
+  const std::size_t margin = agv::GlobalLocalizerParams{}.ambiguityMargin;
+  const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(s.reloc, margin);
   std::printf(
       "cold starts: found %zu of %zu where unique (within 3 sweeps: %zu), refused %zu of %zu ambiguous, wrong %zu\n",
       cs.uniqueFound, cs.unique, cs.uniqueWithin3, cs.ambiguousRefused, cs.ambiguous, cs.wrong);
+  std::printf(
+      "cold starts unique beyond the ambiguity margin (every distinct pose explains %zu fewer): found %zu of %zu\n",
+      margin + 1, cs.uniqueBeyondMarginFound, cs.uniqueBeyondMargin);
   return wrong;
 }
 
