@@ -477,6 +477,7 @@ TEST_CASE("global localizer: a scan's clear view refutes a pose that expects und
     CHECK(r.secondInliers == 3U);
     CHECK(r.secondMissed == 2U);
     CHECK(std::fabs(r.secondPose.x - 40.0) < 0.05);
+    AGV_CHECK_NO_ALLOCATIONS((void)loc.localize(map, o, scan, r));
   }
   SECTION("the poles hidden in the scan (something 1 m away all round): ambiguous") {
     for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
