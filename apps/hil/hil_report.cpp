@@ -369,7 +369,7 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
     }
   }
   Json trials = Json::array();
-  const ColdStartSummary cs = coldStartSummary(s.reloc, GlobalLocalizerParams{}.ambiguityMargin);
+  const ColdStartSummary cs = coldStartSummary(s.reloc, cfg.relocAmbiguityMargin);
   std::size_t found = 0;
   std::size_t wrong = 0;
   for (const RelocTrial& tr : s.reloc) {

@@ -64,6 +64,8 @@ struct Options {
   bool missions = true;
   bool movePallets = true;
   bool relocalizationOnly = false;
+  int relocSpurious = 0;
+  std::size_t relocMargin = agv::GlobalLocalizerParams{}.ambiguityMargin;
 };
 
 /// False with `exitCode` set when the program ends here (help, or a refused command line).
@@ -96,6 +98,12 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
   app.add_flag("--relocalization-only", o.relocalizationOnly,
                "calibration and the relocalization stage only (stdout; no JSON, no verdict): for measuring it "
                "over many seeds");
+  app.add_option("--reloc-spurious", o.relocSpurious,
+                 "relocalization: spurious reflector detections per sweep, at fixed places (default 0)")
+      ->check(CLI::Range(0, 16));
+  app.add_option("--reloc-margin", o.relocMargin,
+                 "relocalization: the search's ambiguity margin in inliers (default 2)")
+      ->check(CLI::Range(0, 16));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -125,6 +133,8 @@ ScenarioConfig scenarioConfig(const Options& o) {
   if (o.shortScenario) {
     cfg.laser.angularResolution = agv::deg2rad(1.0);
   }
+  cfg.relocSpurious = o.relocSpurious;
+  cfg.relocAmbiguityMargin = o.relocMargin;
   if (o.shortScenario) {
     cfg.relocColdStarts = 4;
     cfg.relocKidnaps = 2;
@@ -404,7 +414,7 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
 }
 
 /// The relocalization stage's two summary lines; returns the wrong poses.
-std::size_t printRelocalizationSummary(const SessionResults& s) {
+std::size_t printRelocalizationSummary(const ScenarioConfig& cfg, const SessionResults& s) {
   std::size_t found = 0;
   std::size_t wrong = 0;
   std::size_t coldFound = 0;
@@ -417,7 +427,7 @@ std::size_t printRelocalizationSummary(const SessionResults& s) {
   }
   std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
               found, s.reloc.size(), coldFound, cold, wrong);
-  const std::size_t margin = agv::GlobalLocalizerParams{}.ambiguityMargin;
+  const std::size_t margin = cfg.relocAmbiguityMargin;
   const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(s.reloc, margin);
   std::printf(
       "cold starts: found %zu of %zu where unique (within 3 sweeps: %zu), refused %zu of %zu ambiguous, wrong %zu\n",
@@ -437,7 +447,7 @@ int runRelocalizationOnly(const agv::sim::World& world, const ScenarioConfig& cf
     return 2;
   }
   runRelocalizationStage(world, cfg, *reflectorMap, s);
-  return printRelocalizationSummary(s) == 0 ? 0 : 1;
+  return printRelocalizationSummary(cfg, s) == 0 ? 0 : 1;
 }
 
 // ---- missions: several operation points over 50-100 m, pallets moved between runs -------------
@@ -766,7 +776,7 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
               unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
               cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", can.framesDecoded(), can.drivePositions,
               can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
-  (void)printRelocalizationSummary(s);
+  (void)printRelocalizationSummary(cfg, s);
   std::printf("FALKO corners alone (static_falko; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
               falkoMeetCount, falkoRuns, kPositionRequirement * 100.0, kHeadingRequirementDeg);
   std::printf("dynamic map (%s; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",

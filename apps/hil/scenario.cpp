@@ -423,6 +423,39 @@ RunResult runOne(const sim::RayCaster& caster, const std::string& name, const st
   return r;
 }
 
+/// The simulated laser with `spurious` fixed reflector detections (world places) added to every
+/// sweep, seen from the vehicle's true laser pose, 1 cm noise, unstamped.
+class ClutteredLaser final : public hal::LaserSource {
+ public:
+  ClutteredLaser(sim::SimLaser& laser, const sim::SimVehicle& vehicle, std::vector<Pose2d::Vector2> spurious,
+                 std::uint64_t seed)
+      : laser_(laser), vehicle_(vehicle), spurious_(std::move(spurious)), rng_(seed) {}
+  Status read(hal::LaserMeasurement& out) noexcept override {
+    const Status st = laser_.read(out);
+    if (st != Status::Ok || !out.hasReflectors) {
+      return st;
+    }
+    const Pose2d pose = vehicle_.trueLaserPose();
+    for (const Pose2d::Vector2& w : spurious_) {
+      const Pose2d::Vector2 v = pose.inverseTransformPoint(w);
+      hal::ReflectorObservation o;
+      o.x = static_cast<float>(v.x() + 0.01 * normal_(rng_));
+      o.y = static_cast<float>(v.y() + 0.01 * normal_(rng_));
+      o.positionStdDev = 0.01F;
+      static_cast<void>(out.reflectors.push_back(o));
+    }
+    return Status::Ok;
+  }
+  Status health() const noexcept override { return laser_.health(); }
+
+ private:
+  sim::SimLaser& laser_;
+  const sim::SimVehicle& vehicle_;
+  std::vector<Pose2d::Vector2> spurious_;
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> normal_{0.0, 1.0};
+};
+
 /// One relocalization trial (see `RelocTrial`): standing vehicle, reflectors on the surveyed map.
 RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, LandmarkMap& map, const Pose2d& start,
                       const Pose2d* kidnapFrom, double maxSeconds, std::uint64_t seed) {
@@ -454,8 +487,18 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
   sim::SimPlcPeer plc;
   sim::SimClock clock;
   sim::CanEncoderSource canEncoders(vehicle, cfg.can);
-  nav::Pipeline pipeline(pipelineParams(cfg, LocalizationMode::Reflectors), map,
-                         nav::PipelineDevices{canEncoders, laser, plc, clock});
+  std::vector<Pose2d::Vector2> spurious;
+  std::mt19937_64 clutterRng(seed ^ 0x5851F42D4C957F2DULL);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (int k = 0; k < cfg.relocSpurious; ++k) {
+    const double r = 1.0 + 19.0 * unit(clutterRng);
+    const double a = 2.0 * 3.14159265358979323846 * unit(clutterRng);
+    spurious.emplace_back(start.x + r * std::cos(a), start.y + r * std::sin(a));
+  }
+  ClutteredLaser cluttered(laser, vehicle, std::move(spurious), seed ^ 0x2545F4914F6CDD1DULL);
+  nav::PipelineParams params = pipelineParams(cfg, LocalizationMode::Reflectors);
+  params.relocalization.search.ambiguityMargin = cfg.relocAmbiguityMargin;
+  nav::Pipeline pipeline(params, map, nav::PipelineDevices{canEncoders, cluttered, plc, clock});
   Timestamp t{};
   vehicle.reset(kidnapFrom != nullptr ? *kidnapFrom : start, t);
   clock.set(t);
@@ -514,7 +557,7 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
                                      static_cast<double>(meas.reflectors[i].y), LandmarkKind::Reflector});
     }
     trial.detected = obs.size();
-    GlobalLocalizerParams search = pipelineParams(cfg, LocalizationMode::Reflectors).relocalization.search;
+    GlobalLocalizerParams search = params.relocalization.search;
     search.laserMount = cfg.estimate.laserMount;
     const auto reloc = std::make_unique<GlobalLocalizer>(search);
     RelocReport rr;

@@ -108,6 +108,11 @@ struct ScenarioConfig {
   int relocColdStarts = 20;
   int relocKidnaps = 8;
   double relocSeconds = 4.0;  ///< [s] of simulated time per trial at most
+  /// Spurious reflector detections per sweep in each relocalization trial (0: none, the default):
+  /// fixed places 1-20 m from the standing vehicle, as shiny objects nearby would give.
+  int relocSpurious = 0;
+  /// The relocalization search's ambiguity margin (GlobalLocalizerParams::ambiguityMargin).
+  std::size_t relocAmbiguityMargin = GlobalLocalizerParams{}.ambiguityMargin;
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
   std::int16_t dynamicMinHitsToCorrect = 10;
   /// Missions (`runMissions`): runs per mission, standstill at each operation point (pick or drop)
