@@ -465,7 +465,8 @@ TEST_CASE("pipeline: activated without a set-pose, it finds its pose on the map,
   CHECK_FALSE(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Relocalized));
 }
 
-TEST_CASE("pipeline: the first sweep is searched before any encoder sample, the next two confirm it", "[nav][reloc]") {
+TEST_CASE("pipeline: the first sweep is searched before any encoder sample; confirmed only with odometry",
+          "[nav][reloc]") {
   Rig rig;
   rig.encoders.silent = true;  // the drive's encoders not yet up when the first sweep comes
   REQUIRE(rig.pipeline.configure() == Status::Ok);
@@ -478,13 +479,22 @@ TEST_CASE("pipeline: the first sweep is searched before any encoder sample, the 
   CHECK(rig.pipeline.counters().encoderSamples == 0U);
   CHECK(rig.pipeline.counters().searches == 1U);  // searched without odometry
   CHECK(rig.pipeline.counters().candidates == 1U);
+  // Never confirmed without odometry: while the encoders stay silent the candidate waits.
+  const std::uint64_t sweepsBefore = rig.pipeline.counters().sweeps;
+  for (int i = 0; i < 200 && rig.pipeline.counters().sweeps < sweepsBefore + 3U; ++i) {
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    (void)rig.pipeline.cycle();
+  }
+  CHECK_FALSE(rig.pipeline.localizing());
+  CHECK(rig.pipeline.searching());
+  CHECK(rig.pipeline.counters().searches == 1U);
   rig.encoders.silent = false;
   for (int i = 0; i < 200 && !rig.pipeline.localizing(); ++i) {
     rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
     (void)rig.pipeline.cycle();
   }
   REQUIRE(rig.pipeline.localizing());
-  CHECK(rig.pipeline.counters().sweeps == 3U);  // the search's sweep and two confirming ones
+  CHECK(rig.pipeline.counters().sweeps == sweepsBefore + 5U);  // waited 3, then two confirming ones
   CHECK(rig.pipeline.counters().searches == 1U);
   CHECK(rig.pipeline.counters().unconfirmed == 0U);
   rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(300));

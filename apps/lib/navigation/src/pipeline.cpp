@@ -329,7 +329,8 @@ void Pipeline::Impl::relocalize() noexcept {
   // reference instants.
   // Before the first encoder sample (the first sweep after power-up) the search runs all the same;
   // the next sweep carries its candidate from the first sample on (the motion before it is not
-  // known: the confirming sweeps' refits absorb a standing vehicle's).
+  // known: the confirming sweeps' refits absorb a standing vehicle's). A candidate is never
+  // confirmed without odometry: it waits for the first sample.
   const Timestamp ref = observations->stamp;
   const Result<Pose2d> dr = motion->at(ref);
   Pose2d moved{};
@@ -344,6 +345,9 @@ void Pipeline::Impl::relocalize() noexcept {
     haveSearchPose = true;
     searchWithoutOdometry = false;
   } else {
+    if (confirmer->state() == RelocConfirmState::Pending) {
+      return;  // nothing to carry the candidate with yet
+    }
     haveSearchPose = false;
     searchWithoutOdometry = true;
     searchStamp = ref;
