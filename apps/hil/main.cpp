@@ -65,6 +65,7 @@ struct Options {
   bool movePallets = true;
   bool relocalizationOnly = false;
   int relocSpurious = 0;
+  double relocMiss = 0.0;
   std::size_t relocMargin = agv::GlobalLocalizerParams{}.ambiguityMargin;
 };
 
@@ -101,6 +102,9 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
   app.add_option("--reloc-spurious", o.relocSpurious,
                  "relocalization: spurious reflector detections per sweep, at fixed places (default 0)")
       ->check(CLI::Range(0, 16));
+  app.add_option("--reloc-miss", o.relocMiss,
+                 "relocalization: probability that a visible reflector is not detected in a sweep (default 0)")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--reloc-margin", o.relocMargin,
                  "relocalization: the search's ambiguity margin in inliers (default 2)")
       ->check(CLI::Range(0, 16));
@@ -134,6 +138,7 @@ ScenarioConfig scenarioConfig(const Options& o) {
     cfg.laser.angularResolution = agv::deg2rad(1.0);
   }
   cfg.relocSpurious = o.relocSpurious;
+  cfg.relocMissProbability = o.relocMiss;
   cfg.relocAmbiguityMargin = o.relocMargin;
   if (o.shortScenario) {
     cfg.relocColdStarts = 4;

@@ -423,17 +423,29 @@ RunResult runOne(const sim::RayCaster& caster, const std::string& name, const st
   return r;
 }
 
-/// The simulated laser with `spurious` fixed reflector detections (world places) added to every
-/// sweep, seen from the vehicle's true laser pose, 1 cm noise, unstamped.
+/// The simulated laser with each true reflector detection dropped with probability `miss`, and
+/// `spurious` fixed reflector detections (world places) added to every sweep, seen from the
+/// vehicle's true laser pose, 1 cm noise, unstamped.
 class ClutteredLaser final : public hal::LaserSource {
  public:
   ClutteredLaser(sim::SimLaser& laser, const sim::SimVehicle& vehicle, std::vector<Pose2d::Vector2> spurious,
-                 std::uint64_t seed)
-      : laser_(laser), vehicle_(vehicle), spurious_(std::move(spurious)), rng_(seed) {}
+                 double miss, std::uint64_t seed)
+      : laser_(laser), vehicle_(vehicle), spurious_(std::move(spurious)), miss_(miss), rng_(seed) {}
   Status read(hal::LaserMeasurement& out) noexcept override {
     const Status st = laser_.read(out);
     if (st != Status::Ok || !out.hasReflectors) {
       return st;
+    }
+    if (miss_ > 0.0) {
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < out.reflectors.size(); ++i) {
+        if (unit_(rng_) >= miss_) {
+          out.reflectors[kept++] = out.reflectors[i];
+        }
+      }
+      while (out.reflectors.size() > kept) {
+        out.reflectors.pop_back();
+      }
     }
     const Pose2d pose = vehicle_.trueLaserPose();
     for (const Pose2d::Vector2& w : spurious_) {
@@ -452,7 +464,9 @@ class ClutteredLaser final : public hal::LaserSource {
   sim::SimLaser& laser_;
   const sim::SimVehicle& vehicle_;
   std::vector<Pose2d::Vector2> spurious_;
+  double miss_;
   std::mt19937_64 rng_;
+  std::uniform_real_distribution<double> unit_{0.0, 1.0};
   std::normal_distribution<double> normal_{0.0, 1.0};
 };
 
@@ -495,7 +509,7 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
     const double a = 2.0 * 3.14159265358979323846 * unit(clutterRng);
     spurious.emplace_back(start.x + r * std::cos(a), start.y + r * std::sin(a));
   }
-  ClutteredLaser cluttered(laser, vehicle, std::move(spurious), seed ^ 0x2545F4914F6CDD1DULL);
+  ClutteredLaser cluttered(laser, vehicle, std::move(spurious), cfg.relocMissProbability, seed ^ 0x2545F4914F6CDD1DULL);
   nav::PipelineParams params = pipelineParams(cfg, LocalizationMode::Reflectors);
   params.relocalization.search.ambiguityMargin = cfg.relocAmbiguityMargin;
   nav::Pipeline pipeline(params, map, nav::PipelineDevices{canEncoders, cluttered, plc, clock});

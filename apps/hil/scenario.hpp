@@ -111,6 +111,9 @@ struct ScenarioConfig {
   /// Spurious reflector detections per sweep in each relocalization trial (0: none, the default):
   /// fixed places 1-20 m from the standing vehicle, as shiny objects nearby would give.
   int relocSpurious = 0;
+  /// Probability that the laser misses a visible reflector in a sweep of a relocalization trial
+  /// (0: none, the default; the simulated laser itself detects every visible pole).
+  double relocMissProbability = 0.0;
   /// The relocalization search's ambiguity margin (GlobalLocalizerParams::ambiguityMargin).
   std::size_t relocAmbiguityMargin = GlobalLocalizerParams{}.ambiguityMargin;
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
