@@ -306,6 +306,53 @@ sim::CanBusCounters canTotals(const SessionResults& s) {
   return c;
 }
 
+ColdStartSummary coldStartSummary(const std::vector<RelocTrial>& trials, std::size_t ambiguityMargin) {
+  ColdStartSummary c;
+  for (const RelocTrial& tr : trials) {
+    if (tr.kidnapped) {
+      continue;
+    }
+    if (tr.unique) {
+      ++c.unique;
+      c.uniqueFound += tr.found ? 1U : 0U;
+      c.uniqueWithin3 += tr.found && tr.sweeps <= 3 ? 1U : 0U;
+    } else {
+      ++c.ambiguous;
+      c.ambiguousRefused += tr.found ? 0U : 1U;
+    }
+    c.wrong += tr.wrong ? 1U : 0U;
+    if (tr.unique && tr.otherSupport + ambiguityMargin < tr.visibleReflectors) {
+      ++c.uniqueBeyondMargin;
+      c.uniqueBeyondMarginFound += tr.found ? 1U : 0U;
+    }
+  }
+  return c;
+}
+
+const char* relocOutcomeName(RelocOutcome outcome) noexcept {
+  switch (outcome) {
+    case RelocOutcome::Found:
+      return "found";
+    case RelocOutcome::InvalidParams:
+      return "invalid_params";
+    case RelocOutcome::EmptyInput:
+      return "empty_input";
+    case RelocOutcome::NonFiniteInput:
+      return "non_finite_input";
+    case RelocOutcome::OverCapacity:
+      return "over_capacity";
+    case RelocOutcome::WindowOverCapacity:
+      return "window_over_capacity";
+    case RelocOutcome::WeakSupport:
+      return "weak_support";
+    case RelocOutcome::Ambiguous:
+      return "ambiguous";
+    case RelocOutcome::WorkBoundHit:
+      return "work_bound_hit";
+  }
+  return "unknown";
+}
+
 report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& stages, const SessionResults& s,
                          bool requirementMet) {
   Json stageStates = Json::object();
@@ -322,6 +369,7 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
     }
   }
   Json trials = Json::array();
+  const ColdStartSummary cs = coldStartSummary(s.reloc, cfg.relocAmbiguityMargin);
   std::size_t found = 0;
   std::size_t wrong = 0;
   for (const RelocTrial& tr : s.reloc) {
@@ -337,7 +385,20 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                           {"position_error_m", tr.positionError},
                           {"heading_error_deg", rad2deg(tr.headingError)},
                           {"wrong", tr.wrong},
-                          {"ambiguous_searches", tr.ambiguous}});
+                          {"ambiguous_searches", tr.ambiguous},
+                          {"unique", tr.unique},
+                          {"visible_reflectors", tr.visibleReflectors},
+                          {"distinct_pose_support", tr.otherSupport},
+                          {"searches", tr.searches},
+                          {"candidates", tr.candidates},
+                          {"unconfirmed", tr.unconfirmed},
+                          {"last_search", tr.found ? Json()
+                                                   : Json{{"detected", tr.detected},
+                                                          {"outcome", relocOutcomeName(tr.lastOutcome)},
+                                                          {"inliers", tr.lastInliers},
+                                                          {"runner_up_inliers", tr.lastSecondInliers},
+                                                          {"missed", tr.lastMissed},
+                                                          {"runner_up_missed", tr.lastSecondMissed}}}});
   }
   Json mappingRuns = Json::array();
   for (const RunResult& r : s.mappingRuns) {
@@ -353,7 +414,19 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                 {"field_surface_cells", s.fieldSurfacePoints},
                 {"runs", std::move(mappingRuns)}}},
               {"relocalization",
-               {{"trials", std::move(trials)}, {"found", found}, {"wrong", wrong}, {"count", s.reloc.size()}}},
+               {{"trials", std::move(trials)},
+                {"found", found},
+                {"wrong", wrong},
+                {"count", s.reloc.size()},
+                {"cold_starts",
+                 {{"unique", cs.unique},
+                  {"found_unique", cs.uniqueFound},
+                  {"found_unique_within_3_sweeps", cs.uniqueWithin3},
+                  {"ambiguous", cs.ambiguous},
+                  {"refused_ambiguous", cs.ambiguousRefused},
+                  {"wrong", cs.wrong},
+                  {"unique_beyond_margin", cs.uniqueBeyondMargin},
+                  {"found_unique_beyond_margin", cs.uniqueBeyondMarginFound}}}}},
               {"missions", missionsJson(cfg, s)},
               {"requirement_met", requirementMet}};
 }

@@ -79,6 +79,24 @@ bool requiredMode(LocalizationMode mode) noexcept;
 /// vehicle's CANopen decoder: the only way the encoder samples reach the navigation.
 sim::CanBusCounters canTotals(const SessionResults& s);
 
+/// Cold starts judged by the uniqueness oracle (`RelocTrial::unique`); kidnappings not counted.
+struct ColdStartSummary {
+  std::size_t unique = 0;            ///< cold starts whose pose the map makes unique
+  std::size_t uniqueFound = 0;       ///< ... found
+  std::size_t uniqueWithin3 = 0;     ///< ... found within 3 sweeps
+  std::size_t ambiguous = 0;         ///< cold starts whose pose is not unique
+  std::size_t ambiguousRefused = 0;  ///< ... not found (refused)
+  std::size_t wrong = 0;             ///< cold starts found at a wrong pose
+  /// Unique beyond the localizer's ambiguity margin: every distinct pose explains at least
+  /// margin + 1 fewer reflectors than the truth (`RelocTrial::otherSupport`), and of those found.
+  std::size_t uniqueBeyondMargin = 0;
+  std::size_t uniqueBeyondMarginFound = 0;
+};
+ColdStartSummary coldStartSummary(const std::vector<RelocTrial>& trials, std::size_t ambiguityMargin);
+
+/// Name of a relocalization outcome, as in the JSON ("found", "ambiguous", "weak_support", ...).
+const char* relocOutcomeName(RelocOutcome outcome) noexcept;
+
 /// The JSON summary: calibration (truth, estimate, nominal and their errors), requirement, CAN
 /// encoders, stages, runs (localizer runs, then dead reckoning of the reflector-mode runs),
 /// static FALKO mapping, requirement_met.

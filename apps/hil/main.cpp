@@ -64,6 +64,10 @@ struct Options {
   bool missionRunsGiven = false;
   bool missions = true;
   bool movePallets = true;
+  bool relocalizationOnly = false;
+  int relocSpurious = 0;
+  double relocMiss = 0.0;
+  std::size_t relocMargin = agv::GlobalLocalizerParams{}.ambiguityMargin;
 };
 
 /// False with `exitCode` set when the program ends here (help, or a refused command line).
@@ -95,6 +99,18 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
   app.add_flag("!--no-missions", o.missions, "skip the missions (the paths only)");
   app.add_flag("!--no-pallet-moves", o.movePallets,
                "missions on the mapped pallet layout (no pallet moved, removed or added between runs)");
+  app.add_flag("--relocalization-only", o.relocalizationOnly,
+               "calibration and the relocalization stage only (stdout; no JSON, no verdict): for measuring it "
+               "over many seeds");
+  app.add_option("--reloc-spurious", o.relocSpurious,
+                 "relocalization: spurious reflector detections per sweep, at fixed places (default 0)")
+      ->check(CLI::Range(0, 16));
+  app.add_option("--reloc-miss", o.relocMiss,
+                 "relocalization: probability that a visible reflector is not detected in a sweep (default 0)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--reloc-margin", o.relocMargin,
+                 "relocalization: the search's ambiguity margin in inliers (default 2)")
+      ->check(CLI::Range(0, 16));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -125,6 +141,9 @@ ScenarioConfig scenarioConfig(const Options& o) {
   if (o.shortScenario) {
     cfg.laser.angularResolution = agv::deg2rad(1.0);
   }
+  cfg.relocSpurious = o.relocSpurious;
+  cfg.relocMissProbability = o.relocMiss;
+  cfg.relocAmbiguityMargin = o.relocMargin;
   if (o.shortScenario) {
     cfg.relocColdStarts = 4;
     cfg.relocKidnaps = 2;
@@ -294,9 +313,10 @@ bool runMode(const agv::sim::World& world, const ScenarioConfig& cfg, Localizati
 }
 
 /// Reflectors against the surveyed map: the poles as a surveyor measured them (1 mm per coordinate).
+constexpr double kSurveySigma = 0.001;  ///< [m] of the surveyed reflector map, per coordinate
+
 bool runReflectorMode(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& reflectorMap,
                       SessionResults& s) {
-  constexpr double kSurveySigma = 0.001;  // [m]
   if (agv::hil::buildSurveyedReflectorMap(world, kSurveySigma, cfg.seed ^ 0x5EEDU, reflectorMap) != agv::Status::Ok) {
     std::fprintf(stderr, "agvnav-hil: the world's reflectors do not fit the landmark map\n");
     return false;
@@ -388,8 +408,55 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
     if (tr.kidnapped) {
       std::printf(" (lost %s)", tr.lostDetected ? "detected" : "NOT detected");
     }
-    std::printf("%s\n", tr.ambiguous > 0 ? " (ambiguous searches refused)" : "");
+    std::printf("%s; %s (%zu visible, a distinct pose explains %zu)\n",
+                tr.ambiguous > 0 ? " (ambiguous searches refused)" : "", tr.unique ? "unique" : "NOT unique",
+                tr.visibleReflectors, tr.otherSupport);
+    if (!tr.found) {
+      // Why: the last sweep searched again with the pipeline's parameters.
+      std::printf("        not found: %" PRIu64 " searches, %" PRIu64 " candidates, %" PRIu64
+                  " unconfirmed; last sweep %zu reflectors, search %s with %zu inliers (%zu missed), runner-up %zu "
+                  "(%zu missed)\n",
+                  tr.searches, tr.candidates, tr.unconfirmed, tr.detected, agv::hil::relocOutcomeName(tr.lastOutcome),
+                  tr.lastInliers, tr.lastMissed, tr.lastSecondInliers, tr.lastSecondMissed);
+    }
   }
+}
+
+/// The relocalization stage's two summary lines; returns the wrong poses.
+std::size_t printRelocalizationSummary(const ScenarioConfig& cfg, const SessionResults& s) {
+  std::size_t found = 0;
+  std::size_t wrong = 0;
+  std::size_t coldFound = 0;
+  std::size_t cold = 0;
+  for (const agv::hil::RelocTrial& tr : s.reloc) {
+    found += tr.found ? 1U : 0U;
+    wrong += tr.wrong ? 1U : 0U;
+    cold += tr.kidnapped ? 0U : 1U;
+    coldFound += !tr.kidnapped && tr.found ? 1U : 0U;
+  }
+  std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
+              found, s.reloc.size(), coldFound, cold, wrong);
+  const std::size_t margin = cfg.relocAmbiguityMargin;
+  const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(s.reloc, margin);
+  std::printf(
+      "cold starts: found %zu of %zu where unique (within 3 sweeps: %zu), refused %zu of %zu ambiguous, wrong %zu\n",
+      cs.uniqueFound, cs.unique, cs.uniqueWithin3, cs.ambiguousRefused, cs.ambiguous, cs.wrong);
+  std::printf(
+      "cold starts unique beyond the ambiguity margin (every distinct pose explains %zu fewer): found %zu of %zu\n",
+      margin + 1, cs.uniqueBeyondMarginFound, cs.uniqueBeyondMargin);
+  return wrong;
+}
+
+/// `--relocalization-only`: the surveyed map and the relocalization stage, its summary lines; 1
+/// when a pose was wrong.
+int runRelocalizationOnly(const agv::sim::World& world, const ScenarioConfig& cfg, SessionResults& s) {
+  auto reflectorMap = std::make_unique<agv::LandmarkMap>();
+  if (agv::hil::buildSurveyedReflectorMap(world, kSurveySigma, cfg.seed ^ 0x5EEDU, *reflectorMap) != agv::Status::Ok) {
+    std::fprintf(stderr, "agvnav-hil: the world's reflectors do not fit the landmark map\n");
+    return 2;
+  }
+  runRelocalizationStage(world, cfg, *reflectorMap, s);
+  return printRelocalizationSummary(cfg, s) == 0 ? 0 : 1;
 }
 
 // ---- missions: several operation points over 50-100 m, pallets moved between runs -------------
@@ -682,15 +749,9 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
       estimateMeetCount += agv::hil::meetsRequirement(r.finalWithEstimate, r.finalTruth) ? 1 : 0;
     }
   }
-  std::size_t relocFound = 0;
   std::size_t relocWrong = 0;
-  std::size_t coldFound = 0;
-  std::size_t cold = 0;
   for (const agv::hil::RelocTrial& tr : s.reloc) {
-    relocFound += tr.found ? 1U : 0U;
     relocWrong += tr.wrong ? 1U : 0U;
-    cold += tr.kidnapped ? 0U : 1U;
-    coldFound += !tr.kidnapped && tr.found ? 1U : 0U;
   }
   int missionRequiredRuns = 0;
   int missionRequiredMet = 0;
@@ -724,8 +785,7 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
               unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
               cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", can.framesDecoded(), can.drivePositions,
               can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
-  std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
-              relocFound, s.reloc.size(), coldFound, cold, relocWrong);
+  (void)printRelocalizationSummary(cfg, s);
   std::printf("FALKO corners alone (static_falko; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
               falkoMeetCount, falkoRuns, kPositionRequirement * 100.0, kHeadingRequirementDeg);
   std::printf("dynamic map (%s; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
@@ -812,6 +872,9 @@ int main(int argc, char** argv) {
   session.calibrationStatus = applyCalibration(session.calibration, cfg, stages[0]);
   printSetup(options, world, stages, cfg, session);
 
+  if (options.relocalizationOnly) {
+    return runRelocalizationOnly(world, cfg, session);
+  }
   if (!runLocalizationStages(world, cfg, options.missions, session)) {
     return 2;
   }

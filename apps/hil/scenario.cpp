@@ -16,6 +16,7 @@
 #include "agv/sim/sim_clock.hpp"
 #include "agv/sim/sim_plc.hpp"
 #include "dead_reckoning.hpp"
+#include "reloc_oracle.hpp"
 
 namespace agv::hil {
 
@@ -423,20 +424,96 @@ RunResult runOne(const sim::RayCaster& caster, const std::string& name, const st
   return r;
 }
 
+/// The simulated laser with each true reflector detection dropped with probability `miss`, and
+/// `spurious` fixed reflector detections (world places) added to every sweep, seen from the
+/// vehicle's true laser pose, 1 cm noise, unstamped.
+class ClutteredLaser final : public hal::LaserSource {
+ public:
+  ClutteredLaser(sim::SimLaser& laser, const sim::SimVehicle& vehicle, std::vector<Pose2d::Vector2> spurious,
+                 double miss, std::uint64_t seed)
+      : laser_(laser), vehicle_(vehicle), spurious_(std::move(spurious)), miss_(miss), rng_(seed) {}
+  Status read(hal::LaserMeasurement& out) noexcept override {
+    const Status st = laser_.read(out);
+    if (st != Status::Ok || !out.hasReflectors) {
+      return st;
+    }
+    if (miss_ > 0.0) {
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < out.reflectors.size(); ++i) {
+        if (unit_(rng_) >= miss_) {
+          out.reflectors[kept++] = out.reflectors[i];
+        }
+      }
+      while (out.reflectors.size() > kept) {
+        out.reflectors.pop_back();
+      }
+    }
+    const Pose2d pose = vehicle_.trueLaserPose();
+    for (const Pose2d::Vector2& w : spurious_) {
+      const Pose2d::Vector2 v = pose.inverseTransformPoint(w);
+      hal::ReflectorObservation o;
+      o.x = static_cast<float>(v.x() + 0.01 * normal_(rng_));
+      o.y = static_cast<float>(v.y() + 0.01 * normal_(rng_));
+      o.positionStdDev = 0.01F;
+      static_cast<void>(out.reflectors.push_back(o));
+    }
+    return Status::Ok;
+  }
+  Status health() const noexcept override { return laser_.health(); }
+
+ private:
+  sim::SimLaser& laser_;
+  const sim::SimVehicle& vehicle_;
+  std::vector<Pose2d::Vector2> spurious_;
+  double miss_;
+  std::mt19937_64 rng_;
+  std::uniform_real_distribution<double> unit_{0.0, 1.0};
+  std::normal_distribution<double> normal_{0.0, 1.0};
+};
+
 /// One relocalization trial (see `RelocTrial`): standing vehicle, reflectors on the surveyed map.
 RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, LandmarkMap& map, const Pose2d& start,
                       const Pose2d* kidnapFrom, double maxSeconds, std::uint64_t seed) {
   RelocTrial trial;
   trial.kidnapped = kidnapFrom != nullptr;
   trial.truth = start;
+  {
+    // The oracle: the reflectors visible from the truth, noise-free, in the vehicle frame, against
+    // the surveyed map's reflectors.
+    std::vector<OraclePoint> landmarks;
+    map.forEach([&](LandmarkIndex, const Landmark& l) {
+      if (l.kind == LandmarkKind::Reflector) {
+        landmarks.push_back(OraclePoint{l.x, l.y});
+      }
+    });
+    std::vector<OraclePoint> seen = visibleReflectors(caster, cfg.laser, start.compose(cfg.vehicle.laserMount));
+    for (OraclePoint& p : seen) {
+      const Pose2d::Vector2 v = start.inverseTransformPoint(Pose2d::Vector2(p.x, p.y));
+      p = OraclePoint{v.x(), v.y()};
+    }
+    const Uniqueness u = judgeUniqueness(landmarks, seen, start);
+    trial.unique = u.unique;
+    trial.visibleReflectors = u.visible;
+    trial.otherSupport = u.otherSupport;
+  }
   sim::SimVehicleParams truth = cfg.vehicle;
   sim::SimVehicle vehicle(truth, seed ^ 0x9E3779B97F4A7C15ULL);
   sim::SimLaser laser(caster, cfg.laser, seed ^ 0xC2B2AE3D27D4EB4FULL);
   sim::SimPlcPeer plc;
   sim::SimClock clock;
   sim::CanEncoderSource canEncoders(vehicle, cfg.can);
-  nav::Pipeline pipeline(pipelineParams(cfg, LocalizationMode::Reflectors), map,
-                         nav::PipelineDevices{canEncoders, laser, plc, clock});
+  std::vector<Pose2d::Vector2> spurious;
+  std::mt19937_64 clutterRng(seed ^ 0x5851F42D4C957F2DULL);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (int k = 0; k < cfg.relocSpurious; ++k) {
+    const double r = 1.0 + 19.0 * unit(clutterRng);
+    const double a = 2.0 * 3.14159265358979323846 * unit(clutterRng);
+    spurious.emplace_back(start.x + r * std::cos(a), start.y + r * std::sin(a));
+  }
+  ClutteredLaser cluttered(laser, vehicle, std::move(spurious), cfg.relocMissProbability, seed ^ 0x2545F4914F6CDD1DULL);
+  nav::PipelineParams params = pipelineParams(cfg, LocalizationMode::Reflectors);
+  params.relocalization.search.ambiguityMargin = cfg.relocAmbiguityMargin;
+  nav::Pipeline pipeline(params, map, nav::PipelineDevices{canEncoders, cluttered, plc, clock});
   Timestamp t{};
   vehicle.reset(kidnapFrom != nullptr ? *kidnapFrom : start, t);
   clock.set(t);
@@ -483,6 +560,29 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
   });
   trial.found = pipeline.counters().relocalizations > 0;
   trial.ambiguous = pipeline.counters().ambiguous;
+  trial.searches = pipeline.counters().searches;
+  trial.candidates = pipeline.counters().candidates;
+  trial.unconfirmed = pipeline.counters().unconfirmed;
+  if (!trial.found) {
+    // The last sweep searched again with the pipeline's parameters: why it was refused.
+    const hal::LaserMeasurement& meas = pipeline.lastMeasurement();
+    std::vector<PointObservation> obs;
+    for (std::size_t i = 0; i < meas.reflectors.size(); ++i) {
+      obs.push_back(PointObservation{static_cast<double>(meas.reflectors[i].x),
+                                     static_cast<double>(meas.reflectors[i].y), LandmarkKind::Reflector});
+    }
+    trial.detected = obs.size();
+    GlobalLocalizerParams search = params.relocalization.search;
+    search.laserMount = cfg.estimate.laserMount;
+    const auto reloc = std::make_unique<GlobalLocalizer>(search);
+    RelocReport rr;
+    (void)reloc->localize(map, Span<const PointObservation>(obs.data(), obs.size()), meas.scan, rr);
+    trial.lastOutcome = rr.outcome;
+    trial.lastInliers = rr.inliers;
+    trial.lastSecondInliers = rr.hasSecond ? rr.secondInliers : 0U;
+    trial.lastMissed = rr.missed;
+    trial.lastSecondMissed = rr.hasSecond ? rr.secondMissed : 0U;
+  }
   if (trial.found) {
     trial.sweeps =
         static_cast<std::size_t>(pipeline.counters().sweeps - (trial.kidnapped ? searchStart : sweepsBefore));

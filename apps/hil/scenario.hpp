@@ -13,6 +13,7 @@
 #include "agv/kinematics/tricycle.hpp"
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/likelihood_field.hpp"
+#include "agv/loop/global_localizer.hpp"
 #include "agv/mapping/surface_mapper.hpp"
 #include "agv/sim/can_encoder_source.hpp"
 #include "agv/sim/pallet_moves.hpp"
@@ -107,6 +108,14 @@ struct ScenarioConfig {
   int relocColdStarts = 20;
   int relocKidnaps = 8;
   double relocSeconds = 4.0;  ///< [s] of simulated time per trial at most
+  /// Spurious reflector detections per sweep in each relocalization trial (0: none, the default):
+  /// fixed places 1-20 m from the standing vehicle, as shiny objects nearby would give.
+  int relocSpurious = 0;
+  /// Probability that the laser misses a visible reflector in a sweep of a relocalization trial
+  /// (0: none, the default; the simulated laser itself detects every visible pole).
+  double relocMissProbability = 0.0;
+  /// The relocalization search's ambiguity margin (GlobalLocalizerParams::ambiguityMargin).
+  std::size_t relocAmbiguityMargin = GlobalLocalizerParams{}.ambiguityMargin;
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
   std::int16_t dynamicMinHitsToCorrect = 10;
   /// Missions (`runMissions`): runs per mission, standstill at each operation point (pick or drop)
@@ -212,6 +221,23 @@ struct RelocTrial {
   double headingError = 0.0;    ///< [rad]
   bool wrong = false;           ///< found, but more than 0.1 m or 1 deg from the truth
   std::uint64_t ambiguous = 0;  ///< searches refused as ambiguous
+  // The uniqueness oracle (reloc_oracle.hpp) at `truth`, independent of the localizer.
+  bool unique = false;                ///< no pose 0.5 m / 10 deg away explains the same reflectors
+  std::size_t visibleReflectors = 0;  ///< reflectors visible from `truth` (noise-free)
+  std::size_t otherSupport = 0;       ///< of those, the most a distinct pose puts on the map
+  // Why a trial was not found: the pipeline's counters (searches, those that gave a candidate,
+  // candidates a later sweep rejected) and, on the last sweep, a search of the same reflectors
+  // with the pipeline's parameters: their count, its outcome, its best pose's inliers and the
+  // landmarks that pose expects in clear view undetected, the same for its runner-up.
+  std::uint64_t searches = 0;
+  std::uint64_t candidates = 0;
+  std::uint64_t unconfirmed = 0;
+  std::size_t detected = 0;
+  RelocOutcome lastOutcome = RelocOutcome::EmptyInput;
+  std::size_t lastInliers = 0;
+  std::size_t lastMissed = 0;
+  std::size_t lastSecondInliers = 0;
+  std::size_t lastSecondMissed = 0;
 };
 
 /// `count` cold starts and `kidnaps` kidnappings at poses drawn on the world's paths (free space)

@@ -250,7 +250,7 @@ message(STATUS "agvnav-hil JSON ok: ${n} entries, requirement_met=${met}")
 # Relocalization (--short: 4 cold starts, 2 kidnappings): every trial typed; no wrong pose (the
 # requirement); a found pose within 0.1 m / 1 deg is what "not wrong" means, checked here again
 # from the errors; every kidnapping detected as lost.
-expect_keys("${j}" "trials;found;wrong;count" relocalization)
+expect_keys("${j}" "trials;found;wrong;count;cold_starts" relocalization)
 string(JSON n_reloc GET "${j}" relocalization count)
 string(JSON n_trials LENGTH "${j}" relocalization trials)
 if(NOT n_reloc EQUAL 6 OR NOT n_trials EQUAL 6)
@@ -259,7 +259,8 @@ endif()
 math(EXPR last_reloc "${n_trials} - 1")
 set(found_count 0)
 foreach(i RANGE ${last_reloc})
-  expect_keys("${j}" "kind;x_m;y_m;heading_deg;lost_detected;found;sweeps;position_error_m;heading_error_deg;wrong;ambiguous_searches" relocalization trials ${i})
+  expect_keys("${j}" "kind;x_m;y_m;heading_deg;lost_detected;found;sweeps;position_error_m;heading_error_deg;wrong;ambiguous_searches;unique;visible_reflectors;distinct_pose_support;searches;candidates;unconfirmed;last_search" relocalization trials ${i})
+  expect_type("${j}" BOOLEAN relocalization trials ${i} unique)
   string(JSON kind GET "${j}" relocalization trials ${i} kind)
   string(JSON found GET "${j}" relocalization trials ${i} found)
   string(JSON wrong GET "${j}" relocalization trials ${i} wrong)
@@ -283,6 +284,18 @@ if(NOT wrong_total EQUAL 0 OR NOT found_total EQUAL found_count)
 endif()
 if(found_count LESS 3)
   message(FATAL_ERROR "JSON: relocalization: only ${found_count} of 6 trials found the pose")
+endif()
+# The uniqueness oracle's cold-start summary: consistent counts, no wrong pose.
+expect_keys("${j}" "unique;found_unique;found_unique_within_3_sweeps;ambiguous;refused_ambiguous;wrong;unique_beyond_margin;found_unique_beyond_margin" relocalization cold_starts)
+string(JSON cs_unique GET "${j}" relocalization cold_starts unique)
+string(JSON cs_ambiguous GET "${j}" relocalization cold_starts ambiguous)
+string(JSON cs_found GET "${j}" relocalization cold_starts found_unique)
+string(JSON cs_within GET "${j}" relocalization cold_starts found_unique_within_3_sweeps)
+string(JSON cs_wrong GET "${j}" relocalization cold_starts wrong)
+math(EXPR cs_total "${cs_unique} + ${cs_ambiguous}")
+if(NOT cs_total EQUAL 4 OR cs_found GREATER cs_unique OR cs_within GREATER cs_found OR NOT cs_wrong EQUAL 0)
+  message(FATAL_ERROR "JSON: relocalization.cold_starts: unique ${cs_unique}, ambiguous ${cs_ambiguous}, "
+                      "found ${cs_found}, within 3 sweeps ${cs_within}, wrong ${cs_wrong}")
 endif()
 
 # The missions: end to end in every mode, operation points reached, pallets moved between runs.

@@ -426,3 +426,72 @@ TEST_CASE("global localizer: regular pole grids, heavy clutter: refusals, never 
   }
 }
 #endif
+
+TEST_CASE("global localizer: a scan's clear view refutes a pose that expects undetected poles", "[loop][reloc]") {
+  // Four poles seen from the origin; 40 m away a copy of three of them and two more poles that a
+  // vehicle standing at the copy would have in clear view. The copy explains 3 of the 4
+  // observations: within the margin of 2 by inliers alone. With the scan, it expects the two
+  // extra poles, nothing was detected there, and it scores 3 - 2 = 1 against 4.
+  static LandmarkMap map;
+  map.clear();
+  const Eigen::Vector2d seen[4] = {{5.0, 0.5}, {0.5, 6.0}, {-4.0, -3.0}, {3.0, -5.5}};
+  std::uint32_t id = 1;
+  for (const Eigen::Vector2d& p : seen) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
+  }
+  for (std::size_t i = 0; i < 3; ++i) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, seen[i].x() + 40.0, seen[i].y(), 0.001, id++).ok());
+  }
+  REQUIRE(map.addSurveyed(LandmarkKind::Reflector, 42.0, 2.0, 0.001, id++).ok());
+  REQUIRE(map.addSurveyed(LandmarkKind::Reflector, 38.0, 2.5, 0.001, id++).ok());
+  map.setMode(MapMode::Static);
+  PointObservation obs[4];
+  for (std::size_t i = 0; i < 4; ++i) {
+    obs[i] = PointObservation{seen[i].x(), seen[i].y(), LandmarkKind::Reflector};
+  }
+  const Span<const PointObservation> o(obs, 4);
+  static GlobalLocalizer loc;  // laser at the logical point
+  static LaserScan scan;
+  scan.angleMin = -3.14159265F;
+  scan.angleIncrement = 2.0F * 3.14159265F / 720.0F;
+  scan.rangeMin = 0.1F;
+  scan.rangeMax = 50.0F;
+  scan.ranges.clear();
+  for (std::size_t i = 0; i < 720; ++i) {
+    REQUIRE(scan.ranges.push_back(20.0F) == Status::Ok);  // walls 20 m away, nothing nearer
+  }
+  RelocReport r;
+  SECTION("inliers alone: ambiguous") {
+    CHECK(loc.localize(map, o, r) == Status::Rejected);
+    CHECK(r.outcome == RelocOutcome::Ambiguous);
+    CHECK(r.inliers == 4U);
+    CHECK(r.secondInliers == 3U);
+  }
+  SECTION("with the scan: found, the copy refuted") {
+    REQUIRE(loc.localize(map, o, scan, r) == Status::Ok);
+    CHECK(r.outcome == RelocOutcome::Found);
+    CHECK(std::hypot(r.pose.x, r.pose.y) < 0.01);
+    CHECK(std::fabs(r.pose.theta) < 0.01);
+    CHECK(r.missed == 0U);
+    CHECK(r.hasSecond);
+    CHECK(r.secondInliers == 3U);
+    CHECK(r.secondMissed == 2U);
+    CHECK(std::fabs(r.secondPose.x - 40.0) < 0.05);
+    AGV_CHECK_NO_ALLOCATIONS((void)loc.localize(map, o, scan, r));
+  }
+  SECTION("the poles hidden in the scan (something 1 m away all round): ambiguous") {
+    for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
+      scan.ranges[i] = 1.0F;
+    }
+    CHECK(loc.localize(map, o, scan, r) == Status::Rejected);
+    CHECK(r.outcome == RelocOutcome::Ambiguous);
+    CHECK(r.secondMissed == 0U);
+  }
+  SECTION("one of the two extra poles detected after all: ambiguous") {
+    PointObservation more[5] = {obs[0], obs[1], obs[2], obs[3], PointObservation{2.0, 2.0, LandmarkKind::Reflector}};
+    // The fifth detection is not on the map under the truth; under the copy it is the pole at
+    // (42, 2), which is then explained: 4 inliers, 1 missed, against the truth's 4, 0 missed.
+    CHECK(loc.localize(map, Span<const PointObservation>(more, 5), scan, r) == Status::Rejected);
+    CHECK(r.outcome == RelocOutcome::Ambiguous);
+  }
+}

@@ -447,8 +447,8 @@ TEST_CASE("pipeline: activated without a set-pose, it finds its pose on the map,
   CHECK(c.relocalizations == 1U);
   CHECK(c.candidates >= 1U);
   CHECK(c.setPoses == 0U);
-  // One search plus three confirming sweeps at 125 ms.
-  CHECK(rig.clock.now() - kStart <= Duration::fromMilliseconds(4 * 125 + 10));
+  // One search plus two confirming sweeps at 125 ms.
+  CHECK(rig.clock.now() - kStart <= Duration::fromMilliseconds(3 * 125 + 10));
   rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(40));
   CHECK(rig.plc.last.health.mode == NavMode::Localizing);
   CHECK(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Relocalized));
@@ -463,6 +463,42 @@ TEST_CASE("pipeline: activated without a set-pose, it finds its pose on the map,
   rig.runUntil(kRollFrom + Duration::fromSeconds(2.5));
   CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.005);
   CHECK_FALSE(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Relocalized));
+}
+
+TEST_CASE("pipeline: the first sweep is searched before any encoder sample; confirmed only with odometry",
+          "[nav][reloc]") {
+  Rig rig;
+  rig.encoders.silent = true;  // the drive's encoders not yet up when the first sweep comes
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  for (int i = 0; i < 100 && rig.pipeline.counters().sweeps == 0U; ++i) {
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    (void)rig.pipeline.cycle();
+  }
+  REQUIRE(rig.pipeline.counters().sweeps == 1U);
+  CHECK(rig.pipeline.counters().encoderSamples == 0U);
+  CHECK(rig.pipeline.counters().searches == 1U);  // searched without odometry
+  CHECK(rig.pipeline.counters().candidates == 1U);
+  // Never confirmed without odometry: while the encoders stay silent the candidate waits.
+  const std::uint64_t sweepsBefore = rig.pipeline.counters().sweeps;
+  for (int i = 0; i < 200 && rig.pipeline.counters().sweeps < sweepsBefore + 3U; ++i) {
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    (void)rig.pipeline.cycle();
+  }
+  CHECK_FALSE(rig.pipeline.localizing());
+  CHECK(rig.pipeline.searching());
+  CHECK(rig.pipeline.counters().searches == 1U);
+  rig.encoders.silent = false;
+  for (int i = 0; i < 200 && !rig.pipeline.localizing(); ++i) {
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    (void)rig.pipeline.cycle();
+  }
+  REQUIRE(rig.pipeline.localizing());
+  CHECK(rig.pipeline.counters().sweeps == sweepsBefore + 5U);  // waited 3, then two confirming ones
+  CHECK(rig.pipeline.counters().searches == 1U);
+  CHECK(rig.pipeline.counters().unconfirmed == 0U);
+  rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(300));
+  CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.005);
 }
 
 TEST_CASE("pipeline: a map that cannot tell two poses apart is refused as ambiguous, never guessed", "[nav][reloc]") {

@@ -25,8 +25,8 @@ bool poseFinite(const Pose2d& p) noexcept {
 bool isValid(const GlobalLocalizerParams& p) noexcept {
   return poseFinite(p.laserMount) && std::isfinite(p.epsilon) && p.epsilon > 0.0F && finite(p.inlierGate) &&
          p.inlierGate > 0.0 && p.minSupport >= 3 && p.anchorCount >= 1 && finite(p.ambiguityDistance) &&
-         p.ambiguityDistance > 0.0 && finite(p.ambiguityAngle) && p.ambiguityAngle > 0.0 && p.maxNodesPerWindow >= 1 &&
-         p.maxTotalNodes >= 1;
+         p.ambiguityDistance > 0.0 && finite(p.ambiguityAngle) && p.ambiguityAngle > 0.0 && finite(p.expectRange) &&
+         p.expectRange > 0.0 && p.maxNodesPerWindow >= 1 && p.maxTotalNodes >= 1;
 }
 
 Status toStatus(RelocOutcome outcome) noexcept {
@@ -143,6 +143,103 @@ void GlobalLocalizer::offer(const Hypothesis& h) noexcept {
   }
 }
 
+void GlobalLocalizer::keepMode(const Hypothesis& h) noexcept {
+  const auto better = [](const Hypothesis& a, const Hypothesis& b) {
+    return a.inliers > b.inliers || (a.inliers == b.inliers && a.rms < b.rms);
+  };
+  for (std::size_t i = 0; i < modeCount_; ++i) {
+    if (!distinct(h.pose, modes_[i].pose)) {
+      if (better(h, modes_[i])) {
+        modes_[i] = h;
+      }
+      return;
+    }
+  }
+  if (modeCount_ < modes_.size()) {
+    modes_[modeCount_++] = h;
+    return;
+  }
+  // Full: the weakest place gives way to a stronger one; what is dropped is remembered as a
+  // competitor that no negative evidence refutes.
+  std::size_t weakest = 0;
+  for (std::size_t i = 1; i < modeCount_; ++i) {
+    if (better(modes_[weakest], modes_[i])) {
+      weakest = i;
+    }
+  }
+  modesDropped_ = true;
+  if (better(h, modes_[weakest])) {
+    droppedInliers_ = std::max(droppedInliers_, modes_[weakest].inliers);
+    modes_[weakest] = h;
+  } else {
+    droppedInliers_ = std::max(droppedInliers_, h.inliers);
+  }
+}
+
+std::size_t GlobalLocalizer::missed(const Pose2d& pose, Span<const PointObservation> observations,
+                                    const LaserScan& scan) const noexcept {
+  const std::size_t beams = scan.size();
+  if (beams == 0 || !(scan.angleIncrement > 0.0F)) {
+    return 0;
+  }
+  std::uint32_t kinds = 0;  // the kinds the detectors reported: only those are expected
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    kinds |= 1U << static_cast<unsigned>(observations[i].kind);
+  }
+  const double inc = static_cast<double>(scan.angleIncrement);
+  const double angleMin = static_cast<double>(scan.angleMin);
+  const bool fullCircle = static_cast<double>(beams) * inc >= 2.0 * kPi<double> - 0.5 * inc;
+  const double gate = params_.inlierGate;
+  const double maxRange = std::min(params_.expectRange, static_cast<double>(scan.rangeMax));
+  const Pose2d laser = pose.compose(params_.laserMount);
+  std::size_t count = 0;
+  for (std::size_t j = 0; j < mapSize_; ++j) {
+    const MapPoint& l = map_[j];
+    if ((kinds & (1U << static_cast<unsigned>(l.kind))) == 0U) {
+      continue;
+    }
+    const Eigen::Vector2d v = laser.inverseTransformPoint(Eigen::Vector2d(l.x, l.y));
+    const double d = v.norm();
+    if (d > maxRange || d <= std::max(2.0 * gate, static_cast<double>(scan.rangeMin))) {
+      continue;
+    }
+    // The beams within `gate` of the landmark: all must reach it (nothing in front), one at least.
+    const double bearing = std::atan2(v.y(), v.x());
+    const double half = std::atan2(gate, d);
+    const auto first = static_cast<long>(std::ceil((bearing - half - angleMin) / inc));
+    const auto last = static_cast<long>(std::floor((bearing + half - angleMin) / inc));
+    const auto n = static_cast<long>(beams);
+    if (!fullCircle && (first < 0 || last >= n)) {
+      continue;  // not wholly in the field of view
+    }
+    bool clear = true;
+    std::size_t reaching = 0;
+    for (long b = first; b <= last && b - first < n && clear; ++b) {
+      const auto i = static_cast<std::size_t>(((b % n) + n) % n);
+      if (!scan.isValid(i)) {
+        continue;
+      }
+      if (static_cast<double>(scan.ranges[i]) < d - gate) {
+        clear = false;  // something in front of it: hidden
+      }
+      ++reaching;
+    }
+    if (!clear || reaching == 0) {
+      continue;
+    }
+    bool explained = false;
+    for (std::size_t i = 0; i < observations.size() && !explained; ++i) {
+      if (observations[i].kind != l.kind) {
+        continue;
+      }
+      const Eigen::Vector2d w = laser.transformPoint(Eigen::Vector2d(observations[i].x, observations[i].y));
+      explained = (w - Eigen::Vector2d(l.x, l.y)).squaredNorm() <= gate * gate;
+    }
+    count += explained ? 0U : 1U;
+  }
+  return count;
+}
+
 std::size_t GlobalLocalizer::lowerBound(float x) const noexcept {
   const MapPoint* begin = map_.data();
   const MapPoint* it = std::lower_bound(begin, begin + mapSize_, x, [](const MapPoint& p, float v) { return p.x < v; });
@@ -151,9 +248,22 @@ std::size_t GlobalLocalizer::lowerBound(float x) const noexcept {
 
 Status GlobalLocalizer::localize(const LandmarkMap& map, Span<const PointObservation> observations,
                                  RelocReport& out) noexcept {
+  return search(map, observations, nullptr, out);
+}
+
+Status GlobalLocalizer::localize(const LandmarkMap& map, Span<const PointObservation> observations,
+                                 const LaserScan& scan, RelocReport& out) noexcept {
+  return search(map, observations, &scan, out);
+}
+
+Status GlobalLocalizer::search(const LandmarkMap& map, Span<const PointObservation> observations, const LaserScan* scan,
+                               RelocReport& out) noexcept {
   out = RelocReport{};
   best_ = Hypothesis{};
   second_ = Hypothesis{};
+  modeCount_ = 0;
+  droppedInliers_ = 0;
+  modesDropped_ = false;
   if (!isValid(params_)) {
     return finish(out, RelocOutcome::InvalidParams);
   }
@@ -285,6 +395,7 @@ Status GlobalLocalizer::localize(const LandmarkMap& map, Span<const PointObserva
       h.rms = useRefined ? refined.rms : first.rms;
       h.clique = assoc_.pairs.size();
       offer(h);
+      keepMode(h);
     }
   }
 
@@ -308,10 +419,42 @@ Status GlobalLocalizer::localize(const LandmarkMap& map, Span<const PointObserva
   if (!best_.valid || best_.inliers < params_.minSupport) {
     return finish(out, RelocOutcome::WeakSupport);
   }
-  if (second_.valid && second_.inliers + params_.ambiguityMargin >= best_.inliers) {
-    return finish(out, RelocOutcome::Ambiguous);
+  if (scan == nullptr) {
+    if (second_.valid && second_.inliers + params_.ambiguityMargin >= best_.inliers) {
+      return finish(out, RelocOutcome::Ambiguous);
+    }
+    return finish(out, RelocOutcome::Found);
   }
-  return finish(out, RelocOutcome::Found);
+  // Negative evidence: score = inliers - missed. Only a distinct place with inliers within the
+  // margin of the best's score can compete (a score never exceeds the inliers).
+  out.missed = missed(best_.pose, observations, *scan);
+  const long bestScore = static_cast<long>(best_.inliers) - static_cast<long>(out.missed);
+  const auto margin = static_cast<long>(params_.ambiguityMargin);
+  bool ambiguous = false;
+  bool haveCompetitor = false;
+  long competitorScore = 0;
+  for (std::size_t i = 0; i < modeCount_; ++i) {
+    const Hypothesis& m = modes_[i];
+    if (!distinct(m.pose, best_.pose) || static_cast<long>(m.inliers) + margin < bestScore) {
+      continue;
+    }
+    const std::size_t mMissed = missed(m.pose, observations, *scan);
+    const long score = static_cast<long>(m.inliers) - static_cast<long>(mMissed);
+    if (!haveCompetitor || score > competitorScore) {
+      haveCompetitor = true;
+      competitorScore = score;
+      out.hasSecond = true;
+      out.secondPose = m.pose;
+      out.secondInliers = m.inliers;
+      out.secondMissed = mMissed;
+    }
+    ambiguous = ambiguous || score + margin >= bestScore;
+  }
+  if (modesDropped_ && static_cast<long>(droppedInliers_) + margin >= bestScore) {
+    out.modesOverflowed = true;
+    ambiguous = true;  // a place not kept: nothing refutes it
+  }
+  return finish(out, ambiguous ? RelocOutcome::Ambiguous : RelocOutcome::Found);
 }
 
 void RelocConfirmer::start(const Pose2d& candidate) noexcept {

@@ -153,7 +153,9 @@ struct Pipeline::Impl {
   bool searching = false;
   bool lastSearchAmbiguous = false;
   bool haveSearchPose = false;
-  Pose2d searchDeadReckoning{};  // dead reckoning at the previous searched sweep
+  Pose2d searchDeadReckoning{};        // dead reckoning at the previous searched sweep
+  bool searchWithoutOdometry = false;  // the previous searched sweep came before any encoder sample
+  Timestamp searchStamp{};             // ... its reference instant
   bool everRelocalized = false;
   Timestamp relocalizedAt{};
 
@@ -316,6 +318,7 @@ void Pipeline::Impl::readSweep() noexcept {
 void Pipeline::Impl::startSearch() noexcept {
   searching = true;
   haveSearchPose = false;
+  searchWithoutOdometry = false;
   lastSearchAmbiguous = false;
   *confirmer = RelocConfirmer(params.relocalization.confirm);  // Idle: no candidate
 }
@@ -324,14 +327,31 @@ void Pipeline::Impl::relocalize() noexcept {
   report.searching = true;
   // The vehicle's motion since the previous searched sweep, by dead reckoning at the sweeps'
   // reference instants.
+  // Before the first encoder sample (the first sweep after power-up) the search runs all the same;
+  // the next sweep carries its candidate from the first sample on (the motion before it is not
+  // known: the confirming sweeps' refits absorb a standing vehicle's). A candidate is never
+  // confirmed without odometry: it waits for the first sample.
   const Timestamp ref = observations->stamp;
   const Result<Pose2d> dr = motion->at(ref);
-  if (!dr.ok()) {
-    return;  // no odometry yet: nothing to carry a candidate with
+  Pose2d moved{};
+  if (dr.ok()) {
+    if (haveSearchPose) {
+      moved = between(searchDeadReckoning, dr.value());
+    } else if (searchWithoutOdometry) {
+      const Result<Pose2d> first = motion->at(searchStamp);  // the oldest pose held
+      moved = first.ok() ? between(first.value(), dr.value()) : Pose2d{};
+    }
+    searchDeadReckoning = dr.value();
+    haveSearchPose = true;
+    searchWithoutOdometry = false;
+  } else {
+    if (confirmer->state() == RelocConfirmState::Pending) {
+      return;  // nothing to carry the candidate with yet
+    }
+    haveSearchPose = false;
+    searchWithoutOdometry = true;
+    searchStamp = ref;
   }
-  const Pose2d moved = haveSearchPose ? between(searchDeadReckoning, dr.value()) : Pose2d{};
-  searchDeadReckoning = dr.value();
-  haveSearchPose = true;
   const Span<const PointObservation> obs(observations->points.data(), observations->points.size());
   const Pose2d& mount = params.localizer.laser.mounting;
   if (confirmer->state() == RelocConfirmState::Pending) {
@@ -340,7 +360,8 @@ void Pipeline::Impl::relocalize() noexcept {
       // Restart at the newest sample: the confirmed pose carried there by dead reckoning.
       const Timestamp t = haveSample ? lastSample.stamp : ref;
       const Result<Pose2d> drNow = motion->at(t);
-      const Pose2d pose = drNow.ok() ? confirmer->pose() * between(dr.value(), drNow.value()) : confirmer->pose();
+      const Pose2d pose =
+          drNow.ok() && dr.ok() ? confirmer->pose() * between(dr.value(), drNow.value()) : confirmer->pose();
       Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
       cov(0, 0) = cov(1, 1) = params.relocalization.positionStdDev * params.relocalization.positionStdDev;
       cov(2, 2) = params.relocalization.headingStdDev * params.relocalization.headingStdDev;
@@ -363,7 +384,7 @@ void Pipeline::Impl::relocalize() noexcept {
     ++counters.unconfirmed;  // Rejected: search again on this sweep
   }
   RelocReport rr;
-  (void)globalLocalizer->localize(map, obs, rr);
+  (void)globalLocalizer->localize(map, obs, measurement->scan, rr);  // the sweep: negative evidence
   ++counters.searches;
   report.searched = true;
   report.searchOutcome = rr.outcome;

@@ -51,6 +51,7 @@
 #include "agv/localization/localizer.hpp"
 #include "agv/loop/correspondence_graph.hpp"
 #include "agv/loop/point_association.hpp"
+#include "agv/scan/laser_scan.hpp"
 
 namespace agv {
 
@@ -73,13 +74,18 @@ struct GlobalLocalizerParams {
   /// [m], [rad] two poses farther apart than this (either) are distinct (0.5 m, 10 deg).
   double ambiguityDistance = 0.5;
   double ambiguityAngle = 0.17453292519943295;
+  /// [m] with a scan (the `localize` overload that takes one), a landmark nearer than this to the
+  /// laser, in the field of view and with a clear line of sight in the scan, is expected to be
+  /// detected; the detection range of the observations' kinds (30 m: the navigation laser's
+  /// reflector range).
+  double expectRange = 30.0;
   /// Branch-and-bound nodes per window and per call.
   std::uint32_t maxNodesPerWindow = 20000;
   std::uint32_t maxTotalNodes = 2000000;
 };
 
-/// True when every field is finite and in its domain (epsilon, gate, distances > 0, minSupport >= 3,
-/// anchorCount >= 1, node budgets >= 1).
+/// True when every field is finite and in its domain (epsilon, gate, distances, expectRange > 0,
+/// minSupport >= 3, anchorCount >= 1, node budgets >= 1).
 bool isValid(const GlobalLocalizerParams& p) noexcept;
 
 /// Why a global localization ended as it did.
@@ -110,6 +116,12 @@ struct RelocReport {
   std::uint32_t windowsBudgetHit = 0;     ///< windows whose CG hit maxNodesPerWindow
   std::uint32_t nodes = 0;                ///< CG nodes spent in all
   std::size_t refusedObservations = 0;    ///< observations over capacity (OverCapacity)
+  /// With a scan: landmarks the best pose expects (in range and view, line of sight clear in the
+  /// scan) that no observation explains, and the same for `secondPose`; the scores compared are
+  /// inliers - missed.
+  std::size_t missed = 0;
+  std::size_t secondMissed = 0;
+  bool modesOverflowed = false;  ///< more distinct poses than kept: dropped ones count, unrefuted
 };
 
 /// Status of an outcome (Found -> Ok, WeakSupport -> NotEnoughData, Ambiguous -> Rejected, ...).
@@ -135,6 +147,14 @@ class GlobalLocalizer {
   /// Finds the vehicle pose from one scan's observations (laser frame) against `map`, no prior.
   /// Returns toStatus(out.outcome); out.pose is the answer only when Ok.
   Status localize(const LandmarkMap& map, Span<const PointObservation> observations, RelocReport& out) noexcept;
+  /// The same, with the scan the observations came from (laser frame) as negative evidence: a pose
+  /// that expects landmarks the scan shows in clear view but nothing detected is less likely. Each
+  /// pose scores inliers - missed (`RelocReport::missed`); the pose with most inliers is found only
+  /// when every distinct pose scores at least ambiguityMargin + 1 below it. Positive evidence
+  /// still ranks: a pose with fewer inliers is never preferred. Without a scan the scores are the
+  /// inliers (the overload above).
+  Status localize(const LandmarkMap& map, Span<const PointObservation> observations, const LaserScan& scan,
+                  RelocReport& out) noexcept;
 
   const GlobalLocalizerParams& params() const noexcept { return params_; }
   void setParams(const GlobalLocalizerParams& params) noexcept { params_ = params; }
@@ -153,9 +173,18 @@ class GlobalLocalizer {
     std::size_t clique = 0;
   };
 
+  /// Distinct poses kept for the negative evidence (each the best hypothesis of its place).
+  static constexpr std::size_t kMaxModes = 16;
+
+  Status search(const LandmarkMap& map, Span<const PointObservation> observations, const LaserScan* scan,
+                RelocReport& out) noexcept;
   Status finish(RelocReport& out, RelocOutcome outcome) noexcept;
   bool distinct(const Pose2d& a, const Pose2d& b) const noexcept;
   void offer(const Hypothesis& h) noexcept;
+  void keepMode(const Hypothesis& h) noexcept;
+  /// Landmarks of the observed kinds that `pose` expects in `scan` and no observation explains.
+  std::size_t missed(const Pose2d& pose, Span<const PointObservation> observations,
+                     const LaserScan& scan) const noexcept;
   std::size_t lowerBound(float x) const noexcept;
 
   GlobalLocalizerParams params_;
@@ -170,6 +199,10 @@ class GlobalLocalizer {
   PointAssociation assoc_;
   Hypothesis best_;
   Hypothesis second_;
+  std::array<Hypothesis, kMaxModes> modes_{};
+  std::size_t modeCount_ = 0;
+  std::size_t droppedInliers_ = 0;  ///< most inliers of a distinct pose no mode kept
+  bool modesDropped_ = false;
 };
 
 /// Settings of the multi-scan confirmation.

@@ -80,7 +80,9 @@ struct RelocalizationParams {
   bool enabled = true;
   bool atStart = true;
   GlobalLocalizerParams search{};  ///< `laserMount` is taken from the localizer's laser model
-  RelocConfirmParams confirm{};
+  /// Two further sweeps after the search's: three sweeps agree before the restart. Standing, a
+  /// confirming sweep adds new detection noise, not a new view: more would only add time.
+  RelocConfirmParams confirm{2, 0.15, 4, 0.6};
   double positionStdDev = 0.05;  ///< [m] 1-sigma of the pose the localizer restarts with
   double headingStdDev = 0.02;   ///< [rad]
   /// `HealthBit::Relocalized` stays set this long after a relocalization.
