@@ -399,6 +399,7 @@ void addCalibrationKeys(Specs& specs, VehicleConfig& c) {
   specs["calibration.clearance"] = number(false, 0.0, 10.0, "m", [&p](double x) { p.clearance = x; });
   specs["calibration.front"] = number(false, 0.0, 20.0, "m", [&p](double x) { p.frontOverhang = x; });
   specs["calibration.speed"] = number(false, 0.05, 2.0, "m/s", [&c](double x) { c.calibrationSpeed = x; });
+  specs["calibration.rotation"] = number(false, 0.5, 3.2, "rad", [&p](double x) { p.rotation = x; });
   specs["calibration.egomotion"] = choice(false, {"reflectors", "keypoints"}, [&c](std::size_t i) {
     c.calibrationEgomotion =
         i == 0 ? calibration::EgomotionSource::Reflectors : calibration::EgomotionSource::Keypoints;

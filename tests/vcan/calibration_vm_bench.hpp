@@ -81,6 +81,33 @@ class MonoClock final : public hal::Clock {
   Timestamp now() const noexcept override { return monotonicNow(); }
 };
 
+/// The calibration file `file` written by the whole routine: parsed, printed (after `label`) against
+/// the simulator's `truth`, and within twice the `calibrate.app` tolerance (docs/calibration.md): 8 segments of
+/// 90 deg at 40..50 deg steering and 1 deg laser beams instead of its half circles at 18..50 deg
+/// and 0.25 deg. The old file (`old`) kept as `.bak`.
+inline void checkCalibrationFile(const std::string& file, const agv::sim::SimVehicleParams& truth, const char* label,
+                                 const std::string& old = kOld) {
+  const std::string t = readFile(file);
+  VehicleCalibration got;
+  REQUIRE(parseCalibrationFile(Span<const char>(t.data(), t.size()), got) == Status::Ok);
+  const TricycleParams& tr = truth.truth;
+  const Pose2d& mount = truth.laserMount;
+  std::printf(
+      "%s: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, ly %+.2f mm, "
+      "ltheta %+.4f deg (refined - truth)\n",
+      label, 1e6 * (got.params.driveScale / tr.driveScale - 1.0),
+      rad2deg(got.params.steerOffsetForward - tr.steerOffsetForward),
+      rad2deg(got.params.steerOffsetBackward - tr.steerOffsetBackward), 1e3 * (got.laserPose.x - mount.x),
+      1e3 * (got.laserPose.y - mount.y), rad2deg(got.laserPose.theta - mount.theta));
+  CHECK(std::fabs(got.params.driveScale / tr.driveScale - 1.0) < 4000e-6);
+  CHECK(std::fabs(got.params.steerOffsetForward - tr.steerOffsetForward) < deg2rad(0.2));
+  CHECK(std::fabs(got.params.steerOffsetBackward - tr.steerOffsetBackward) < deg2rad(0.2));
+  CHECK(std::fabs(got.laserPose.x - mount.x) < 0.016);
+  CHECK(std::fabs(got.laserPose.y - mount.y) < 0.016);
+  CHECK(std::fabs(got.laserPose.theta - mount.theta) < deg2rad(0.6));
+  CHECK(readFile(file + ".bak") == old);
+}
+
 /// The vehicle's calibration routine and the simulated drives, encoder, vehicle and laser on vcan0,
 /// and the peer socket; see the file comment. `area` is the configured free area (none: the
 /// default, the open floor of the built-in warehouse); `plcLink` the vehicle's PLC link (null: the
@@ -295,31 +322,8 @@ struct VmCalibrationBench {
     CHECK_FALSE(agv::test::fileExists(file + ".bak"));
   }
 
-  /// The calibration file written by the whole routine: parsed, printed against the simulator's
-  /// truth, and within twice the `calibrate.app` tolerance (docs/calibration.md): 8 segments of
-  /// 90 deg at 40..50 deg steering and 1 deg laser beams instead of its half circles at 18..50 deg
-  /// and 0.25 deg. The old file kept as `.bak`.
-  void checkWrittenCalibration() const {
-    const std::string t = readFile(file);
-    VehicleCalibration got;
-    REQUIRE(parseCalibrationFile(Span<const char>(t.data(), t.size()), got) == Status::Ok);
-    const TricycleParams& tr = truth.truth;
-    const Pose2d& mount = truth.laserMount;
-    std::printf(
-        "vcan routine: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, ly %+.2f mm, "
-        "ltheta %+.4f deg (refined - truth)\n",
-        1e6 * (got.params.driveScale / tr.driveScale - 1.0),
-        rad2deg(got.params.steerOffsetForward - tr.steerOffsetForward),
-        rad2deg(got.params.steerOffsetBackward - tr.steerOffsetBackward), 1e3 * (got.laserPose.x - mount.x),
-        1e3 * (got.laserPose.y - mount.y), rad2deg(got.laserPose.theta - mount.theta));
-    CHECK(std::fabs(got.params.driveScale / tr.driveScale - 1.0) < 4000e-6);
-    CHECK(std::fabs(got.params.steerOffsetForward - tr.steerOffsetForward) < deg2rad(0.2));
-    CHECK(std::fabs(got.params.steerOffsetBackward - tr.steerOffsetBackward) < deg2rad(0.2));
-    CHECK(std::fabs(got.laserPose.x - mount.x) < 0.016);
-    CHECK(std::fabs(got.laserPose.y - mount.y) < 0.016);
-    CHECK(std::fabs(got.laserPose.theta - mount.theta) < deg2rad(0.6));
-    CHECK(readFile(file + ".bak") == kOld);
-  }
+  /// The calibration file written by the whole routine (`checkCalibrationFile`).
+  void checkWrittenCalibration() const { checkCalibrationFile(file, truth, "vcan routine"); }
 
   std::string ifname = agv::test::vcanInterface();
   std::string file;

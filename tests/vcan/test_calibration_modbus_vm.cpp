@@ -3,21 +3,30 @@
 // program's Modbus server (`drivers::ModbusPlcLink`, libmodbus) on the VM's loopback, and a
 // libmodbus client thread plays the PLC: it writes Localize and then Calibrate into the command
 // block and reads the status block (registers 0-48) every 50 ms, moving its heartbeat register.
-// The bench (calibration_vm_bench.hpp) is the one of the scripted cases. This binary is linked
+// The bench (calibration_vm_bench.hpp) is the one of the scripted cases. A second case runs the
+// same routine with both sides as programs: `agvnav-vehicle` (its configuration pointing at vcan0
+// and the NAV350 port) against `agvnav-sim-drives --vehicle` (drives, encoders, simulated tricycle
+// and NAV350), the PLC the same libmodbus client. This binary is linked
 // dynamically (Debian ships libmodbus as a shared library only): run-vcan-vm.sh copies it with
 // its shared libraries into the VM (`--companion`) and runs it after the static test program.
 #include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <string>
 #include <thread>
 
+#include "agv/drivers/linux/loopback_server.hpp"
 #include "agv/drivers/linux/modbus_plc_link.hpp"
 #include "calibration_vm_bench.hpp"
 #include "plc_modbus_client.hpp"
+#include "sim_drive_side.hpp"
+#include "vcan_programs.hpp"
 
 using agv::Duration;
 using agv::Status;
@@ -160,4 +169,141 @@ TEST_CASE("calibration routine on vcan, started by a libmodbus client: CiA 402 d
   CHECK(b.routine->progress().state == cal::RoutineState::Done);
   REQUIRE(b.wrote);
   b.checkWrittenCalibration();
+}
+
+namespace {
+
+/// The configuration of `agvnav-vehicle` for the case below: the drives and encoders of
+/// `agvnav-sim-drives --vehicle` on `canIf` (traction node 1 is the drive encoder at {0x181, 2, 4},
+/// steering encoder node 2: 4 bytes, 2 pi / 16384 rad per count), its NAV350 on 127.0.0.1:
+/// `laserPort`, the Modbus server on `modbusPort`, and the plan of the bench (8 segments of 90 deg
+/// at 40..50 deg, 0.8 m/s) in the open floor of the built-in warehouse.
+std::string programConfig(const std::string& canIf, std::uint16_t laserPort, std::uint16_t modbusPort,
+                          const std::string& dir) {
+  char radPerCount[32];
+  std::snprintf(radPerCount, sizeof radPerCount, "%.17g", agv::simdrives::kSteerEncoderRadPerCount);
+  return "can.interface = " + canIf +
+         "\n"
+         "can.drive.node = 1\n"
+         "can.steering.node = 2\n"
+         "can.steering.pdo_offset = 0\n"
+         "can.steering.pdo_size = 4\n"
+         "can.steering.rad_per_count = " +
+         radPerCount +
+         "\n"
+         "can.heartbeat_timeout = 0.5\n"
+         "can.trigger = drive\n"
+         "laser.model = nav350\n"
+         "laser.address = 127.0.0.1\n"
+         "laser.port = " +
+         std::to_string(laserPort) +
+         "\n"
+         "laser.scan_timeout = 1.0\n"
+         "modbus.role = server\n"
+         "modbus.address = 127.0.0.1\n"
+         "modbus.port = " +
+         std::to_string(modbusPort) +
+         "\n"
+         "calibration.file = " +
+         dir +
+         "/calibration.txt\n"
+         "map.file = " +
+         dir +
+         "/landmarks.txt\n"
+         "map.mode = static\n"
+         "localization.relocalize = false\n"
+         "drives.enabled = true\n"
+         "calibration.area = 2.5 0.5 24.0 23.0\n"
+         "calibration.segments = 2\n"
+         "calibration.min_steering = 0.6981317\n"
+         "calibration.max_steering = 0.8726646\n"
+         "calibration.rotation = 1.5707963\n"
+         "calibration.speed = 0.8\n";
+}
+
+}  // namespace
+
+TEST_CASE("the agvnav-vehicle program calibrates against agvnav-sim-drives --vehicle, started by a libmodbus client",
+          "[calibration][modbus][program]") {
+  const std::string dir = "/tmp/agv-vm-program";
+  static_cast<void>(std::system(("mkdir -p " + dir).c_str()));
+  const std::string file = dir + "/calibration.txt";
+  // The calibration the vehicle starts with: nominal values (the truth is 0.85 % off in s_w,
+  // 0.55 / 0.35 deg in the offsets, the laser 20 mm, 25 mm and 0.7 deg off).
+  const std::string old =
+      "agvnav-calibration 2\nwheelbase 1.5\ndrive_scale 0.0001 0.00000003\nsteer_offset_forward 0.0\n"
+      "steer_offset_backward 0.0\nlaser_x 1.6\nlaser_y 0.0\nlaser_theta 0.0\nend 7\n";
+  {
+    std::ofstream(file, std::ios::trunc) << old;
+    std::remove((file + ".bak").c_str());
+    agv::sim::World world;
+    agv::sim::WorldParseError perr;
+    REQUIRE(agv::sim::parseWorld(agv::sim::defaultWorldText(), world, perr) == Status::Ok);
+    std::ofstream map(dir + "/landmarks.txt", std::ios::trunc);
+    map << "agvnav-landmarks 2\n";
+    int n = 0;
+    for (const agv::sim::Circle& c : world.circles) {
+      if (c.kind == agv::sim::ObstacleKind::Reflector) {
+        map << "reflector " << ++n << ' ' << c.centre.x << ' ' << c.centre.y << " 0.005\n";
+      }
+    }
+    map << "end " << n << "\n";
+  }
+  const std::string canIf = agv::test::vcanInterface();
+  const std::uint16_t laserPort = agv::drivers::closedPort();
+  const std::uint16_t modbusPort = agv::drivers::closedPort();
+  const std::string conf = dir + "/vehicle.conf";
+  std::ofstream(conf, std::ios::trunc) << programConfig(canIf, laserPort, modbusPort, dir);
+
+  const Timestamp t0 = monotonicNow();
+  agv::test::Child drives(
+      agv::test::programPath("agvnav-sim-drives"),
+      {"--interface", canIf, "--vehicle", "--laser-port", std::to_string(laserPort), "--start", "10,12.5,0"});
+  REQUIRE(drives.started());
+  const auto pollBoth = [&](agv::test::Child* vehicle, Duration d) {
+    const Timestamp end = monotonicNow() + d;
+    do {
+      drives.poll();
+      if (vehicle != nullptr) {
+        vehicle->poll();
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    } while (monotonicNow() < end);
+  };
+  for (int i = 0; i < 100 && !drives.said("NAV350 on"); ++i) {
+    pollBoth(nullptr, Duration::fromMilliseconds(50));
+  }
+  REQUIRE(drives.said("NAV350 on"));
+  agv::test::Child vehicle(agv::test::programPath("agvnav-vehicle"), {"--config", conf}, true);
+  REQUIRE(vehicle.started());
+  PlcClientRecord plc;
+  std::thread client([&] { runPlc(modbusPort, Duration::fromSeconds(120.0), plc); });
+  while (!plc.done) {
+    pollBoth(&vehicle, Duration::fromMilliseconds(100));
+  }
+  client.join();
+  const double seconds = (monotonicNow() - t0).seconds();
+  vehicle.signal(SIGTERM);
+  drives.signal(SIGTERM);
+  for (int i = 0; i < 100 && (vehicle.running() || drives.running()); ++i) {
+    pollBoth(&vehicle, Duration::fromMilliseconds(20));
+  }
+  INFO(plc.failure);
+  std::printf("program routine: register 44 = %u after %.1f s from the start of the programs; PLC: %d status reads\n",
+              static_cast<unsigned>(plc.last[44]), seconds, plc.reads);
+  REQUIRE(plc.failure.empty());
+  CHECK(plc.localized);
+  CHECK(plc.calibrating);
+  for (cal::RoutineState s : {cal::RoutineState::Settling, cal::RoutineState::Steering, cal::RoutineState::Driving,
+                              cal::RoutineState::Stopping, cal::RoutineState::Observing, cal::RoutineState::Done}) {
+    CHECK(plc.stateSeen[static_cast<int>(s)]);
+  }
+  CHECK(plc.last[44] == static_cast<std::uint16_t>(cal::RoutineState::Done));
+  CHECK(plc.last[47] == 8U);
+  CHECK(plc.last[48] == 0U);
+  CHECK_FALSE(vehicle.running());
+  CHECK(vehicle.exitCode() == 0);
+  CHECK_FALSE(drives.running());
+  CHECK(drives.exitCode() == 0);
+  agv::test::vmcal::checkCalibrationFile(file, agv::sim::SimVehicleParams{}, "program routine", old);
 }

@@ -425,6 +425,7 @@ TEST_CASE("drives and calibration keys: the drive encoder moves to byte 2 of TPD
   text = withValue(text, "drives.steering.zero_count", "-1200");
   text = withValue(text, "calibration.area", "2.5 0.5 24 23");
   text = withValue(text, "calibration.segments", "4");
+  text = withValue(text, "calibration.rotation", "1.5707963");
   text = withValue(text, "calibration.egomotion", "keypoints");
   VehicleConfig c;
   REQUIRE(parseVehicleConfig(text, "v.conf", c, e));
@@ -441,6 +442,7 @@ TEST_CASE("drives and calibration keys: the drive encoder moves to byte 2 of TPD
   CHECK(c.calibrationAreaSet);
   CHECK(c.calibrationPlan.area.xMax == Approx(24.0));
   CHECK(c.calibrationPlan.segmentsPerPhase == 4);
+  CHECK(c.calibrationPlan.rotation == Approx(1.5707963));
   CHECK(c.calibrationEgomotion == agv::calibration::EgomotionSource::Keypoints);
   // An explicit offset wins.
   VehicleConfig explicitOffset;
@@ -457,4 +459,6 @@ TEST_CASE("drives and calibration keys: the drive encoder moves to byte 2 of TPD
   CHECK(e.key == "calibration.area");
   CHECK_FALSE(parseVehicleConfig(withValue(text, "calibration.segments", "17"), "v.conf", c, e));
   CHECK(e.key == "calibration.segments");
+  CHECK_FALSE(parseVehicleConfig(withValue(text, "calibration.rotation", "3.3"), "v.conf", c, e));
+  CHECK(e.key == "calibration.rotation");
 }
