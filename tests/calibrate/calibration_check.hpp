@@ -28,9 +28,9 @@ inline bool fileExists(const std::string& path) {
 }
 
 /// Parses the calibration file `path`, prints its errors against `truth` after `label`, checks
-/// them within the tolerance above and returns the values.
+/// them within the tolerance above times `scale` and returns the values.
 inline VehicleCalibration checkCalibrationFile(const std::string& path, const sim::SimVehicleParams& truth,
-                                               const char* label) {
+                                               const char* label, double scale = 1.0) {
   const std::string text = readFile(path);
   VehicleCalibration got;
   REQUIRE(parseCalibrationFile(Span<const char>(text.data(), text.size()), got) == Status::Ok);
@@ -43,12 +43,12 @@ inline VehicleCalibration checkCalibrationFile(const std::string& path, const si
       rad2deg(got.params.steerOffsetForward - t.steerOffsetForward),
       rad2deg(got.params.steerOffsetBackward - t.steerOffsetBackward), 1e3 * (got.laserPose.x - l.x),
       1e3 * (got.laserPose.y - l.y), rad2deg(got.laserPose.theta - l.theta));
-  CHECK(std::fabs(got.params.driveScale / t.driveScale - 1.0) < 2000e-6);
-  CHECK(std::fabs(got.params.steerOffsetForward - t.steerOffsetForward) < deg2rad(0.1));
-  CHECK(std::fabs(got.params.steerOffsetBackward - t.steerOffsetBackward) < deg2rad(0.1));
-  CHECK(std::fabs(got.laserPose.x - l.x) < 0.008);
-  CHECK(std::fabs(got.laserPose.y - l.y) < 0.008);
-  CHECK(std::fabs(got.laserPose.theta - l.theta) < deg2rad(0.3));
+  CHECK(std::fabs(got.params.driveScale / t.driveScale - 1.0) < scale * 2000e-6);
+  CHECK(std::fabs(got.params.steerOffsetForward - t.steerOffsetForward) < scale * deg2rad(0.1));
+  CHECK(std::fabs(got.params.steerOffsetBackward - t.steerOffsetBackward) < scale * deg2rad(0.1));
+  CHECK(std::fabs(got.laserPose.x - l.x) < scale * 0.008);
+  CHECK(std::fabs(got.laserPose.y - l.y) < scale * 0.008);
+  CHECK(std::fabs(got.laserPose.theta - l.theta) < scale * deg2rad(0.3));
   return got;
 }
 

@@ -3,9 +3,7 @@
 // the laser driver of agvnav-vehicle (`SickLaserSource`, NAV350 model) on its TCP port: sweeps
 // arrive at the NAV350's 8 Hz, decode, carry the reflectors of the built-in warehouse where the
 // simulated truth puts them, and change when the vehicle moves.
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -27,8 +25,7 @@
 #include "agv/sim/sim_vehicle.hpp"
 #include "agv/sim/world.hpp"
 #include "agv_test.hpp"
-
-extern char** environ;
+#include "spawn_logged.hpp"
 
 using agv::Pose2d;
 using agv::Status;
@@ -88,22 +85,11 @@ TEST_CASE("agvnav-sim-drives --vehicle serves NAV350 sweeps that follow the simu
   const std::string logPath = "/tmp/agvnav-simdrives-vehicle-" + std::to_string(::getpid()) + ".log";
   const std::string portText = std::to_string(port);
   // 1.5 s at rest, 1.5 s at 0.6 m/s on a 25 deg arc, then at rest again until 6 s.
-  std::vector<std::string> args = {
-      AGVNAV_SIM_DRIVES_EXE, "--interface", "none", "--vehicle", "--laser-port", portText, "--move",
-      "0.6:25@1.5-3",        "--duration",  "6"};
-  std::vector<char*> argv;
-  for (std::string& a : args) {
-    argv.push_back(a.data());
-  }
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, logPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  pid_t pid = -1;
   const auto t0 = monotonicNow();
-  REQUIRE(posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ) == 0);
-  posix_spawn_file_actions_destroy(&fa);
+  const pid_t pid = agv::test::spawnLogged({AGVNAV_SIM_DRIVES_EXE, "--interface", "none", "--vehicle", "--laser-port",
+                                            portText, "--move", "0.6:25@1.5-3", "--duration", "6"},
+                                           logPath);
+  REQUIRE(pid > 0);
 
   agv::drivers::SickLaserSourceConfig config;
   config.model = agv::drivers::SickLaserModel::Nav350;

@@ -87,24 +87,7 @@ class MonoClock final : public hal::Clock {
 /// and 0.25 deg. The old file (`old`) kept as `.bak`.
 inline void checkCalibrationFile(const std::string& file, const agv::sim::SimVehicleParams& truth, const char* label,
                                  const std::string& old = kOld) {
-  const std::string t = readFile(file);
-  VehicleCalibration got;
-  REQUIRE(parseCalibrationFile(Span<const char>(t.data(), t.size()), got) == Status::Ok);
-  const TricycleParams& tr = truth.truth;
-  const Pose2d& mount = truth.laserMount;
-  std::printf(
-      "%s: s_w %+.0f ppm, alpha_F %+.4f deg, alpha_B %+.4f deg, lx %+.2f mm, ly %+.2f mm, "
-      "ltheta %+.4f deg (refined - truth)\n",
-      label, 1e6 * (got.params.driveScale / tr.driveScale - 1.0),
-      rad2deg(got.params.steerOffsetForward - tr.steerOffsetForward),
-      rad2deg(got.params.steerOffsetBackward - tr.steerOffsetBackward), 1e3 * (got.laserPose.x - mount.x),
-      1e3 * (got.laserPose.y - mount.y), rad2deg(got.laserPose.theta - mount.theta));
-  CHECK(std::fabs(got.params.driveScale / tr.driveScale - 1.0) < 4000e-6);
-  CHECK(std::fabs(got.params.steerOffsetForward - tr.steerOffsetForward) < deg2rad(0.2));
-  CHECK(std::fabs(got.params.steerOffsetBackward - tr.steerOffsetBackward) < deg2rad(0.2));
-  CHECK(std::fabs(got.laserPose.x - mount.x) < 0.016);
-  CHECK(std::fabs(got.laserPose.y - mount.y) < 0.016);
-  CHECK(std::fabs(got.laserPose.theta - mount.theta) < deg2rad(0.6));
+  static_cast<void>(agv::test::checkCalibrationFile(file, truth, label, 2.0));
   CHECK(readFile(file + ".bak") == old);
 }
 

@@ -3,10 +3,8 @@
 // RunningVehicle, the program against a loopback CoLa A laser streaming scans, polled by a
 // libmodbus client as the PLC, with no CAN interface. Used by vehicle.process and the
 // vehicle.reliability tests.
-#include <fcntl.h>
 #include <modbus.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -26,9 +24,8 @@
 #include "loopback_server.hpp"
 #include "plc_modbus_client.hpp"
 #include "sick_telegrams.hpp"
+#include "spawn_logged.hpp"
 #include "vehicle_files.hpp"
-
-extern char** environ;
 
 namespace agv::test {
 
@@ -36,20 +33,9 @@ using agv::drivers::plc::PlcHealthBit;
 
 /// Starts agvnav-vehicle with `args`, stdout and stderr into `logPath`. Returns the pid (or -1).
 inline pid_t startVehicle(const std::vector<std::string>& args, const std::string& logPath) {
-  std::vector<std::string> storage = {AGVNAV_VEHICLE_EXE};
-  storage.insert(storage.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& a : storage)
-    argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, logPath.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  return rc == 0 ? pid : -1;
+  std::vector<std::string> argv = {AGVNAV_VEHICLE_EXE};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return spawnLogged(std::move(argv), logPath);
 }
 
 /// Waits up to `ms` for `pid` to exit; its exit code, or -1 when it did not exit normally in time.
