@@ -131,11 +131,26 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   for (const auto& item : j.items()) {
     keys.push_back(item.key());
   }
-  CHECK(keys == std::vector<std::string>{"log", "scans", "path_length_m", "duration_s", "zero_increments",
-                                         "odometry_per_metre", "localizer_per_metre", "odometry_absolute",
-                                         "localizer_absolute", "static_map", "mapping_run", "on_map", "scan_matching",
-                                         "field_relocalization", "surface_map", "laser_x_m", "odometry_noise",
-                                         "localizer", "replay_seconds"});
+  CHECK(keys == std::vector<std::string>{"log",
+                                         "scans",
+                                         "path_length_m",
+                                         "duration_s",
+                                         "zero_increments",
+                                         "odometry_per_metre",
+                                         "localizer_per_metre",
+                                         "odometry_absolute",
+                                         "localizer_absolute",
+                                         "static_map",
+                                         "mapping_run",
+                                         "on_map",
+                                         "on_route",
+                                         "scan_matching",
+                                         "field_relocalization",
+                                         "surface_map",
+                                         "laser_x_m",
+                                         "odometry_noise",
+                                         "localizer",
+                                         "replay_seconds"});
   CHECK(j.at("log") == res.log);
   CHECK(j.at("scans") == 3);
   CHECK(j.at("path_length_m") == 2.5);
