@@ -59,6 +59,7 @@ struct Options {
   int minHitsToCorrect = ScenarioConfig{}.dynamicMinHitsToCorrect;
   bool dynamicSurfaceMap = ScenarioConfig{}.dynamicSurfaceMap;
   bool adaptiveBand = ScenarioConfig{}.adaptiveBand;
+  bool mapChanges = ScenarioConfig{}.mapChanges;
   bool canSync = false;
   int missionRuns = ScenarioConfig{}.runsPerMission;
   bool missionRunsGiven = false;
@@ -91,6 +92,9 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
                "dynamic mode: FALKO corners alone, no scan matching against the surfaces of the earlier sweeps");
   app.add_flag("--adaptive-band", o.adaptiveBand,
                "scan matching: a final run in a band of 3 robust sigmas of the match's residuals (measured option)");
+  app.add_flag("!--no-map-changes", o.mapChanges,
+               "natural mode: match every sweep point against the mapping run's field, also those on surfaces it "
+               "did not see");
   app.add_flag("--can-sync", o.canSync,
                "encoders send synchronous TPDOs on the vehicle's SYNC (every encoder period) instead of cyclic ones");
   app.add_option("--mission-runs", o.missionRuns,
@@ -135,6 +139,7 @@ ScenarioConfig scenarioConfig(const Options& o) {
   cfg.dynamicMinHitsToCorrect = static_cast<std::int16_t>(o.minHitsToCorrect);
   cfg.dynamicSurfaceMap = o.dynamicSurfaceMap;
   cfg.adaptiveBand = o.adaptiveBand;
+  cfg.mapChanges = o.mapChanges;
   if (o.canSync) {
     cfg.can.bus.syncPeriod = cfg.vehicle.encoderPeriod;
   }

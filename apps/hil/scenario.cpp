@@ -185,6 +185,7 @@ nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode m
   p.observations.detectCorners = mode == LocalizationMode::Mapping;  // collected, not corrected with
   p.observations.collectScanPoints = mode == LocalizationMode::Mapping;
   p.observations.surfaceMap = mode == LocalizationMode::Dynamic && cfg.dynamicSurfaceMap;
+  p.observations.mapChanges = mode == LocalizationMode::Natural && cfg.mapChanges;
   l.scanMatch.adaptiveBand = cfg.adaptiveBand;
   // The vehicle is placed at the path start to within a few millimetres (startPositionStdDev).
   p.setPosePositionStdDev = 0.005;

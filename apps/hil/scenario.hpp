@@ -128,6 +128,9 @@ struct ScenarioConfig {
   bool dynamicSurfaceMap = true;
   /// Scan matching in every mode: `ScanMatchParams::adaptiveBand` (off by default).
   bool adaptiveBand = false;
+  /// Natural mode: the surfaces the mapping run did not see are kept and their points left out of
+  /// the match (`ObservationParams::mapChanges`).
+  bool mapChanges = true;
 };
 
 /// One sample of a run's history (every control period).

@@ -112,6 +112,9 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--on-route-distance", options.onRouteDistance,
                  "[m] a localized scan within this of a mapping scan is on the mapping run's route")
       ->check(CLI::PositiveNumber);
+  app.add_flag("--map-changes,!--no-map-changes", options.mapChanges,
+               "with --map-fraction: keep the surfaces the mapping run did not see and leave the scan points on them "
+               "out of the match");
   app.add_flag("--adaptive-band", options.localizer.scanMatch.adaptiveBand,
                "scan matching: a final run in a band of 3 robust sigmas of the match's residuals");
   app.add_flag("!--no-field-relocalization", options.fieldRelocalization,

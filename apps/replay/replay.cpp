@@ -332,6 +332,15 @@ class ScanReplay {
           return false;
         }
         r_.fieldSurfaceCells = field_->surfacePoints();
+        if (options_.mapChanges) {
+          if (options_.changes.validate() != Status::Ok) {
+            error = "invalid map change parameters";
+            return false;
+          }
+          changes_ = std::make_unique<HallSurfaceMap>(changeMapParams(options_.surface, options_.changes));
+          changeDetector_ = std::make_unique<MapChangeDetector>(options_.changes);
+          r_.mapChanges = true;
+        }
         r_.fieldWidth = static_cast<double>(field_->width()) * options_.field.resolution;
         r_.fieldHeight = static_cast<double>(field_->height()) * options_.field.resolution;
       }
@@ -375,6 +384,13 @@ class ScanReplay {
     if (surface_ && mayExtendSurfaceMap(h)) {
       const SurfaceInsert in = surface_->insert(*surfacePoints_, h.scanPose.compose(lp_.laser.mounting));
       r_.surfaceAdded += in.added;
+    }
+    if (changes_ && h.scanMatch.fused && !h.scanMatch.softGated && !h.scanMatch.resynced) {
+      const Pose2d sensor = h.scanMatch.pose.compose(lp_.laser.mounting);
+      if (changeDetector_->select(*allPoints_, sensor, *field_, *changedPoints_) == Status::Ok &&
+          !changedPoints_->empty()) {
+        r_.changePieces += changes_->insert(*changedPoints_, sensor).added;
+      }
     }
     if (h.scanMatch.resynced) {
       ++r_.matchResyncs;
@@ -451,14 +467,7 @@ class ScanReplay {
     if (reloc_ == RelocState::Idle && !h.lost) {
       return;
     }
-    points_->clear();
-    for (std::size_t b = 0; b < scan_->size(); ++b) {
-      if (scan_->isValid(b)) {
-        const double a = static_cast<double>(scan_->angle(b));
-        const double r = static_cast<double>(scan_->ranges[b]);
-        (void)points_->push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))});
-      }
-    }
+    scanPoints(*points_);
     const Pose2d& mount = lp_.laser.mounting;
     if (reloc_ == RelocState::Confirming) {
       const Pose2d carried = candidate_.compose(inc_[i]);
@@ -516,6 +525,15 @@ class ScanReplay {
   /// The localizer's correction of the current scan: against the mapping run's field, the surface
   /// map of the earlier scans (with the beams it takes: within its range), or the corners alone.
   const LocalizerHealth& correct() {
+    if (field_ && changes_) {
+      // All valid beams, less those on the changes since the mapping run (seen from the prior).
+      scanPoints(*allPoints_);
+      std::size_t dropped = 0;
+      (void)changeDetector_->keepUnchanged(*allPoints_, localizer_->pose().compose(lp_.laser.mounting), *field_,
+                                           changes_->field(), *keptPoints_, dropped);
+      r_.changedPointsDropped += dropped;
+      return localizer_->correct(*obs_, *scan_, *keptPoints_, *map_, *field_);
+    }
     if (field_) {
       return localizer_->correct(*obs_, *scan_, *map_, *field_);
     }
@@ -525,6 +543,18 @@ class ScanReplay {
     surface_->takenBeams(*scan_, *surfacePoints_);
     return surface_->field().built() ? localizer_->correct(*obs_, *scan_, *surfacePoints_, *map_, surface_->field())
                                      : localizer_->correct(*obs_, *scan_, *map_);
+  }
+
+  /// The valid beams of the current scan as points in the laser frame.
+  void scanPoints(MatchPoints& out) const {
+    out.clear();
+    for (std::size_t b = 0; b < scan_->size(); ++b) {
+      if (scan_->isValid(b)) {
+        const double a = static_cast<double>(scan_->angle(b));
+        const double r = static_cast<double>(scan_->ranges[b]);
+        (void)out.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))});
+      }
+    }
   }
 
   /// Whether the current scan is on the map at the vehicle pose `truth` (`ReplayResult::onMap`).
@@ -629,6 +659,13 @@ class ScanReplay {
   RelocState reloc_ = RelocState::Idle;
   std::unique_ptr<FieldRelocalizer> relocalizer_;
   std::unique_ptr<MatchPoints> points_ = std::make_unique<MatchPoints>();
+  // With `mapChanges`: the changes since the mapping run, and the scan's points (all, those kept
+  // for the match, those on changes).
+  std::unique_ptr<HallSurfaceMap> changes_;
+  std::unique_ptr<MapChangeDetector> changeDetector_;
+  std::unique_ptr<MatchPoints> allPoints_ = std::make_unique<MatchPoints>();
+  std::unique_ptr<MatchPoints> keptPoints_ = std::make_unique<MatchPoints>();
+  std::unique_ptr<MatchPoints> changedPoints_ = std::make_unique<MatchPoints>();
   Pose2d candidate_{};
   std::size_t confirmations_ = 0;
   Eigen::Matrix3d p0_ = Eigen::Matrix3d::Zero();
@@ -844,7 +881,9 @@ report::Json resultJson(const ReplayResult& r) {
                 {"gated", r.matchGated},
                 {"refused", r.matchRefused},
                 {"resyncs", r.matchResyncs},
-                {"resync_wrong", r.resyncWrong}}},
+                {"resync_wrong", r.resyncWrong},
+                {"map_changes",
+                 {{"enabled", r.mapChanges}, {"pieces", r.changePieces}, {"points_dropped", r.changedPointsDropped}}}}},
               {"field_relocalization",
                {{"searches", r.relocSearches},
                 {"found", r.relocFound},

@@ -15,6 +15,7 @@
 #include "agv/localization/field_relocalizer.hpp"
 #include "agv/localization/likelihood_field.hpp"
 #include "agv/localization/localizer.hpp"
+#include "agv/localization/map_changes.hpp"
 #include "agv/localization/odometry.hpp"
 #include "agv/localization/surface_map.hpp"
 #include "agv/report/json.hpp"
@@ -96,6 +97,11 @@ struct ReplayOptions {
   /// corner map. Off: the corners alone.
   bool surfaceMap = true;
   SurfaceMapParams surface{};
+  /// Runs on a mapping run's field (`mapFraction`): keep the surfaces the mapping run did not see
+  /// (found at fused matches, `MapChangeDetector`) and leave the scan points on them out of the
+  /// match, as the vehicle's pipeline does (`ObservationParams::mapChanges`).
+  bool mapChanges = false;
+  MapChangeParams changes{};
   /// When not empty, one CSV line per scan (health and errors) is written here.
   std::string tracePath;
 };
@@ -140,19 +146,22 @@ struct ReplayResult {
   std::size_t mappingScans = 0;   ///< scans of the mapping run (not localized)
   std::size_t staticCorners = 0;  ///< corners of the static map
   std::size_t fieldSurfaceCells = 0;
-  bool surfaceMap = false;              ///< a map-less run matched against its `SurfaceMap`
-  std::size_t surfaceAdded = 0;         ///< surface pieces the map took
-  double fieldWidth = 0.0;              ///< [m]
-  double fieldHeight = 0.0;             ///< [m]
-  std::size_t matchAttempts = 0;        ///< scans matched against the field
-  std::size_t matchFused = 0;           ///< matches used in the update
-  std::size_t matchGated = 0;           ///< refused by the gate against the prior
-  std::size_t matchRefused = 0;         ///< refused by the matcher (too few inliers, unobservable, ...)
-  std::size_t matchResyncs = 0;         ///< resets of the filter to a confirmed hypothesis (`resyncAfter`)
-  std::size_t resyncWrong = 0;          ///< of which more than 0.3 m / 5 deg from the corrected pose
-  std::size_t lostCycles = 0;           ///< cycles whose health said lost
-  UnicycleNoiseParams odometryNoise{};  ///< the model used (fitted on the mapping run, or given)
-  std::size_t odometryNoiseSteps = 0;   ///< mapping-run steps it was fitted on (0: given, not fitted)
+  bool surfaceMap = false;               ///< a map-less run matched against its `SurfaceMap`
+  std::size_t surfaceAdded = 0;          ///< surface pieces the map took
+  double fieldWidth = 0.0;               ///< [m]
+  double fieldHeight = 0.0;              ///< [m]
+  std::size_t matchAttempts = 0;         ///< scans matched against the field
+  std::size_t matchFused = 0;            ///< matches used in the update
+  std::size_t matchGated = 0;            ///< refused by the gate against the prior
+  std::size_t matchRefused = 0;          ///< refused by the matcher (too few inliers, unobservable, ...)
+  bool mapChanges = false;               ///< the changes since the mapping run were kept (`mapChanges`)
+  std::size_t changePieces = 0;          ///< surface pieces the change map took
+  std::size_t changedPointsDropped = 0;  ///< scan points left out of the matches as lying on changes
+  std::size_t matchResyncs = 0;          ///< resets of the filter to a confirmed hypothesis (`resyncAfter`)
+  std::size_t resyncWrong = 0;           ///< of which more than 0.3 m / 5 deg from the corrected pose
+  std::size_t lostCycles = 0;            ///< cycles whose health said lost
+  UnicycleNoiseParams odometryNoise{};   ///< the model used (fitted on the mapping run, or given)
+  std::size_t odometryNoiseSteps = 0;    ///< mapping-run steps it was fitted on (0: given, not fitted)
   // Field relocalization (`ReplayOptions::fieldRelocalization`).
   std::size_t relocSearches = 0;     ///< scans searched on the whole field
   std::size_t relocFound = 0;        ///< searches that found one pose

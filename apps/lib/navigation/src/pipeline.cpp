@@ -6,6 +6,7 @@
 
 #include "agv/core/fixed_vector.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "agv/localization/map_changes.hpp"
 #include "agv/localization/sweep_motion.hpp"
 #include "agv/loop/global_localizer.hpp"
 
@@ -24,7 +25,8 @@ LocalizerParams localizerParams(const PipelineParams& p) noexcept {
 
 Status PipelineParams::validate() const noexcept {
   for (const Status s : {kinematics.validate(), odometryNoise.validate(), localizer.validate(), agv::validate(falko),
-                         observations.surfaceMap ? surface.validate() : Status::Ok}) {
+                         observations.surfaceMap || observations.mapChanges ? surface.validate() : Status::Ok,
+                         observations.mapChanges ? changes.validate() : Status::Ok}) {
     if (s != Status::Ok) {
       return s;
     }
@@ -85,6 +87,12 @@ struct Pipeline::Impl {
     if (p.observations.surfaceMap) {
       surface = std::make_unique<HallSurfaceMap>(p.surface);
     }
+    if (p.observations.mapChanges) {
+      changes = std::make_unique<HallSurfaceMap>(changeMapParams(p.surface, p.changes));
+      changeDetector = std::make_unique<MapChangeDetector>(p.changes);
+      changePoints = std::make_unique<MatchPoints>();
+      unchangedPoints = std::make_unique<MatchPoints>();
+    }
   }
 
   /// Drops the surface map (when there is one): a new pose may not fit the surfaces placed with
@@ -107,6 +115,7 @@ struct Pipeline::Impl {
   void startSearch() noexcept;
   void watchDevices() noexcept;
   void publishIfDue() noexcept;
+  Result<Pose2d> poseAt(Timestamp t) const noexcept;  // Pipeline::poseAt
 
   void publish(Timestamp now) noexcept;
   std::uint16_t healthBits() const noexcept;
@@ -148,6 +157,13 @@ struct Pipeline::Impl {
   const LikelihoodFieldBase* field = nullptr;
   std::unique_ptr<MatchPoints> matchPoints = std::make_unique<MatchPoints>();
   std::unique_ptr<HallSurfaceMap> surface;  // with observations.surfaceMap
+  /// With observations.mapChanges: the surfaces the mapping run did not see, placed by the fused
+  /// matches (kept across set-poses: they are in the field's frame, not the filter's), and the
+  /// scratch of the sweep's points on them and of those left to match.
+  std::unique_ptr<HallSurfaceMap> changes;
+  std::unique_ptr<MapChangeDetector> changeDetector;
+  std::unique_ptr<MatchPoints> changePoints;
+  std::unique_ptr<MatchPoints> unchangedPoints;
   std::unique_ptr<GlobalLocalizer> globalLocalizer;
   std::unique_ptr<RelocConfirmer> confirmer;
   bool searching = false;
@@ -297,11 +313,32 @@ void Pipeline::Impl::readSweep() noexcept {
     if (surfaceMatching && surface->field().built()) {
       against = &surface->field();
     }
+    const MatchPoints* toMatch = matchPoints.get();
+    const bool trackChanges = field != nullptr && changes;
+    if (trackChanges && changes->field().built()) {
+      // The points on surfaces that changed since the mapping run are left out of the match, seen
+      // from the estimate at the sweep's reference instant.
+      const Result<Pose2d> at = poseAt(sweep.referenceStamp());
+      if (at.ok()) {
+        std::size_t dropped = 0;
+        (void)changeDetector->keepUnchanged(points, at.value().compose(params.localizer.laser.mounting), *field,
+                                            changes->field(), *unchangedPoints, dropped);
+        report.changedPointsDropped = static_cast<std::uint32_t>(dropped);
+        toMatch = unchangedPoints.get();
+      }
+    }
     const LocalizerHealth& h = against != nullptr
-                                   ? localizer->correct(*observations, meas.scan, *matchPoints, map, *against)
+                                   ? localizer->correct(*observations, meas.scan, *toMatch, map, *against)
                                    : localizer->correct(*observations, meas.scan, map);
     if (surfaceMatching && mayExtendSurfaceMap(h)) {
       (void)surface->insert(*matchPoints, h.scanPose.compose(params.localizer.laser.mounting));
+    }
+    if (trackChanges && h.scanMatch.fused && !h.scanMatch.softGated && !h.scanMatch.resynced) {
+      // Placed by the match itself: in the field's frame, whatever the filter's prior said.
+      const Pose2d sensor = h.scanMatch.pose.compose(params.localizer.laser.mounting);
+      if (changeDetector->select(points, sensor, *field, *changePoints) == Status::Ok && !changePoints->empty()) {
+        (void)changes->insert(*changePoints, sensor);
+      }
     }
     ++counters.corrections;
     report.corrected = true;
@@ -729,17 +766,20 @@ Span<const Pose2d::Vector2> Pipeline::sweepCorners() const noexcept {
   return Span<const Pose2d::Vector2>(impl_->corners->data(), impl_->corners->size());
 }
 
-Result<Pose2d> Pipeline::poseAt(Timestamp t) const noexcept {
-  const Impl& m = *impl_;
-  if (!m.localizing) {
+Result<Pose2d> Pipeline::Impl::poseAt(Timestamp t) const noexcept {
+  if (!localizing) {
     return Status::Lost;
   }
-  const Result<Pose2d> from = m.motion->at(m.localizer->stamp());
-  const Result<Pose2d> to = m.motion->at(t);
+  const Result<Pose2d> from = motion->at(localizer->stamp());
+  const Result<Pose2d> to = motion->at(t);
   if (!from.ok() || !to.ok()) {
     return Status::NotEnoughData;
   }
-  return m.localizer->pose() * between(from.value(), to.value());
+  return localizer->pose() * between(from.value(), to.value());
+}
+
+Result<Pose2d> Pipeline::poseAt(Timestamp t) const noexcept {
+  return impl_->poseAt(t);
 }
 
 Span<const MatchPoint> Pipeline::sweepPoints() const noexcept {
@@ -748,6 +788,10 @@ Span<const MatchPoint> Pipeline::sweepPoints() const noexcept {
 
 const SurfaceMapBase* Pipeline::surfaceMap() const noexcept {
   return impl_->surface.get();
+}
+
+const SurfaceMapBase* Pipeline::mapChanges() const noexcept {
+  return impl_->changes.get();
 }
 
 void Pipeline::setLikelihoodField(const LikelihoodFieldBase* field) noexcept {

@@ -47,6 +47,7 @@
 #include "agv/kinematics/tricycle.hpp"
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/localizer.hpp"
+#include "agv/localization/map_changes.hpp"
 #include "agv/localization/odometry.hpp"
 #include "agv/localization/surface_map.hpp"
 #include "agv/loop/global_localizer.hpp"
@@ -70,6 +71,11 @@ struct ObservationParams {
   /// allows (`mayExtendSurfaceMap`): natural navigation without a mapping run, anchored at the
   /// set-pose. The map is dropped at every set-pose and relocalization.
   bool surfaceMap = false;
+  /// With a likelihood field: keep the surfaces the mapping run did not see (`map_changes.hpp`:
+  /// found at the poses of fused matches, kept in a `SurfaceMap` of their own,
+  /// `PipelineParams::surface`) and leave the sweep points that lie on them out of the match. A
+  /// pallet moved since the mapping run then no longer pulls the pose towards where it stood.
+  bool mapChanges = false;
 };
 
 /// Relocalization: finding the pose on the map with no prior (`GlobalLocalizer`), confirming it over
@@ -96,7 +102,8 @@ struct PipelineParams {
   LocalizerParams localizer{};          ///< EKF, association, map lifecycle; `laser.mounting` = calibrated l
   ObservationParams observations{};     ///< what corrects the pose
   FalkoParams falko{};                  ///< corner detector (thesis defaults)
-  SurfaceMapParams surface{};           ///< with `observations.surfaceMap`
+  SurfaceMapParams surface{};           ///< with `observations.surfaceMap` or `observations.mapChanges`
+  MapChangeParams changes{};            ///< with `observations.mapChanges`
   RelocalizationParams relocalization{};
   /// One report per period on the `hal::Clock` (a late cycle publishes once and the schedule
   /// restarts from it: no burst). Zero: every cycle publishes.
@@ -113,8 +120,8 @@ struct PipelineParams {
   /// `Ok`, or the first refusal (`NonFiniteInput` for a NaN / infinite value, `InvalidArgument` for
   /// a value outside its domain) of: `kinematics.validate()`, `odometryNoise.validate()`,
   /// `localizer.validate()`, `validate(falko)`, `surface.validate()` (with
-  /// `observations.surfaceMap`), then the pipeline's own values (negative set-pose sigma or publish
-  /// period, zero per-cycle bounds).
+  /// `observations.surfaceMap` or `mapChanges`), `changes.validate()` (with `mapChanges`), then the pipeline's own
+  /// values (negative set-pose sigma or publish period, zero per-cycle bounds).
   Status validate() const noexcept;
 };
 
@@ -156,6 +163,9 @@ struct CycleReport {
   bool relocalized = false;                     ///< this cycle restarted the localizer at a found pose
   RelocOutcome searchOutcome = RelocOutcome::EmptyInput;  ///< of this cycle's search (when one ran)
   bool searched = false;                                  ///< a search ran in this cycle
+  /// Sweep points left out of this cycle's match as lying on surfaces changed since the mapping
+  /// run (`ObservationParams::mapChanges`).
+  std::uint32_t changedPointsDropped = 0;
 };
 
 /// Receives one line per noteworthy event (device state changes, refused commands, lifecycle
@@ -238,6 +248,8 @@ class Pipeline {
   Span<const MatchPoint> sweepPoints() const noexcept;
   /// The surface map of the earlier sweeps (`ObservationParams::surfaceMap`), null without one.
   const SurfaceMapBase* surfaceMap() const noexcept;
+  /// The surfaces the mapping run did not see (`ObservationParams::mapChanges`), null without.
+  const SurfaceMapBase* mapChanges() const noexcept;
   /// The localizer's pose carried to `t` with the odometry's motion between its stamp and `t`
   /// (within the motion history's reach, 0.5 s). `NotEnoughData` without a history, `Lost` when not
   /// localizing.
