@@ -1,6 +1,7 @@
 // agvnav-lidar-places: normal-histogram place recognition on a sequence of multi-beam lidar
-// revolutions (KITTI or NCLT velodyne .bin files, VLP-16 raw packets): signatures, key-signatures, loops, precision /
-// recall against ground-truth positions (KITTI poses) and yaw errors. Figures on stdout, --json, --svg.
+// revolutions (KITTI or NCLT velodyne .bin files, VLP-16 raw packets or ROS 2 bags of them): signatures,
+// key-signatures, loops, precision / recall against ground-truth positions (KITTI poses) and yaw errors. Figures on
+// stdout, --json, --svg.
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -38,9 +39,11 @@ int main(int argc, char** argv) {
                "vlp16: run the simulated revolutions through VLP-16 packets (decoder, assembler, buildFromFirings)");
   const std::map<std::string, agv::places::Format> formats{{"kitti", agv::places::Format::Kitti},
                                                            {"nclt", agv::places::Format::Nclt},
-                                                           {"vlp16", agv::places::Format::Vlp16Packets}};
+                                                           {"vlp16", agv::places::Format::Vlp16Packets},
+                                                           {"vlp16-bag", agv::places::Format::Vlp16Bag}};
   app.add_option("--format", options.format,
-                 "kitti (float32 x y z r), nclt (velodyne_sync) or vlp16 (raw 1206-byte VLP-16 payloads, concatenated)")
+                 "kitti (float32 x y z r), nclt (velodyne_sync), vlp16 (raw 1206-byte VLP-16 payloads, concatenated) "
+                 "or vlp16-bag (ROS 2 bag .db3 of velodyne_msgs/msg/VelodyneScan)")
       ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case));
   app.add_option("--calibration", options.calibrationPath,
                  "vlp16: per-laser calibration, db.xml or velodyne_pointcloud YAML (default: the shared vlp16_db.yaml)")
@@ -85,11 +88,11 @@ int main(int argc, char** argv) {
     options.sim.calibration = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/hdl64e_s2.1_sztaki.yaml";
   }
 
-  if (options.format == agv::places::Format::Vlp16Packets && options.calibrationPath.empty()) {
+  if (agv::places::isPacketFormat(options.format) && options.calibrationPath.empty()) {
     options.calibrationPath = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/vlp16_db.yaml";
   }
-  if (options.format != agv::places::Format::Vlp16Packets && !options.calibrationPath.empty()) {
-    std::fprintf(stderr, "agvnav-lidar-places: --calibration applies to --format vlp16 only\n");
+  if (!agv::places::isPacketFormat(options.format) && !options.calibrationPath.empty()) {
+    std::fprintf(stderr, "agvnav-lidar-places: --calibration applies to --format vlp16 and vlp16-bag only\n");
     return 2;
   }
 
@@ -151,8 +154,11 @@ int main(int argc, char** argv) {
                 static_cast<double>(p.chiSquareThreshold), static_cast<double>(p.sorensenThreshold), p.detected,
                 p.truePositives, p.precision, p.recall);
   }
-  if (options.format == agv::places::Format::Vlp16Packets) {
+  if (agv::places::isPacketFormat(options.format)) {
     const agv::places::PacketStats& ps = result.packets;
+    if (options.format == agv::places::Format::Vlp16Bag) {
+      std::printf("VelodyneScan messages %zu, ", ps.messages);
+    }
     std::printf(
         "packets %zu (refused %zu, blocks skipped %zu), returns %zu; revolutions assembled %zu, begun mid-turn "
         "(not run) %zu, records refused %zu\n",
