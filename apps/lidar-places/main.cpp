@@ -23,7 +23,9 @@ int main(int argc, char** argv) {
   bool verbose = false;
   CLI::App app{"agvnav-lidar-places: normal-histogram place signatures, key-signatures and loops on 3D lidar scans"};
   app.add_option("scans", options.files, "revolutions in driving order (.bin)")->check(CLI::ExistingFile);
-  app.add_option("--sim", options.sim.sensor, "run the simulated yard route instead of files: hdl64 or vlp16")
+  app.add_option("--sim", options.sim.sensor,
+                 "run the simulated yard route instead of files: hdl64 or vlp16 (with the sensor's threshold set "
+                 "and geometric verification for the options not given)")
       ->check(CLI::IsMember({"hdl64", "vlp16"}));
   app.add_option("--sim-calibration", options.sim.calibration,
                  "hdl64: factory calibration YAML (default: the shared HDL-64E S2.1 file)");
@@ -83,6 +85,32 @@ int main(int argc, char** argv) {
   if (options.sim.sensor.empty() == options.files.empty()) {
     std::fprintf(stderr, "agvnav-lidar-places: give either scan files or --sim\n");
     return 2;
+  }
+  // --sim: the sensor's set (docs/lidar-places.md) for each of its options not given.
+  agv::places::SensorSet set;
+  if (agv::places::simulatedSensorSet(options.sim.sensor, set)) {
+    const auto unset = [&app](const char* name) { return app.count(name) == 0; };
+    if (unset("--chi2-threshold")) {
+      options.place.chiSquareThreshold = set.chiSquareThreshold;
+    }
+    if (unset("--sorensen-threshold")) {
+      options.place.sorensenThreshold = set.sorensenThreshold;
+    }
+    if (unset("--laser-step")) {
+      options.signature.normals.laserStep = set.laserStep;
+    }
+    if (unset("--loop-translation")) {
+      options.place.maxLoopTranslation = set.maxLoopTranslation;
+    }
+    if (unset("--aligned-fraction")) {
+      options.place.minAlignedFraction = set.minAlignedFraction;
+    }
+    std::printf(
+        "simulated %s: T_chi2 %.2g, T_Sor %.3g, laser step %zu, geometric verification %.1f m / inlier share %.2f "
+        "(the sensor's set where not given)\n",
+        options.sim.sensor.c_str(), static_cast<double>(options.place.chiSquareThreshold),
+        static_cast<double>(options.place.sorensenThreshold), options.signature.normals.laserStep,
+        static_cast<double>(options.place.maxLoopTranslation), static_cast<double>(options.place.minAlignedFraction));
   }
   if (options.sim.sensor == "hdl64" && options.sim.calibration.empty()) {
     options.sim.calibration = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/hdl64e_s2.1_sztaki.yaml";

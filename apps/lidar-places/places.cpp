@@ -428,6 +428,24 @@ PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float scale, 
 
 }  // namespace
 
+bool simulatedSensorSet(const std::string& sensor, SensorSet& set) {
+  set = SensorSet{};
+  if (sensor == "hdl64") {
+    const PlaceParams place{};
+    set.chiSquareThreshold = place.chiSquareThreshold;
+    set.sorensenThreshold = place.sorensenThreshold;
+    set.laserStep = BeamNormalParams{}.laserStep;
+    return true;
+  }
+  if (sensor == "vlp16") {
+    set.chiSquareThreshold = 9.0e-4F;
+    set.sorensenThreshold = 0.105F;
+    set.laserStep = 1;
+    return true;
+  }
+  return false;
+}
+
 bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error) {
   r = PlacesResult{};
   const auto t0 = std::chrono::steady_clock::now();

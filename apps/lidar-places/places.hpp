@@ -46,6 +46,20 @@ struct SimRouteOptions {
   bool packets = false;
 };
 
+/// One sensor's threshold set on the simulated yard (docs/lidar-places.md, "Adopted: one set per
+/// sensor"): what `--sim hdl64|vlp16` uses for each of these options the command line does not give.
+struct SensorSet {
+  float chiSquareThreshold = 3.0e-4F;  ///< T_chi2
+  float sorensenThreshold = 0.035F;    ///< T_Sor
+  std::size_t laserStep = 2;           ///< normals: lasers above / below
+  float maxLoopTranslation = 4.5F;     ///< [m] geometric verification radius (the 5-m truth radius less 0.5 m)
+  float minAlignedFraction = 0.6F;     ///< geometric verification: inlier share
+};
+
+/// The set of a simulated sensor ("hdl64": the library's T_chi2 / T_Sor and laser step; "vlp16": T_chi2
+/// 9e-4, T_Sor 0.105, laser step 1; both with the verification at 4.5 m / 0.6). False for another name.
+bool simulatedSensorSet(const std::string& sensor, SensorSet& set);
+
 /// What to run and how.
 struct PlacesOptions {
   Format format = Format::Kitti;
