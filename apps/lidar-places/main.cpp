@@ -1,6 +1,7 @@
 // agvnav-lidar-places: normal-histogram place recognition on a sequence of multi-beam lidar
-// revolutions (KITTI or NCLT velodyne .bin files, VLP-16 raw packets): signatures, key-signatures, loops, precision /
-// recall against ground-truth positions (KITTI poses) and yaw errors. Figures on stdout, --json, --svg.
+// revolutions (KITTI or NCLT velodyne .bin files, VLP-16 raw packets or ROS 2 bags of them): signatures,
+// key-signatures, loops, precision / recall against ground-truth positions (KITTI poses) and yaw errors. Figures on
+// stdout, --json, --svg.
 #include <CLI/CLI.hpp>
 
 #include <cmath>
@@ -22,7 +23,9 @@ int main(int argc, char** argv) {
   bool verbose = false;
   CLI::App app{"agvnav-lidar-places: normal-histogram place signatures, key-signatures and loops on 3D lidar scans"};
   app.add_option("scans", options.files, "revolutions in driving order (.bin)")->check(CLI::ExistingFile);
-  app.add_option("--sim", options.sim.sensor, "run the simulated yard route instead of files: hdl64 or vlp16")
+  app.add_option("--sim", options.sim.sensor,
+                 "run the simulated yard route instead of files: hdl64 or vlp16 (with the sensor's threshold set "
+                 "and geometric verification for the options not given)")
       ->check(CLI::IsMember({"hdl64", "vlp16"}));
   app.add_option("--sim-calibration", options.sim.calibration,
                  "hdl64: factory calibration YAML (default: the shared HDL-64E S2.1 file)");
@@ -38,9 +41,11 @@ int main(int argc, char** argv) {
                "vlp16: run the simulated revolutions through VLP-16 packets (decoder, assembler, buildFromFirings)");
   const std::map<std::string, agv::places::Format> formats{{"kitti", agv::places::Format::Kitti},
                                                            {"nclt", agv::places::Format::Nclt},
-                                                           {"vlp16", agv::places::Format::Vlp16Packets}};
+                                                           {"vlp16", agv::places::Format::Vlp16Packets},
+                                                           {"vlp16-bag", agv::places::Format::Vlp16Bag}};
   app.add_option("--format", options.format,
-                 "kitti (float32 x y z r), nclt (velodyne_sync) or vlp16 (raw 1206-byte VLP-16 payloads, concatenated)")
+                 "kitti (float32 x y z r), nclt (velodyne_sync), vlp16 (raw 1206-byte VLP-16 payloads, concatenated) "
+                 "or vlp16-bag (ROS 2 bag .db3 of velodyne_msgs/msg/VelodyneScan)")
       ->transform(CLI::CheckedTransformer(formats, CLI::ignore_case));
   app.add_option("--calibration", options.calibrationPath,
                  "vlp16: per-laser calibration, db.xml or velodyne_pointcloud YAML (default: the shared vlp16_db.yaml)")
@@ -81,15 +86,41 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "agvnav-lidar-places: give either scan files or --sim\n");
     return 2;
   }
+  // --sim: the sensor's set (docs/lidar-places.md) for each of its options not given.
+  agv::places::SensorSet set;
+  if (agv::places::simulatedSensorSet(options.sim.sensor, set)) {
+    const auto unset = [&app](const char* name) { return app.count(name) == 0; };
+    if (unset("--chi2-threshold")) {
+      options.place.chiSquareThreshold = set.chiSquareThreshold;
+    }
+    if (unset("--sorensen-threshold")) {
+      options.place.sorensenThreshold = set.sorensenThreshold;
+    }
+    if (unset("--laser-step")) {
+      options.signature.normals.laserStep = set.laserStep;
+    }
+    if (unset("--loop-translation")) {
+      options.place.maxLoopTranslation = set.maxLoopTranslation;
+    }
+    if (unset("--aligned-fraction")) {
+      options.place.minAlignedFraction = set.minAlignedFraction;
+    }
+    std::printf(
+        "simulated %s: T_chi2 %.2g, T_Sor %.3g, laser step %zu, geometric verification %.1f m / inlier share %.2f "
+        "(the sensor's set where not given)\n",
+        options.sim.sensor.c_str(), static_cast<double>(options.place.chiSquareThreshold),
+        static_cast<double>(options.place.sorensenThreshold), options.signature.normals.laserStep,
+        static_cast<double>(options.place.maxLoopTranslation), static_cast<double>(options.place.minAlignedFraction));
+  }
   if (options.sim.sensor == "hdl64" && options.sim.calibration.empty()) {
     options.sim.calibration = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/hdl64e_s2.1_sztaki.yaml";
   }
 
-  if (options.format == agv::places::Format::Vlp16Packets && options.calibrationPath.empty()) {
+  if (agv::places::isPacketFormat(options.format) && options.calibrationPath.empty()) {
     options.calibrationPath = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/vlp16_db.yaml";
   }
-  if (options.format != agv::places::Format::Vlp16Packets && !options.calibrationPath.empty()) {
-    std::fprintf(stderr, "agvnav-lidar-places: --calibration applies to --format vlp16 only\n");
+  if (!agv::places::isPacketFormat(options.format) && !options.calibrationPath.empty()) {
+    std::fprintf(stderr, "agvnav-lidar-places: --calibration applies to --format vlp16 and vlp16-bag only\n");
     return 2;
   }
 
@@ -151,8 +182,11 @@ int main(int argc, char** argv) {
                 static_cast<double>(p.chiSquareThreshold), static_cast<double>(p.sorensenThreshold), p.detected,
                 p.truePositives, p.precision, p.recall);
   }
-  if (options.format == agv::places::Format::Vlp16Packets) {
+  if (agv::places::isPacketFormat(options.format)) {
     const agv::places::PacketStats& ps = result.packets;
+    if (options.format == agv::places::Format::Vlp16Bag) {
+      std::printf("VelodyneScan messages %zu, ", ps.messages);
+    }
     std::printf(
         "packets %zu (refused %zu, blocks skipped %zu), returns %zu; revolutions assembled %zu, begun mid-turn "
         "(not run) %zu, records refused %zu\n",

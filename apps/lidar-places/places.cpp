@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <memory>
+#include <utility>
 
 #include "agv/core/angle.hpp"
 #include "agv/datasets/lidar3d_scans.hpp"
@@ -130,7 +131,14 @@ bool runPackets(const PlacesOptions& options, std::size_t columns, Image& image,
   PacketStats& ps = r.packets;
   for (const std::string& file : options.files) {
     datasets::PacketRecording rec;
-    if (!datasets::readPacketRecording(file, vd::kPacketBytes, rec, error)) {
+    if (options.format == Format::Vlp16Bag) {
+      datasets::VelodyneScanBag bag;
+      if (!datasets::readVelodyneScanBag(file, bag, error)) {
+        return false;
+      }
+      ps.messages += bag.messages.size();
+      rec = std::move(bag.packets);
+    } else if (!datasets::readPacketRecording(file, vd::kPacketBytes, rec, error)) {
       return false;
     }
     vd::VelodyneDecoder dec(vd::VelodyneConfig{});
@@ -420,6 +428,24 @@ PrPoint runDatabase(const PlacesOptions& options, PlacesResult& r, float scale, 
 
 }  // namespace
 
+bool simulatedSensorSet(const std::string& sensor, SensorSet& set) {
+  set = SensorSet{};
+  if (sensor == "hdl64") {
+    const PlaceParams place{};
+    set.chiSquareThreshold = place.chiSquareThreshold;
+    set.sorensenThreshold = place.sorensenThreshold;
+    set.laserStep = BeamNormalParams{}.laserStep;
+    return true;
+  }
+  if (sensor == "vlp16") {
+    set.chiSquareThreshold = 9.0e-4F;
+    set.sorensenThreshold = 0.105F;
+    set.laserStep = 1;
+    return true;
+  }
+  return false;
+}
+
 bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error) {
   r = PlacesResult{};
   const auto t0 = std::chrono::steady_clock::now();
@@ -437,7 +463,7 @@ bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error
       error = "no revolution given";
       return false;
     }
-    if (options.format == Format::Vlp16Packets) {
+    if (isPacketFormat(options.format)) {
       if (!options.posesPath.empty()) {
         error = "--poses (KITTI frames) does not apply to packet recordings";
         return false;
@@ -455,7 +481,7 @@ bool runPlaces(const PlacesOptions& options, PlacesResult& r, std::string& error
       return false;
     }
     const std::size_t columns = options.columns > 0 ? options.columns : (options.format == Format::Kitti ? 2000 : 1024);
-    for (std::size_t f = 0; f < options.files.size() && options.format != Format::Vlp16Packets; ++f) {
+    for (std::size_t f = 0; f < options.files.size() && !isPacketFormat(options.format); ++f) {
       const std::string& file = options.files[f];
       ScanResult scan;
       scan.file = file;
@@ -584,8 +610,10 @@ report::Json prJson(const PrPoint& p, bool truth) {
 report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   report::Json doc;
   doc["program"] = "agvnav-lidar-places";
-  doc["format"] =
-      options.format == Format::Kitti ? "kitti" : (options.format == Format::Nclt ? "nclt" : "vlp16-packets");
+  doc["format"] = options.format == Format::Kitti      ? "kitti"
+                  : options.format == Format::Nclt     ? "nclt"
+                  : options.format == Format::Vlp16Bag ? "vlp16-bag"
+                                                       : "vlp16-packets";
   report::Json params;
   params["key_threshold"] = report::shortestDouble(options.place.keyThreshold);
   params["skip_recent_keys"] = options.place.skipRecentKeys;
@@ -640,11 +668,14 @@ report::Json placesJson(const PlacesOptions& options, const PlacesResult& r) {
   step["max_abs_deg"] = r.stepYawMaxAbsDeg;
   step["mean_abs_deg"] = r.stepYawMeanAbsDeg;
   doc["yaw_between_consecutive"] = step;
-  if ((options.format == Format::Vlp16Packets && options.sim.sensor.empty()) || options.sim.packets) {
+  if ((isPacketFormat(options.format) && options.sim.sensor.empty()) || options.sim.packets) {
     const PacketStats& ps = r.packets;
     report::Json pj;
     pj["calibration"] = options.calibrationPath;
     pj["files"] = ps.files;
+    if (options.format == Format::Vlp16Bag) {
+      pj["messages"] = ps.messages;
+    }
     pj["packets"] = ps.packets;
     pj["refused_packets"] = ps.refusedPackets;
     pj["skipped_blocks"] = ps.skippedBlocks;

@@ -21,8 +21,14 @@ namespace agv::places {
 /// Kitti / Nclt: one revolution per `.bin` of points. Vlp16Packets: recordings of raw VLP-16 UDP
 /// payloads (1206 bytes each, concatenated: the einride recording), decoded by
 /// agv::drivers::velodyne, cut into revolutions by its RevolutionAssembler, points by a
-/// calibration file (`calibrationPath`).
-enum class Format { Kitti, Nclt, Vlp16Packets };
+/// calibration file (`calibrationPath`). Vlp16Bag: the same from the VelodyneScan messages of a
+/// ROS 2 bag (`*.db3`, rosbag2's sqlite3 storage: the nebula recording), messages in time order.
+enum class Format { Kitti, Nclt, Vlp16Packets, Vlp16Bag };
+
+/// The formats of raw VLP-16 packets (decoder, assembler, calibration file).
+constexpr bool isPacketFormat(Format f) noexcept {
+  return f == Format::Vlp16Packets || f == Format::Vlp16Bag;
+}
 
 /// The simulated route (drivers/sim multibeam_world.hpp) instead of files.
 struct SimRouteOptions {
@@ -40,12 +46,26 @@ struct SimRouteOptions {
   bool packets = false;
 };
 
+/// One sensor's threshold set on the simulated yard (docs/lidar-places.md, "Adopted: one set per
+/// sensor"): what `--sim hdl64|vlp16` uses for each of these options the command line does not give.
+struct SensorSet {
+  float chiSquareThreshold = 3.0e-4F;  ///< T_chi2
+  float sorensenThreshold = 0.035F;    ///< T_Sor
+  std::size_t laserStep = 2;           ///< normals: lasers above / below
+  float maxLoopTranslation = 4.5F;     ///< [m] geometric verification radius (the 5-m truth radius less 0.5 m)
+  float minAlignedFraction = 0.6F;     ///< geometric verification: inlier share
+};
+
+/// The set of a simulated sensor ("hdl64": the library's T_chi2 / T_Sor and laser step; "vlp16": T_chi2
+/// 9e-4, T_Sor 0.105, laser step 1; both with the verification at 4.5 m / 0.6). False for another name.
+bool simulatedSensorSet(const std::string& sensor, SensorSet& set);
+
 /// What to run and how.
 struct PlacesOptions {
   Format format = Format::Kitti;
   std::vector<std::string> files;  ///< revolutions in driving order
   SimRouteOptions sim{};
-  std::string calibrationPath;  ///< Vlp16Packets: db.xml or velodyne_pointcloud YAML (16 lasers)
+  std::string calibrationPath;  ///< packet formats: db.xml or velodyne_pointcloud YAML (16 lasers)
   std::string posesPath;        ///< KITTI poses (frame = the file name's number); empty: no truth
   double radius = 5.0;          ///< [m] a loop is true when the two positions are this close
   std::size_t columns = 0;      ///< range-image columns (0: 2000 for KITTI, 1024 for NCLT)
@@ -83,9 +103,10 @@ struct ScanResult {
   float stepYawRelativeCost = 0.0F;
 };
 
-/// What the packet path decoded (Vlp16Packets).
+/// What the packet path decoded (packet formats).
 struct PacketStats {
   std::size_t files = 0;
+  std::size_t messages = 0;        ///< Vlp16Bag: VelodyneScan messages read
   std::size_t packets = 0;         ///< packets read
   std::size_t refusedPackets = 0;  ///< refused by the decoder (truncated, another product, ...)
   std::size_t skippedBlocks = 0;   ///< blocks skipped (bad id / azimuth)

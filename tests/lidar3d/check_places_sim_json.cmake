@@ -30,6 +30,13 @@ expect_number_in("${j}" 0 1 yaw max_abs_error_deg)
 expect_number_in("${j}" 1 1 yaw within_1deg)
 expect_number_in("${j}" 10 1000 yaw same_direction count)
 expect_number_in("${j}" 10 1000 yaw opposite_direction count)
+# -DLASER_STEP, -DCHI2, -DSORENSEN: the sensor's documented set (docs/lidar-places.md), when the run
+# relies on the program's set for --sim.
+if(DEFINED LASER_STEP)
+  expect_number_in("${j}" ${LASER_STEP} ${LASER_STEP} parameters laser_step)
+  expect_number_in("${j}" ${CHI2} ${CHI2} parameters chi_square_threshold)
+  expect_number_in("${j}" ${SORENSEN} ${SORENSEN} parameters sorensen_threshold)
+endif()
 expect_number_in("${j}" 4.5 4.5 parameters loop_translation_m)
 expect_number_in("${j}" 0.6 0.6 parameters min_aligned_fraction)
 string(JSON nt GET "${j}" loop_translation count)

@@ -2,8 +2,6 @@
 // parsers and the thesis' point model against points computed here by hand from the files' numbers;
 // the einride VLP-16 recording against the counts its README states; the nebula VLP-16 bag's last
 // message against nebula's own decoded cloud (.pcd). Paths from AGV_SHARED_DATA_DIR.
-#include <sqlite3.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -221,22 +219,6 @@ TEST_CASE("einride VLP-16 recording decodes to the counts its README states", "[
 }
 
 namespace {
-/// The VelodyneScan messages of the nebula bag, oldest first (CDR bytes).
-std::vector<std::vector<std::uint8_t>> bagMessages(const std::string& path) {
-  std::vector<std::vector<std::uint8_t>> msgs;
-  sqlite3* db = nullptr;
-  REQUIRE(sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) == SQLITE_OK);
-  sqlite3_stmt* st = nullptr;
-  REQUIRE(sqlite3_prepare_v2(db, "select data from messages order by timestamp", -1, &st, nullptr) == SQLITE_OK);
-  while (sqlite3_step(st) == SQLITE_ROW) {
-    const auto* p = static_cast<const std::uint8_t*>(sqlite3_column_blob(st, 0));
-    msgs.emplace_back(p, p + sqlite3_column_bytes(st, 0));
-  }
-  sqlite3_finalize(st);
-  sqlite3_close(db);
-  return msgs;
-}
-
 struct PcdPoint {
   float x, y, z;
   std::uint8_t intensity, returnType;
@@ -248,9 +230,26 @@ static_assert(sizeof(PcdPoint) == 32, "PCD record of the nebula file: 32 bytes")
 }  // namespace
 
 TEST_CASE("nebula VLP-16 message against nebula's decoded cloud", "[lidar3d][velodyne][realdata]") {
-  const auto msgs = bagMessages(kDir + "vlp16_nebula/1673400471837873222_0.db3");
-  REQUIRE(msgs.size() == 4U);
-  // CDR (README): packet count at byte 28, packets of 8 (stamp) + 1206 + 2 bytes from byte 32.
+  agv::datasets::VelodyneScanBag bag;
+  std::string error;
+  INFO(error);
+  REQUIRE(agv::datasets::readVelodyneScanBag(kDir + "vlp16_nebula/1673400471837873222_0.db3", bag, error));
+  // README / metadata.yaml: 4 messages of 150-151 packets on /velodyne_packets, frame "velodyne".
+  REQUIRE(bag.messages.size() == 4U);
+  CHECK(bag.topic == "/velodyne_packets");
+  CHECK(bag.packets.packetBytes == kPacketBytes);
+  std::size_t inBag = 0;
+  for (const agv::datasets::VelodyneScanMessage& msg : bag.messages) {
+    CHECK(msg.frameId == "velodyne");
+    CHECK(msg.packetCount >= 150U);
+    CHECK(msg.packetCount <= 151U);
+    CHECK(msg.firstPacket == inBag);
+    inBag += msg.packetCount;
+  }
+  CHECK(bag.packets.packets == inBag);
+  // metadata.yaml: the bag's messages span 300 143 486 ns from 1673400471837873222.
+  CHECK(bag.messages.front().bagTimeNs == 1673400471837873222LL);
+  CHECK(bag.messages.back().bagTimeNs - bag.messages.front().bagTimeNs == 300143486LL);
   const LaserIntrinsics cal = load("vlp16_db.yaml");
   float elev[16];
   std::uint16_t ring[16];
@@ -268,18 +267,14 @@ TEST_CASE("nebula VLP-16 message against nebula's decoded cloud", "[lidar3d][vel
   std::size_t packets = 0;
   FiringRecord out[kMaxRecordsPerPacket];
   for (std::size_t m = 1; m < 4; ++m) {  // the last message and two before (the cloud is cut elsewhere)
-    const auto& d = msgs[m];
-    std::uint32_t count = 0;
-    std::memcpy(&count, d.data() + 28, 4);
-    REQUIRE(d.size() == 32U + count * 1216U);
-    for (std::uint32_t k = 0; k < count; ++k) {
+    const agv::datasets::VelodyneScanMessage& msg = bag.messages[m];
+    for (std::size_t k = 0; k < msg.packetCount; ++k) {
+      const std::uint8_t* pkt = bag.packets.packet(msg.firstPacket + k);
       std::size_t n = 0;
       PacketInfo info;
-      REQUIRE(dec.decode(Span<const std::uint8_t>(d.data() + 40 + k * 1216U, kPacketBytes), Span<FiringRecord>(out), n,
-                         &info) == Status::Ok);
+      REQUIRE(dec.decode(Span<const std::uint8_t>(pkt, kPacketBytes), Span<FiringRecord>(out), n, &info) == Status::Ok);
       CHECK(info.returnMode == ReturnMode::Dual);
       ++packets;
-      const std::uint8_t* pkt = d.data() + 40 + k * 1216U;
       for (std::size_t i = 0; i < n; ++i) {
         // Convention mapped: nebula does not interpolate the packet's last firing (blocks 10 and 11
         // of a dual-return packet: azimuth step 0); velodyne_pointcloud and we carry the previous
