@@ -163,6 +163,17 @@ int main(int argc, char** argv) {
       break;
     }
     if (now >= next) {
+      // The frames that arrived while this process did not run are the nodes' before the step,
+      // at their kernel receive stamps: a real drive takes a frame when it is on the bus, and a
+      // simulator descheduled for longer than the controller's heartbeat consumer time (a loaded
+      // VM) would otherwise step first and fault its nodes on a heartbeat already queued.
+      agv::drivers::CanFrame pending;
+      while (withCan && bus.receive(pending, agv::Duration{}) == agv::Status::Ok) {
+        if (!pending.error) {
+          ++received;
+          drives.receive(pending, pending.stamp);
+        }
+      }
       std::size_t n = 0;
       if (vehicle) {
         n = vehicle->step(now, drives, agv::Span<agv::drivers::CanFrame>(out), n);
@@ -188,7 +199,7 @@ int main(int argc, char** argv) {
     }
     if (bus.receive(f, next - now) == agv::Status::Ok && !f.error) {
       ++received;
-      drives.receive(f, agv::drivers::monotonicNow());
+      drives.receive(f, f.stamp);  // the kernel's receive stamp (CLOCK_MONOTONIC)
     }
   }
   std::printf("agvnav-sim-drives: %llu frames sent, %llu refused, %llu received\n",

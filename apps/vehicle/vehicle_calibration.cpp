@@ -89,7 +89,14 @@ Status drivesHealth(const canopen::Cia402DriveController& c, const char*& why) n
 }
 
 std::uint32_t drivesFaultCode(const canopen::Cia402DriveController& c) noexcept {
-  return c.traction().errorCode() != 0U ? c.traction().errorCode() : c.steering().errorCode();
+  // The code of an axis in fault now: an axis keeps its last error code after a reset, and one
+  // whose heartbeat was lost has no code of its own.
+  for (const canopen::Cia402Axis* a : {&c.traction(), &c.steering()}) {
+    if (a->phase() == canopen::AxisPhase::Faulted && !a->heartbeatLost() && a->errorCode() != 0U) {
+      return a->errorCode();
+    }
+  }
+  return 0U;
 }
 
 std::unique_ptr<VehicleDrives> makeSocketCanDrives(const VehicleConfig& config) {
@@ -189,15 +196,16 @@ struct VehicleCalibrationRoutine::Impl {
     h.calibration.segment = p.segment;
     h.calibration.total = p.total;
     h.calibration.lastRefusal = p.lastRefusal;
+    h.calibration.driveFault = p.driveFault;
     if (session->running() || pending) {
       h.mode = hal::NavMode::Calibrating;
     }
     h.bits = hal::withBit(h.bits, hal::HealthBit::CommandRejected, commandRefused);
   }
 
-  void refuse(Status why, const std::string& message) {
+  void refuse(Status why, const std::string& message, std::uint16_t driveFault = 0) {
     commandRefused = true;
-    session->reportRefusal(why, message);
+    session->reportRefusal(why, message, driveFault);
   }
 
   /// A Calibrate waiting for the drives: started when they are enabled, refused when they fail.
@@ -211,8 +219,14 @@ struct VehicleCalibrationRoutine::Impl {
       }
     } else if (h != Status::NotInitialized || now - pendingSince > Duration::fromSeconds(5.0)) {
       pending = false;
+      const std::uint32_t code = h == Status::DeviceFault ? drives->faultCode() : 0U;
+      char detail[64] = "";
+      if (code != 0U) {
+        std::snprintf(detail, sizeof detail, ", drive fault code 0x%04X", static_cast<unsigned>(code));
+      }
       refuse(h == Status::NotInitialized ? Status::Timeout : h,
-             std::string("calibrate refused: the drives are not enabled (") + why + ")");
+             std::string("calibrate refused: the drives are not enabled (") + why + detail + ")",
+             static_cast<std::uint16_t>(code & 0xFFFFU));
     }
   }
 
@@ -257,10 +271,13 @@ struct VehicleCalibrationRoutine::Impl {
         } else {
           std::snprintf(reason, sizeof reason, "the drives stopped (%s)", why);
         }
-        session->abortOnFault(h, reason, now);
+        session->abortOnFault(h, reason, now, static_cast<std::uint16_t>(code & 0xFFFFU));
       } else {
         wrote = session->step(now);
       }
+    } else if (!pending) {
+      // A drive fault seen before its code (0x603F read by SDO after the abort): the register gets it.
+      session->noteDriveFault(static_cast<std::uint16_t>(drives->faultCode() & 0xFFFFU));
     }
     drives->cycle(now);
     if (wrote) {

@@ -3,7 +3,7 @@
 /// The calibration routine inside `agvnav-vehicle`: taps between the navigation pipeline and the
 /// real devices, so that the one routine (`calibration::CalibrationSession` around the stepwise
 /// `CalibrationRun`) sees the encoder samples and sweeps the pipeline reads, takes the PLC's
-/// `Calibrate` and `Stop`, and publishes its progress in every report (registers 44-48, mode
+/// `Calibrate` and `Stop`, and publishes its progress in every report (registers 44-49, mode
 /// `Calibrating` while it runs). On success the new calibration file is written atomically and
 /// reloaded into the pipeline (`Pipeline::recalibrate`).
 ///
@@ -48,7 +48,8 @@ class VehicleDrives {
 /// idle or coming up; `Timeout` quick-stopped for a lost drive heartbeat; `DeviceFault` any other
 /// safe stop (drive fault, bus-off, PLC Stop, stale set-point) or a failed bring-up; `why` names it.
 Status drivesHealth(const drivers::canopen::Cia402DriveController& controller, const char*& why) noexcept;
-/// The error code (0x603F / EMCY) of the traction drive, else of the steering drive (0: none).
+/// The error code (0x603F / EMCY) of the traction drive if it is in fault, else of the steering
+/// drive if it is (0: none in fault, only a lost heartbeat, or the code not known yet).
 std::uint32_t drivesFaultCode(const drivers::canopen::Cia402DriveController& controller) noexcept;
 
 /// The drives on SocketCAN (`drivers::SocketCanDriveControl`, the interface of `config`).

@@ -286,8 +286,9 @@ void addModbusKeys(Specs& specs, VehicleConfig& c) {
                                               drivers::plc::WordOrder::BADC, drivers::plc::WordOrder::DCBA};
     c.modbus.map.wordOrder = orders[i];
   });
-  specs["modbus.remote_status_base"] =
-      integer(false, 0, 65535 - 40, [&c](long long x) { c.modbus.remoteStatusBase = static_cast<std::uint16_t>(x); });
+  specs["modbus.remote_status_base"] = integer(  // the whole status block below 65536
+      false, 0, 65536 - drivers::plc::PlcRegisterMap::kStatusCount,
+      [&c](long long x) { c.modbus.remoteStatusBase = static_cast<std::uint16_t>(x); });
   specs["modbus.remote_command_base"] =
       integer(false, 0, 65535 - 9, [&c](long long x) { c.modbus.remoteCommandBase = static_cast<std::uint16_t>(x); });
   specs["modbus.max_abs_position"] = number(false, 1.0, 1e6, "m", [&c](double v) { c.modbus.map.maxAbsPosition = v; });

@@ -218,10 +218,42 @@ TEST_CASE("calibrate.session: a drive fault aborts with its code, file untouched
   CHECK(b.drive->quickStops == 1);
   CHECK(b.session->lastMessage().find("0x2310") != std::string::npos);
   CHECK(b.session->lastMessage().find("segment 2 of 8") != std::string::npos);
+  // The code for the PLC (register 49); a code known already is not replaced.
+  CHECK(b.session->progress().driveFault == 0x2310U);
+  b.session->noteDriveFault(0x7305);
+  CHECK(b.session->progress().driveFault == 0x2310U);
   REQUIRE_FALSE(b.log.empty());
   CHECK(b.log.back() == b.session->lastMessage());
   CHECK(agv::test::readFile(file) == kOldFile);
   CHECK_FALSE(b.wrote);
+  // The next Calibrate (from the start again) clears the code with the refusal.
+  b.drive->faulted = false;
+  REQUIRE(b.session->requestCalibrate(kStart, b.vehicle->now()) == Status::Ok);
+  CHECK(b.session->progress().lastRefusal == Status::Ok);
+  CHECK(b.session->progress().driveFault == 0U);
+}
+
+TEST_CASE("calibrate.session: a drive fault whose code comes after the abort gets it once known", "[calibrate]") {
+  const std::string file = work("session_late_code.txt");
+  writeText(file, kOldFile);
+  Bench b(file);
+  b.session->noteDriveFault(0x2310);  // no run: ignored
+  CHECK(b.session->progress().driveFault == 0U);
+  REQUIRE(b.session->requestCalibrate(kStart, b.vehicle->now()) == Status::Ok);
+  REQUIRE(b.cycleUntil([&] { return b.session->progress().state == cal::RoutineState::Driving; }));
+  b.session->noteDriveFault(0x2310);  // running: ignored
+  CHECK(b.session->progress().driveFault == 0U);
+  // The statusword showed Fault; the error code (0x603F) is read by SDO afterwards.
+  b.session->abortOnFault(Status::DeviceFault, "drive fault", b.vehicle->now());
+  CHECK(b.session->progress().lastRefusal == Status::DeviceFault);
+  CHECK(b.session->progress().driveFault == 0U);
+  b.session->noteDriveFault(0);
+  CHECK(b.session->progress().driveFault == 0U);
+  b.session->noteDriveFault(0x2310);
+  CHECK(b.session->progress().driveFault == 0x2310U);
+  b.session->noteDriveFault(0x7305);  // the first code stays
+  CHECK(b.session->progress().driveFault == 0x2310U);
+  CHECK(agv::test::readFile(file) == kOldFile);
 }
 
 TEST_CASE("calibrate.session: a heartbeat loss seen by the owner aborts the routine", "[calibrate]") {
@@ -235,6 +267,10 @@ TEST_CASE("calibrate.session: a heartbeat loss seen by the owner aborts the rout
   CHECK(b.session->progress().state == cal::RoutineState::Aborted);
   CHECK(b.session->progress().lastRefusal == Status::Timeout);
   CHECK(b.session->lastMessage().find("heartbeat") != std::string::npos);
+  // No drive fault code for a lost heartbeat, and none taken later.
+  CHECK(b.session->progress().driveFault == 0U);
+  b.session->noteDriveFault(0x8130);
+  CHECK(b.session->progress().driveFault == 0U);
   const int commands = b.drive->commands;
   for (int i = 0; i < 50; ++i) {
     b.cycle();

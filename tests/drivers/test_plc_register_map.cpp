@@ -111,6 +111,7 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     s.routine.segment = 17;
     s.routine.total = 24;
     s.routine.lastRefusal = Status::DeviceFault;
+    s.routine.driveFault = 0x2310;  // CiA 402: continuous over-current
     std::vector<std::uint16_t> table(PlcRegisterMap::kRegisterCount, 0xAAAA);
     REQUIRE(map.encodeStatus(s, Span<std::uint16_t>(table.data(), table.size())) == Status::Ok);
     CHECK(table[0] == 4242);
@@ -143,7 +144,8 @@ TEST_CASE("Status block: every field decodes back in the configured word order",
     CHECK(table[46] == 17);
     CHECK(table[47] == 24);
     CHECK(table[48] == static_cast<std::uint16_t>(Status::DeviceFault));
-    CHECK(table[49] == 0xAAAA);  // nothing written past the block
+    CHECK(table[49] == 0x2310);
+    CHECK(table[50] == 0xAAAA);  // nothing written past the block
   }
   PlcRegisterMap map;
   std::vector<std::uint16_t> shortTable(10);

@@ -382,6 +382,7 @@ TEST_CASE("PLC register map: word orders of 1.0f and a status block with known r
   s.routine.segment = 5;
   s.routine.total = 24;
   s.routine.lastRefusal = Status::OutOfRange;
+  s.routine.driveFault = 0x7305;
   static std::uint16_t table[PlcRegisterMap::kRegisterCount];
   for (auto& v : table) {
     v = 0xAAAA;
@@ -403,6 +404,7 @@ TEST_CASE("PLC register map: word orders of 1.0f and a status block with known r
   CHECK(table[46] == 5U);   // segment 5
   CHECK(table[47] == 24U);  // of 24
   CHECK(table[48] == static_cast<std::uint16_t>(Status::OutOfRange));
+  CHECK(table[49] == 0x7305U);                            // the drive's fault code
   CHECK(table[PlcRegisterMap::kStatusCount] == 0xAAAAU);  // nothing past the status block
 
   // A Localize command block as a PLC writes it: code 1, sequence 7, x 12.5, y -3.25, theta 1.5, heartbeat 99.

@@ -1,9 +1,8 @@
 #pragma once
-// The vcan VM's calibration bench (docs/vcan-testing.md), shared by the statically linked VM test
-// (test_calibration_vm.cpp: the refusal, Stop, heartbeat and fault cases with a scripted PLC) and
-// the dynamically linked one (test_calibration_modbus_vm.cpp: the whole routine started by a
-// libmodbus client through the vehicle's Modbus server). The vehicle side is the program's code
-// (`VehicleCalibrationRoutine`, the SocketCAN CiA 402 drive controller, the real
+// The vcan VM's in-process calibration bench (docs/vcan-testing.md) of test_calibration_vm.cpp,
+// built when there is no libmodbus (and so no agvnav-vehicle program): the refusal, Stop,
+// heartbeat, fault and whole-routine cases with a scripted PLC. The vehicle side is the program's
+// code (`VehicleCalibrationRoutine`, the SocketCAN CiA 402 drive controller, the real
 // `CanopenEncoderSource` reading the drive encoder from the traction drive's TPDO1 at
 // {0x181, 2, 4}, the navigation pipeline); the other side of vcan0 plays the two CiA 402 drives
 // (`SimDrives` of agvnav-sim-drives, on their own socket), the steering encoder (node 2) and the
@@ -93,11 +92,9 @@ inline void checkCalibrationFile(const std::string& file, const agv::sim::SimVeh
 
 /// The vehicle's calibration routine and the simulated drives, encoder, vehicle and laser on vcan0,
 /// and the peer socket; see the file comment. `area` is the configured free area (none: the
-/// default, the open floor of the built-in warehouse); `plcLink` the vehicle's PLC link (null: the
-/// scripted `plc`).
+/// default, the open floor of the built-in warehouse). The PLC is the scripted `plc`.
 struct VmCalibrationBench {
-  explicit VmCalibrationBench(const std::string& calibrationFile, const cal::FreeArea& area = cal::FreeArea{},
-                              hal::PlcLink* plcLink = nullptr) {
+  explicit VmCalibrationBench(const std::string& calibrationFile, const cal::FreeArea& area = cal::FreeArea{}) {
     file = calibrationFile;
     {
       std::ofstream old(file, std::ios::trunc | std::ios::binary);
@@ -158,8 +155,8 @@ struct VmCalibrationBench {
       std::printf("vehicle: %s\n", line.c_str());
       log.push_back(line);
     };
-    routine = std::make_unique<agv::vehicle::VehicleCalibrationRoutine>(
-        config, current, *encoders, sim->laser(), plcLink != nullptr ? *plcLink : plc, drives.get(), logLine);
+    routine = std::make_unique<agv::vehicle::VehicleCalibrationRoutine>(config, current, *encoders, sim->laser(), plc,
+                                                                        drives.get(), logLine);
     std::uint32_t id = 1;
     for (const agv::sim::Circle& c : world.circles) {
       if (c.kind == agv::sim::ObstacleKind::Reflector) {

@@ -1,12 +1,13 @@
 // agvnav-vehicle's calibration routine on the real Linux CAN stack, in the vcan VM
-// (docs/vcan-testing.md), with the bench of calibration_vm_bench.hpp and a scripted PLC (this
-// statically linked binary has no libmodbus). Cases: a plan that does not fit is refused before
-// any frame to the drives; a PLC Stop mid-segment, a heartbeat loss of the traction node and a
-// traction drive fault each quick-stop the traction (timed on the bus by the peer socket) and
-// abort the routine, the calibration file untouched. The whole routine (every state, a file) runs
-// in test_calibration_modbus_vm.cpp, started by a libmodbus client; here only when that binary is
-// not built (no libmodbus). The init script checks candump's log for the bring-up and enable
-// sequence of the traction drive and its quick stop.
+// (docs/vcan-testing.md), with the bench of calibration_vm_bench.hpp (the vehicle's code in this
+// process, agvnav-sim-drives' nodes on a second socket) and a scripted PLC. Built only without
+// libmodbus, where there is no agvnav-vehicle program: with it, test_calibration_modbus_vm.cpp runs
+// the same cases with agvnav-vehicle and agvnav-sim-drives --vehicle as programs instead. Cases: a
+// plan that does not fit is refused before any frame to the drives; a PLC Stop mid-segment, a
+// heartbeat loss of the traction node and a traction drive fault each quick-stop the traction
+// (timed on the bus by the peer socket) and abort the routine, the calibration file untouched; the
+// whole routine (every state, a file). The init script checks candump's log for the bring-up and
+// enable sequence of the traction drive and its quick stop.
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -179,13 +180,13 @@ TEST_CASE("calibration on vcan: a traction drive fault is reported with its code
   CHECK(b.drives->faultCode() == 0x2310U);
   CHECK(b.routine->session()->lastMessage().find("0x2310") != std::string::npos);
   b.checkAbortedAndFileUntouched(Status::DeviceFault);
+  CHECK(b.plc.last.health.calibration.driveFault == 0x2310U);  // register 49
   CHECK(hal::hasBit(b.plc.last.health.bits, hal::HealthBit::DeviceFault));
   CHECK(b.nodes->traction().state() == PowerState::Fault);
   CHECK(b.nodes->traction().velocity() == 0.0);
   CHECK(b.sim->drive().isStandstill());
 }
 
-#if !defined(AGV_VCAN_CALIBRATION_OVER_MODBUS)
 TEST_CASE("calibration routine on vcan: CiA 402 drives, encoders from the traction TPDO1, all phases, a file",
           "[calibration]") {
   VmCalibrationBench b("/tmp/agv_vm_calibration.txt");
@@ -219,4 +220,3 @@ TEST_CASE("calibration routine on vcan: CiA 402 drives, encoders from the tracti
   }
   b.checkWrittenCalibration();
 }
-#endif

@@ -391,9 +391,32 @@ TEST_CASE("vehicle.calibration: a drive fault and a heartbeat loss abort with th
     }
     CHECK(b.routine->progress().state == cal::RoutineState::Aborted);
     CHECK(b.plc.last.health.calibration.lastRefusal == k.health);
+    CHECK(b.plc.last.health.calibration.driveFault == k.code);  // register 49
     CHECK(b.drives->quickStops >= 1);
     REQUIRE_FALSE(b.log.empty());
     CHECK(b.log.back().find(k.expect) != std::string::npos);
+    CHECK(agv::test::readFile(file) == kOld);
+  }
+  {
+    // A drive that shows Fault before its code is known (the controller reads 0x603F by SDO after
+    // the abort): register 49 gets the code in a later cycle.
+    const std::string file = work("vehicle_cal_late_code.txt");
+    VehicleBench b(file);
+    b.localize();
+    b.plc.send(hal::PlcCommandKind::Calibrate);
+    REQUIRE(b.cycleUntil([&] { return b.routine->progress().state == cal::RoutineState::Driving; }));
+    b.drives->fail(Status::DeviceFault, "drive fault", 0);
+    for (int i = 0; i < 5; ++i) {
+      b.cycle();
+    }
+    CHECK(b.routine->progress().state == cal::RoutineState::Aborted);
+    CHECK(b.plc.last.health.calibration.lastRefusal == Status::DeviceFault);
+    CHECK(b.plc.last.health.calibration.driveFault == 0U);
+    b.drives->code = 0x7121;  // the SDO answer
+    for (int i = 0; i < 5; ++i) {
+      b.cycle();
+    }
+    CHECK(b.plc.last.health.calibration.driveFault == 0x7121U);
     CHECK(agv::test::readFile(file) == kOld);
   }
 }
@@ -465,6 +488,10 @@ TEST_CASE("vehicle.calibration: through the CiA 402 controller and simulated dri
       CHECK(b.log.back().find(k == 0 ? "heartbeat" : "0x2310") != std::string::npos);
       CHECK(b.cia->quickStops >= 1);
       REQUIRE(b.cycleUntil([&] { return b.sim->drive().isStandstill(); }, 1000));
+      // Register 49: the traction drive's error code (its EMCY, and 0x603F read back by SDO);
+      // none for a lost heartbeat.
+      CHECK(b.plc.last.health.calibration.driveFault == (k == 0 ? 0U : 0x2310U));
+      CHECK(b.cia->controller().traction().errorCode() == (k == 0 ? 0U : 0x2310U));
       CHECK(agv::test::readFile(file) == kOld);
     }
   }

@@ -196,6 +196,7 @@ TEST_CASE("every key with a bad value is refused, naming the file, line and key"
       {"modbus.port", "0"},
       {"modbus.word_order", "abdc"},
       {"modbus.remote_status_base", "65500"},
+      {"modbus.remote_status_base", "65487"},  // the 50 status registers would pass 65535
       {"modbus.remote_command_base", "65530"},
       {"modbus.max_abs_position", "0"},
       {"modbus.response_timeout", "0"},

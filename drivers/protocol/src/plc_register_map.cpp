@@ -60,6 +60,7 @@ Status PlcRegisterMap::encodeStatus(const PlcStatus& s, Span<std::uint16_t> tabl
   r[46] = s.routine.segment;
   r[47] = s.routine.total;
   r[48] = static_cast<std::uint16_t>(s.routine.lastRefusal);
+  r[49] = s.routine.driveFault;
   return Status::Ok;
 }
 

@@ -154,8 +154,9 @@ CalibrationSession::CalibrationSession(hal::DriveControl& drive, DriveHooks hook
   message_.reserve(512);
 }
 
-void CalibrationSession::refuse(Status why, const std::string& message) {
+void CalibrationSession::refuse(Status why, const std::string& message, std::uint16_t driveFault) {
   progress_.lastRefusal = why;
+  progress_.driveFault = driveFault;
   message_ = message;
   if (log_) {
     log_(message);
@@ -228,13 +229,14 @@ void CalibrationSession::requestStop(Timestamp now) {
   run_.abort(Status::Ok, "stopped by the PLC", now);
   progress_.state = run_.state();
   progress_.lastRefusal = Status::Ok;
+  progress_.driveFault = 0;
   message_ = "calibration aborted by the PLC's Stop (quick stop); calibration file untouched";
   if (log_) {
     log_(message_);
   }
 }
 
-void CalibrationSession::abortOnFault(Status why, const char* reason, Timestamp now) {
+void CalibrationSession::abortOnFault(Status why, const char* reason, Timestamp now, std::uint16_t driveFault) {
   if (!running()) {
     return;
   }
@@ -243,7 +245,14 @@ void CalibrationSession::abortOnFault(Status why, const char* reason, Timestamp 
   }
   run_.abort(why, reason, now);
   progress_.state = run_.state();
-  refuse(why, std::string("calibration aborted: ") + reason + "; calibration file untouched");
+  refuse(why, std::string("calibration aborted: ") + reason + "; calibration file untouched", driveFault);
+}
+
+void CalibrationSession::noteDriveFault(std::uint16_t code) noexcept {
+  if (code != 0U && !running() && progress_.state == RoutineState::Aborted &&
+      progress_.lastRefusal == Status::DeviceFault && progress_.driveFault == 0U) {
+    progress_.driveFault = code;
+  }
 }
 
 void CalibrationSession::onEncoderSample(const hal::EncoderSample& sample) noexcept {
@@ -284,7 +293,7 @@ bool CalibrationSession::step(Timestamp now) {
       std::snprintf(hex, sizeof hex, " (drive fault code 0x%04X)", static_cast<unsigned>(code));
       reason += hex;
     }
-    refuse(o.status, reason + "; calibration file untouched");
+    refuse(o.status, reason + "; calibration file untouched", static_cast<std::uint16_t>(code & 0xFFFFU));
     return false;
   }
   if (s != RoutineState::Done) {
@@ -304,6 +313,7 @@ bool CalibrationSession::step(Timestamp now) {
   }
   written_ = cal;
   progress_.lastRefusal = Status::Ok;
+  progress_.driveFault = 0;
   message_.clear();
   if (log_) {
     char line[300];

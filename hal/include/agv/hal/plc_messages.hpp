@@ -56,6 +56,9 @@ struct CalibrationProgress {
   std::uint16_t segment = 0;        ///< segment being driven, 1-based (0: none)
   std::uint16_t total = 0;          ///< segments of the plan (0: none)
   Status lastRefusal = Status::Ok;  ///< why the last Calibrate was refused or the last run aborted or failed
+  /// The CiA 402 error code (0x603F, or the EMCY's) of the drive fault behind `lastRefusal`: the
+  /// drive that stopped the last run or refused to come up for it (0: none, or not a drive fault).
+  std::uint16_t driveFault = 0;
 };
 
 /// Health of the localization: enough for a PLC to decide whether to trust the pose.

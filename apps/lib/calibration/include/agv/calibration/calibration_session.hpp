@@ -4,7 +4,7 @@
 /// plan from the configured free area around the vehicle's pose (refused before any set-point
 /// when it does not fit), the stepwise routine (`CalibrationRun`, one copy for every program),
 /// the abort on a PLC Stop or a drive fault (quick stop, calibration file untouched), the progress
-/// the PLC reads (docs/plc-link.md, registers 44-48) and, when the solve succeeds, the calibration
+/// the PLC reads (docs/plc-link.md, registers 44-49) and, when the solve succeeds, the calibration
 /// file written atomically with the old one kept as `<file>.bak`.
 ///
 /// Application code (host): it allocates at construction, when a run starts (the plan and the
@@ -36,7 +36,7 @@ Status writeFileAtomically(const std::string& path, const std::string& content, 
 Status writeCalibrationFile(const std::string& path, const VehicleCalibration& calibration, std::string& error,
                             const BeforeRenameHook& beforeRename = {});
 
-/// What the PLC reads about the routine (registers 44-48).
+/// What the PLC reads about the routine (registers 44-49).
 struct SessionProgress {
   RoutineState state = RoutineState::Idle;  ///< of the current or last run
   Phase phase = Phase::ForwardLeft;         ///< phase of `segment`
@@ -45,13 +45,17 @@ struct SessionProgress {
   /// Why the last Calibrate was refused, the last run aborted or its solve or file write failed;
   /// Ok after a run that wrote its file (and until then for a run in progress).
   Status lastRefusal = Status::Ok;
+  /// The CiA 402 error code (0x603F / EMCY) of the drive fault behind `lastRefusal` (0: none, or
+  /// the refusal is not a drive's fault, or the code is not known yet: see `noteDriveFault`).
+  std::uint16_t driveFault = 0;
 };
 
 /// The drive beyond `hal::DriveControl`: what the owner of the concrete controller can do.
 struct DriveHooks {
   /// Quick stop of the traction now (the PLC's Stop). May be empty (then `stop()` only).
   std::function<void()> quickStop;
-  /// The drive's fault or error code for the log when the drive refused a set-point (0: none).
+  /// The drive's fault or error code when the drive refused a set-point (0: none): in the log and
+  /// `SessionProgress::driveFault`.
   std::function<std::uint32_t()> faultCode;
 };
 
@@ -87,12 +91,20 @@ class CalibrationSession {
   /// progress in this call: state `Aborted` with `lastRefusal` Ok (stopped on request, no fault),
   /// calibration file untouched. Nothing when no run is in progress.
   void requestStop(Timestamp now);
-  /// A fault the owner saw (heartbeat loss, bus-off): quick stop and abort with `why`.
-  void abortOnFault(Status why, const char* reason, Timestamp now);
+  /// A fault the owner saw (drive fault, heartbeat loss, bus-off): quick stop and abort with `why`;
+  /// `driveFault` the drive's error code (0: none or not known) in `progress().driveFault`.
+  void abortOnFault(Status why, const char* reason, Timestamp now, std::uint16_t driveFault = 0);
 
   /// A refusal decided by the owner (e.g. the drives did not come up): published as
-  /// `progress().lastRefusal` and logged.
-  void reportRefusal(Status why, const std::string& message) { refuse(why, message); }
+  /// `progress().lastRefusal` (and `driveFault`, the error code of a drive in fault) and logged.
+  void reportRefusal(Status why, const std::string& message, std::uint16_t driveFault = 0) {
+    refuse(why, message, driveFault);
+  }
+  /// The error code of the drive fault that aborted the last run, known only after the abort (a
+  /// drive that reports Fault in its statusword before its EMCY, or without one: the controller
+  /// reads 0x603F by SDO afterwards). Taken only while the last run stands aborted for a
+  /// `DeviceFault` whose code is not known yet; ignored otherwise (and 0 is ignored).
+  void noteDriveFault(std::uint16_t code) noexcept;
 
   void onEncoderSample(const hal::EncoderSample& sample) noexcept;
   void onSweep(const hal::LaserMeasurement& sweep);
@@ -109,7 +121,7 @@ class CalibrationSession {
   const std::string& lastMessage() const noexcept { return message_; }
 
  private:
-  void refuse(Status why, const std::string& message);
+  void refuse(Status why, const std::string& message, std::uint16_t driveFault = 0);
   void finishRun();
 
   hal::DriveControl& drive_;

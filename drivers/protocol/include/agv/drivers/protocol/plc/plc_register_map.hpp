@@ -36,6 +36,8 @@
 ///   46     calibration segment being driven u16 (1-based, 0 none)
 ///   47     calibration segments of the plan u16
 ///   48     calibration last refusal u16 (agv::Status; 0 none)
+///   49     calibration drive fault code u16 (CiA 402 error code 0x603F / EMCY of the drive
+///          behind 48; 0 none)
 ///
 /// Every other address in [0, 110) reads as 0 and is not writable; addresses >= 110 do not exist.
 
@@ -84,7 +86,7 @@ struct PlcStatus {
   std::uint16_t cornersFused = 0;
   std::uint16_t cornersRejected = 0;
   PlcCalibration calibration;
-  hal::CalibrationProgress routine;  ///< the calibration routine's progress (registers 44-48)
+  hal::CalibrationProgress routine;  ///< the calibration routine's progress (registers 44-49)
 };
 
 /// PLC command codes (register 100), the same values as hal::PlcCommandKind.
@@ -112,7 +114,7 @@ struct PlcMapConfig {
 class PlcRegisterMap {
  public:
   static constexpr std::uint16_t kStatusBase = 0;
-  static constexpr std::uint16_t kStatusCount = 49;
+  static constexpr std::uint16_t kStatusCount = 50;
   static constexpr std::uint16_t kCommandBase = 100;
   static constexpr std::uint16_t kCommandCount = 9;
   /// Size of the register table (addresses 0 .. kRegisterCount-1).
