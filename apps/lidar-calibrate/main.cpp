@@ -124,9 +124,21 @@ struct McStats {
           lc::laserParamName(k), beyondBy[ks], comparedBy[ks],
           comparedBy[ks] > 0 ? 100.0 * static_cast<double>(beyondBy[ks]) / static_cast<double>(comparedBy[ks]) : 0.0,
           rmsZ, rmsMean, maxMean, spread);
-      byParam[lc::laserParamName(k)] =
-          Json{{"compared", comparedBy[ks]}, {"beyond_three_sigma", beyondBy[ks]}, {"rms_z", rmsZ},
-               {"rms_mean_z", rmsMean},      {"max_abs_mean_z", maxMean},          {"spread_z", spread}};
+      Json sums = Json::array();
+      Json squares = Json::array();
+      Json counts = Json::array();
+      for (std::size_t i = static_cast<std::size_t>(k); i < zN.size(); i += agv::kLaserParamCount) {
+        sums.push_back(zSum[i]);
+        squares.push_back(zSq[i]);
+        counts.push_back(zN[i]);
+      }
+      byParam[lc::laserParamName(k)] = Json{{"compared", comparedBy[ks]},
+                                            {"beyond_three_sigma", beyondBy[ks]},
+                                            {"rms_z", rmsZ},
+                                            {"rms_mean_z", rmsMean},
+                                            {"max_abs_mean_z", maxMean},
+                                            {"spread_z", spread},
+                                            {"per_laser", Json{{"z_sum", sums}, {"z_sq", squares}, {"n", counts}}}};
     }
     return byParam;
   }
@@ -154,6 +166,7 @@ int main(int argc, char** argv) {
   bool estimateOffsets = false;
   bool quiet = false;
   int monteCarlo = 0;
+  int monteCarloFirst = 0;
   std::uint64_t seed = 1;
   lc::HallScansConfig sim;
   lc::IntrinsicCalibrationConfig config;
@@ -190,6 +203,9 @@ int main(int argc, char** argv) {
   bool noBiasCorrection = false;
   app.add_flag("--no-bias-correction", noBiasCorrection,
                "orthogonal residual: report the thesis' minimum itself (its noise bias not removed)");
+  app.add_option("--bias-correction-steps", config.noiseBiasSteps,
+                 "Gauss-Newton steps of the noise-bias correction (1: its first-order bias)")
+      ->check(CLI::Range(1, 10));
   bool freeMeanTheta = false;
   app.add_flag("--free-mean-theta", freeMeanTheta, "do not hold the mean theta at the factory values (near-gauge)");
   app.add_option("--passes", config.passes, "segment + solve rounds")->check(CLI::Range(1, 5));
@@ -200,6 +216,10 @@ int main(int argc, char** argv) {
   app.add_option("--seed", seed, "perturbation and noise seed");
   app.add_option("--monte-carlo", monteCarlo, "repeat with this many noise seeds; report the errors against sigma")
       ->check(CLI::Range(0, 1000));
+  app.add_option("--monte-carlo-first", monteCarloFirst,
+                 "index of the first Monte-Carlo run (noise seed = seed + 1000 + index): split a Monte-Carlo over "
+                 "processes; the JSON's per-laser z sums add up")
+      ->check(CLI::Range(0, 100000));
   app.add_option("--output", outputPath, "write the calibrated intrinsics (velodyne_pointcloud YAML)");
   app.add_option("--json", jsonPath, "write the figures as JSON");
   app.add_flag("--quiet", quiet, "no progress lines");
@@ -433,7 +453,7 @@ int main(int argc, char** argv) {
     int failed = 0;
     for (int run = 0; run < monteCarlo; ++run) {
       lc::HallScansConfig s = sim;
-      s.seed = seed + 1000U + static_cast<std::uint64_t>(run);
+      s.seed = seed + 1000U + static_cast<std::uint64_t>(monteCarloFirst + run);
       lc::IntrinsicCalibrationResult r;
       std::string e;
       const auto tr = std::chrono::steady_clock::now();
@@ -467,6 +487,7 @@ int main(int argc, char** argv) {
             : 0.0,
         calibrated.worst, monteCarlo > failed ? seconds / (monteCarlo - failed) : 0.0);
     Json mcJson{{"runs", monteCarlo},
+                {"first", monteCarloFirst},
                 {"failed", failed},
                 {"compared", calibrated.compared},
                 {"beyond_three_sigma", calibrated.beyond},

@@ -335,10 +335,11 @@ std::string laserColumnName(const Columns& c, int col) {
          laserParamName(c.laserColumnParam[static_cast<std::size_t>(col)]);
 }
 
+/// `given`: the information already accumulated (at these or nearly these values), else accumulated here.
 Analysis analyse(const State& st, const Columns& c, const EstimatedParams& est, double nullThreshold,
-                 bool holdMeanTheta, bool alongBeam) {
+                 bool holdMeanTheta, bool alongBeam, const Information* given = nullptr) {
   Analysis out;
-  const Information info = accumulate(st, c, alongBeam);
+  const Information info = given != nullptr ? *given : accumulate(st, c, alongBeam);
   const int nl = c.laserCount;
   const int np = c.count - nl;
   out.report.parameters = static_cast<std::size_t>(nl);
@@ -426,12 +427,13 @@ Analysis analyse(const State& st, const Columns& c, const EstimatedParams& est, 
 /// minimiser (the expected noise part sigma^2 sum w^2 c^2 is smallest towards grazing beams, and the
 /// minimiser leans that way). sigma is the range noise estimated from the residuals there. The
 /// laser parameters and the planes move; the gauge constraints hold.
-NoiseBiasCorrection correctNoiseBias(State& st, const Columns& c, const EstimatedParams& est, bool holdMeanTheta) {
+NoiseBiasCorrection correctNoiseBias(State& st, const Columns& c, const EstimatedParams& est, bool holdMeanTheta,
+                                     const Information& atMinimum, int steps) {
   NoiseBiasCorrection out;
   const auto g = gauges(st, c, est, holdMeanTheta);
   double sigma2 = 0.0;
-  for (int it = 0; it < 5; ++it) {
-    const Information info = accumulate(st, c, false);
+  for (int it = 0; it < steps; ++it) {
+    const Information info = it == 0 ? atMinimum : accumulate(st, c, false);
     if (it == 0) {
       out.rangeSigma = rangeNoiseSigma(info, c);
       sigma2 = out.rangeSigma * out.rangeSigma;
@@ -882,9 +884,11 @@ bool calibrateIntrinsics(const std::vector<CalibrationScan>& scans, const LaserI
   result.costFinalJoint = joint;
   result.costCalibrated = result.costFinal;
   const Columns cols = makeColumns(st, est);
-  if (!alongBeam && config.correctNoiseBias) {
+  const Information atMinimum = accumulate(st, cols, alongBeam);
+  const bool correct = !alongBeam && config.correctNoiseBias && config.noiseBiasSteps > 0;
+  if (correct) {
     st.beforeCorrection = st.x;
-    result.noiseBias = correctNoiseBias(st, cols, est, config.holdMeanTheta);
+    result.noiseBias = correctNoiseBias(st, cols, est, config.holdMeanTheta, atMinimum, config.noiseBiasSteps);
     for (std::size_t l = 0; l < start.size(); ++l) {
       if (!st.held[l]) {
         static_cast<void>(current.set(l, toLaserParams(st.x[l])));
@@ -897,7 +901,12 @@ bool calibrateIntrinsics(const std::vector<CalibrationScan>& scans, const LaserI
       result.costCalibrated += corrected[s] * corrected[s];
     }
   }
-  const Analysis a = analyse(st, cols, est, config.nullThreshold, config.holdMeanTheta, alongBeam);
+  // One correction step (the default) moves the values by about their bias, which changes the
+  // geometry of the information negligibly: the analysis at the minimum serves (and its residuals
+  // are the noise's estimate). More steps: analysed again at the corrected values.
+  const bool again = correct && config.noiseBiasSteps > 1;
+  const Analysis a =
+      analyse(st, cols, est, config.nullThreshold, config.holdMeanTheta, alongBeam, again ? nullptr : &atMinimum);
   result.conditioning = a.report;
   result.noiseSigma = a.sigma;
   result.rangeSigma = a.rangeSigma;

@@ -95,6 +95,9 @@ struct IntrinsicCalibrationConfig {
   /// estimated from the residuals; `NoiseBiasCorrection`). Without it the minimiser's errors are
   /// dominated by that bias and not described by the reported 1-sigma (docs/lidar-calibration.md).
   bool correctNoiseBias = true;
+  /// Gauss-Newton steps of the correction (1: the first-order bias, from the information already
+  /// computed for the analysis at the minimum; more steps stop when below 1e-3 of a 1-sigma).
+  int noiseBiasSteps = 1;
   std::function<void(const std::string&)> progress;  ///< progress lines (none when empty)
 };
 
