@@ -8,8 +8,10 @@
 /// Solved with Ceres as one least-squares problem in which each scan's plane (unit normal on the sphere manifold,
 /// offset) is a parameter next to the per-laser parameters, residual = (n . P - d) / sqrt(N_scan): for fixed intrinsics
 /// the best plane is the PCA plane, so the joint minimum is the thesis' minimum (the result reports both figures to
-/// show it). `PlaneResidual::AlongBeam` replaces the distance by the range error along the beam (unbiased under range
-/// noise; same planes, same structure).
+/// show it). The thesis' minimum is biased under range noise (the noise's share of the cost depends on the
+/// parameters); by default its first-order bias is removed after the solve (`correctNoiseBias`), which makes the
+/// reported 1-sigma describe the errors. `PlaneResidual::AlongBeam` replaces the distance by the range error along
+/// the beam (unbiased under range noise; same planes, same structure).
 ///
 /// Gauge: rotating every point about the sensor's z axis (the same offset on every alpha) moves
 /// each plane along and leaves the cost unchanged, so the mean of the alphas is held at the start
