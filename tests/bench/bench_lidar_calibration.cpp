@@ -4,7 +4,8 @@
 //                              revolutions (9 distances 3..22 m x 5 tilts 0..24 deg, 6.0 M returns,
 //                              2 cm noise), truth = the SZTAKI factory file perturbed by D_corr
 //                              +-5 cm, theta +-0.3 deg, alpha +-0.5 deg, started from the factory
-//                              file: segmentation (2 passes), Ceres (2 threads), observability.
+//                              file: segmentation (2 passes), Ceres (2 threads), observability,
+//                              the noise-bias correction of the thesis' minimum (default).
 //                              The scans are simulated once, outside the timing. Wall time (the
 //                              solve uses 2 threads).
 // Counters: lasers = lasers estimated; returns = returns in the 45 scans.

@@ -4,7 +4,8 @@
 // README; the beam model against a hand computation from raw bytes; and, as a real check of the
 // factory intrinsics, per-beam residuals to the biggest wall (RANSAC + PCA refit). Expected values
 // come from the README and the JSON, never from the code under test; last, the conditioning of one
-// placement (per-beam sigma of range offset / elevation / azimuth offset). Figures: docs/ouster.md.
+// placement (per-beam sigma of range offset / elevation / azimuth offset, the plane fixed and jointly
+// with the plane). Figures: docs/ouster.md.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -699,4 +700,190 @@ TEST_CASE("One wall at one distance: per-beam range offset and elevation are not
   // keeps them from being exactly collinear.
   CHECK(r4[r4.size() / 2] > 0.9);
   CHECK(r4.back() < 1.0);
+}
+
+TEST_CASE("One wall, plane and all beams together: what one placement observes", "[ouster][realdata]") {
+  // The joint conditioning of the OS-2-128 wall (docs/ouster.md): parameters are every beam's range
+  // offset dr, elevation dphi and azimuth offset da (Ouster's beam model, the mapping onto the
+  // thesis' D_corr / theta / alpha) and the wall plane itself (normal in its tangent plane, offset),
+  // as agvnav-lidar-calibrate sets the Velodyne problem up. Rows: the distance of every inlier to the
+  // plane, weighted by its beam's own RMS residual. The plane is eliminated (Schur complement); the
+  // columns are normalised; the singular values and the smallest directions say what this one
+  // placement cannot separate.
+  const Capture& c = kCaptures[1];
+  const Loaded l = load(c);
+  const std::vector<Frame> frames = decodeFrames(l);
+  REQUIRE(!frames.empty());
+  const Frame& f = frames[0];
+  const PlaneFit p = biggestPlane(f.points, true, 1.0);
+  const float* T = l.meta.intrinsics.lidarToSensor;
+  Eigen::Matrix3d R;
+  R << T[0], T[1], T[2], T[4], T[5], T[6], T[8], T[9], T[10];
+  const Eigen::Vector3d nl = R.transpose() * p.normal;
+  // Tangent basis of the plane normal (lidar frame).
+  const Eigen::Vector3d e1 = nl.unitOrthogonal();
+  const Eigen::Vector3d e2 = nl.cross(e1);
+  const double pi = 3.14159265358979323846;
+  const double nOff = l.meta.intrinsics.beamOriginM;
+  std::map<int, double> rms;
+  for (const BeamResidual& br : perBeam(f, p)) {
+    rms[br.beam] = br.rms;
+  }
+  std::map<int, int> column;  // beam -> first of its 3 columns
+  for (const auto& [b, r] : rms) {
+    const int k = static_cast<int>(column.size());
+    column[b] = 3 * k;
+  }
+  const int nb = static_cast<int>(column.size());
+  const int nc = 3 * nb + 3;
+  REQUIRE(nb >= 100);
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(nc, nc);
+  std::size_t rows = 0;
+  for (std::size_t i : p.inliers) {
+    const FiringRecord& r = f.records[f.record[i]];
+    const int b = r.laser;
+    if (column.count(b) == 0) {
+      continue;
+    }
+    const double m = measurementId(r.azimuth, 1024);
+    const double te = 2.0 * pi * (1.0 - m / 1024.0);
+    const double th = te - l.meta.intrinsics.azimuthRad[b];
+    const double ph = l.meta.intrinsics.altitudeRad[b];
+    const double rr = r.distance * 0.002 - nOff;
+    const Eigen::Vector3d u(std::cos(th) * std::cos(ph), std::sin(th) * std::cos(ph), std::sin(ph));
+    const Eigen::Vector3d point = rr * u + nOff * Eigen::Vector3d(std::cos(te), std::sin(te), 0.0);
+    const Eigen::Vector3d dPhi =
+        rr * Eigen::Vector3d(-std::cos(th) * std::sin(ph), -std::sin(th) * std::sin(ph), std::cos(ph));
+    const Eigen::Vector3d dAz = -rr * Eigen::Vector3d(-std::sin(th) * std::cos(ph), std::cos(th) * std::cos(ph), 0.0);
+    Eigen::VectorXd a = Eigen::VectorXd::Zero(nc);
+    const int c0 = column[b];
+    a[c0] = nl.dot(u);
+    a[c0 + 1] = nl.dot(dPhi);
+    a[c0 + 2] = nl.dot(dAz);
+    a[3 * nb] = e1.dot(point);
+    a[3 * nb + 1] = e2.dot(point);
+    a[3 * nb + 2] = -1.0;
+    const double w = 1.0 / (rms[b] * rms[b]);
+    // Only the beam's 3 columns and the plane's 3 are non-zero.
+    const int idx[6] = {c0, c0 + 1, c0 + 2, 3 * nb, 3 * nb + 1, 3 * nb + 2};
+    for (const int x : idx) {
+      for (const int y : idx) {
+        H(x, y) += w * a[x] * a[y];
+      }
+    }
+    ++rows;
+  }
+  // Plane-fixed per-beam covariance (the test above) and the joint one with the plane eliminated.
+  const int nl3 = 3 * nb;
+  const Eigen::MatrixXd hpp = H.bottomRightCorner(3, 3);
+  const Eigen::MatrixXd hlp = H.topRightCorner(nl3, 3);
+  const Eigen::MatrixXd S = H.topLeftCorner(nl3, nl3) - hlp * hpp.inverse() * hlp.transpose();
+  Eigen::VectorXd scale(nl3);
+  for (int i = 0; i < nl3; ++i) {
+    scale[i] = 1.0 / std::sqrt(S(i, i));
+  }
+  const Eigen::MatrixXd Sn = scale.asDiagonal() * S * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(Sn);
+  // The common offsets (the same dr / dphi / da on every beam), in the normalised columns.
+  std::array<Eigen::VectorXd, 3> common;
+  const char* names[3] = {"common dr", "common dphi", "common da"};
+  for (int k = 0; k < 3; ++k) {
+    common[static_cast<std::size_t>(k)] = Eigen::VectorXd::Zero(nl3);
+    for (int j = 0; j < nb; ++j) {
+      common[static_cast<std::size_t>(k)][3 * j + k] = 1.0 / scale[3 * j + k];
+    }
+    common[static_cast<std::size_t>(k)].normalize();
+  }
+  const double smax = std::sqrt(es.eigenvalues()[nl3 - 1]);
+  std::printf(
+      "OS-2-128 wall at %.2f m, joint: %d beams x (dr, dphi, da) + plane, %zu rows; normalised singular values "
+      "(largest %.3g):\n",
+      std::fabs(p.d), nb, rows, smax);
+  std::array<double, 3> commonOverlap{};  // largest |cos| of each common offset with the 3 smallest directions
+  for (int i = 0; i < 8; ++i) {
+    const Eigen::VectorXd v = es.eigenvectors().col(i);
+    // Dominant parameter kind and its share of the direction.
+    std::array<double, 3> share{};
+    int top = 0;
+    for (int j = 0; j < nl3; ++j) {
+      share[static_cast<std::size_t>(j % 3)] += v[j] * v[j];
+      if (std::fabs(v[j]) > std::fabs(v[top])) {
+        top = j;
+      }
+    }
+    std::printf(
+        "  %.3e: dr %.2f dphi %.2f da %.2f of the direction; largest component beam %d %s %.2f; |cos| with "
+        "common dr %.2f, dphi %.2f, da %.2f\n",
+        std::sqrt(std::max(0.0, es.eigenvalues()[i])), share[0], share[1], share[2], top / 3,
+        top % 3 == 0 ? "dr" : (top % 3 == 1 ? "dphi" : "da"), v[top], std::fabs(v.dot(common[0])),
+        std::fabs(v.dot(common[1])), std::fabs(v.dot(common[2])));
+    for (int k = 0; k < 3 && i < 3; ++k) {
+      commonOverlap[static_cast<std::size_t>(k)] =
+          std::max(commonOverlap[static_cast<std::size_t>(k)], std::fabs(v.dot(common[static_cast<std::size_t>(k)])));
+    }
+  }
+  // Per beam: 1-sigma with the plane fixed (own block of H), joint with the plane free, and joint
+  // with the three common offsets held (what one wall can say about beams relative to each other).
+  const Eigen::MatrixXd covJoint = S.inverse();
+  Eigen::MatrixXd Sh = S;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(nl3);
+    for (int j = 0; j < nb; ++j) {
+      g[3 * j + k] = 1.0;
+    }
+    Sh += 1e3 * S.diagonal().mean() / g.squaredNorm() * g * g.transpose();
+  }
+  const Eigen::MatrixXd covHeld = Sh.inverse();
+  std::array<std::vector<double>, 3> fixedSigma;
+  std::array<std::vector<double>, 3> jointSigma;
+  std::array<std::vector<double>, 3> heldSigma;
+  std::vector<double> heldCorr;
+  std::size_t smallerThanFixed = 0;
+  for (int j = 0; j < nb; ++j) {
+    const Eigen::Matrix3d own = H.block<3, 3>(3 * j, 3 * j).inverse();
+    for (int k = 0; k < 3; ++k) {
+      const double sf = std::sqrt(own(k, k));
+      const double sj = std::sqrt(covJoint(3 * j + k, 3 * j + k));
+      fixedSigma[static_cast<std::size_t>(k)].push_back(sf);
+      jointSigma[static_cast<std::size_t>(k)].push_back(sj);
+      heldSigma[static_cast<std::size_t>(k)].push_back(std::sqrt(covHeld(3 * j + k, 3 * j + k)));
+      smallerThanFixed += sj < sf * (1.0 - 1e-9) ? 1U : 0U;
+    }
+    heldCorr.push_back(std::fabs(covHeld(3 * j, 3 * j + 1)) /
+                       std::sqrt(covHeld(3 * j, 3 * j) * covHeld(3 * j + 1, 3 * j + 1)));
+  }
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  const double units[3] = {1e3, 1e3, 1e3};
+  for (int k = 0; k < 3; ++k) {
+    const std::size_t ks = static_cast<std::size_t>(k);
+    std::printf("  sigma(%s) median: plane fixed %.3f, joint %.3f, joint with the common offsets held %.3f [%s]\n",
+                names[k] + 7, units[k] * median(fixedSigma[ks]), units[k] * median(jointSigma[ks]),
+                units[k] * median(heldSigma[ks]), k == 0 ? "mm" : "mrad");
+  }
+  std::printf("  |corr(dr, dphi)| median with the common offsets held %.3f\n", median(heldCorr));
+  // The common offsets' own 1-sigma (the mean over the beams of each parameter).
+  for (int k = 0; k < 3; ++k) {
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(nl3);
+    for (int j = 0; j < nb; ++j) {
+      g[3 * j + k] = 1.0 / nb;
+    }
+    std::printf("  sigma(%s) %.3f %s\n", names[k], 1e3 * std::sqrt(g.dot(covJoint * g)), k == 0 ? "mm" : "mrad");
+  }
+  // Freeing the plane can only add uncertainty (a marginal of a larger problem).
+  CHECK(smallerThanFixed == 0);
+  // A common azimuth offset is a turn of the head about its vertical axis, which the free plane
+  // follows; only the beam-origin offset n (the n cos(theta_e) term does not turn with a_i) breaks
+  // it: the weakest direction by far, and the common azimuth unobservable from one wall.
+  const Eigen::VectorXd weakest = es.eigenvectors().col(0);
+  INFO("overlap of the 3 smallest directions with common dr " << commonOverlap[0] << ", dphi " << commonOverlap[1]
+                                                              << ", da " << commonOverlap[2]);
+  CHECK(std::fabs(weakest.dot(common[2])) > 0.95);
+  CHECK(es.eigenvalues()[0] < 0.01 * es.eigenvalues()[1]);
+  // Relative to each other the beams' azimuth offsets are as well determined as with the plane
+  // fixed, and range offset and elevation stay correlated per beam.
+  CHECK(median(heldSigma[2]) < 1.5 * median(fixedSigma[2]));
+  CHECK(median(heldCorr) > 0.9);
 }

@@ -104,6 +104,8 @@ TruthComparison compareWithTruth(const IntrinsicCalibrationResult& result, const
         c.maxSigmaRatio = std::max(c.maxSigmaRatio, ratio);
         c.beyondThreeSigma += ratio > 3.0 ? 1U : 0U;
         ++c.compared;
+        c.beyondByParam[static_cast<std::size_t>(k)] += ratio > 3.0 ? 1U : 0U;
+        ++c.comparedByParam[static_cast<std::size_t>(k)];
       }
     }
   }

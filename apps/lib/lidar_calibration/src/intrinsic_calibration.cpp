@@ -78,15 +78,21 @@ struct Group {
 /// The residual of one return against the plane (normal, offset): the orthogonal distance
 /// n . P - d (the thesis' cost), or along the beam (n . P - d) / (n . u), the range error that
 /// puts P on the plane (no bias from range noise: see IntrinsicCalibrationConfig::residual).
+/// `beamCosine` (optional) receives n . u.
 template <typename T, typename N>
-T planeResidual(const T* laser, const N& normal, const T& offset, double phi, double range, bool alongBeam) {
+T planeResidual(const T* laser, const N& normal, const T& offset, double phi, double range, bool alongBeam,
+                T* beamCosine = nullptr) {
   const LaserRay<T> ray = laserRay(laser, phi);
   const Eigen::Matrix<T, 3, 1> p = ray.origin + (T(range) + laser[kDistCorrection]) * ray.direction;
   const T r = normal[0] * p[0] + normal[1] * p[1] + normal[2] * p[2] - offset;
-  if (!alongBeam) {
+  if (!alongBeam && beamCosine == nullptr) {
     return r;
   }
-  return r / (normal[0] * ray.direction[0] + normal[1] * ray.direction[1] + normal[2] * ray.direction[2]);
+  const T c = normal[0] * ray.direction[0] + normal[1] * ray.direction[1] + normal[2] * ray.direction[2];
+  if (beamCosine != nullptr) {
+    *beamCosine = c;
+  }
+  return alongBeam ? r / c : r;
 }
 
 /// Residuals of one group, times weight.
@@ -141,8 +147,9 @@ struct State {
   std::vector<double> offset;           ///< per scan
   std::vector<std::size_t> scanPoints;  ///< target points per scan (all groups)
   std::vector<Group> groups;
-  std::vector<bool> held;     ///< per laser (held at start or refused)
-  std::vector<bool> refused;  ///< per laser: too few points
+  std::vector<bool> held;              ///< per laser (held at start or refused)
+  std::vector<bool> refused;           ///< per laser: too few points
+  std::vector<Vec5> beforeCorrection;  ///< per laser: the thesis' minimum (before the noise-bias correction)
 };
 
 /// Column layout of the information matrices: estimated laser parameters, then 3 per scan.
@@ -213,11 +220,18 @@ std::vector<std::pair<std::string, Eigen::VectorXd>> gauges(const State& st, con
   return out;
 }
 
-/// Information (H = sum w^2 a a^T), its sandwich middle (M = sum w^4 a a^T) and residual sums.
+/// Information (H = sum w^2 a a^T), its sandwich middle (M = sum w^4 v a a^T, v the residual's
+/// variance in units of the range noise's: (n . u)^2 for the orthogonal distance, 1 along the
+/// beam), the gradient of the cost (G = sum w^2 r a), the gradient of its expected noise part
+/// (B = sum w^2 c dc, c = n . u: E[w^2 r^2] = w^2 (r0^2 + sigma^2 c^2) for the orthogonal
+/// distance) and residual sums.
 struct Information {
   Eigen::MatrixXd h;
   Eigen::MatrixXd m;
-  double ssr = 0.0;  ///< unweighted sum of squared plane distances
+  Eigen::VectorXd g;
+  Eigen::VectorXd b;
+  double ssr = 0.0;   ///< unweighted sum of squared residuals
+  double sumV = 0.0;  ///< sum of v over the residuals (E[ssr] = sigma^2 sumV at the truth)
   std::size_t n = 0;
 };
 
@@ -226,6 +240,8 @@ Information accumulate(const State& st, const Columns& c, bool alongBeam) {
   Information info;
   info.h = Eigen::MatrixXd::Zero(c.count, c.count);
   info.m = Eigen::MatrixXd::Zero(c.count, c.count);
+  info.g = Eigen::VectorXd::Zero(c.count);
+  info.b = Eigen::VectorXd::Zero(c.count);
   std::vector<Eigen::Matrix<double, 3, 2>> basis;
   for (const Eigen::Vector3d& n : st.normal) {
     basis.push_back(planeAxes(n));
@@ -251,22 +267,27 @@ Information accumulate(const State& st, const Columns& c, bool alongBeam) {
     col[7] = p0 + 2;
     const double w2 = 1.0 / static_cast<double>(st.scanPoints[g.scan]);
     for (std::size_t k = 0; k < g.phi.size(); ++k) {
-      const Jet r = planeResidual(x.data(), n, d, g.phi[k], g.range[k], alongBeam);
+      Jet cosine;
+      const Jet r = planeResidual(x.data(), n, d, g.phi[k], g.range[k], alongBeam, &cosine);
       const Eigen::Matrix<double, 8, 1> a = r.v;
       const double res = r.a;
+      const double var = alongBeam ? 1.0 : cosine.a * cosine.a;
       info.ssr += res * res;
+      info.sumV += var;
       ++info.n;
       for (int i = 0; i < 8; ++i) {
         if (col[static_cast<std::size_t>(i)] < 0) {
           continue;
         }
+        info.g[col[static_cast<std::size_t>(i)]] += w2 * res * a[i];
+        info.b[col[static_cast<std::size_t>(i)]] += w2 * cosine.a * cosine.v[i];
         for (int j = 0; j < 8; ++j) {
           if (col[static_cast<std::size_t>(j)] < 0) {
             continue;
           }
           const double v = a[i] * a[j];
           info.h(col[static_cast<std::size_t>(i)], col[static_cast<std::size_t>(j)]) += w2 * v;
-          info.m(col[static_cast<std::size_t>(i)], col[static_cast<std::size_t>(j)]) += w2 * w2 * v;
+          info.m(col[static_cast<std::size_t>(i)], col[static_cast<std::size_t>(j)]) += w2 * w2 * var * v;
         }
       }
     }
@@ -280,18 +301,45 @@ struct Analysis {
   std::vector<int> nullLasers;  ///< lasers taking part in a non-gauge null direction
   Eigen::MatrixXd covariance;   ///< laser columns, sandwich, scaled by sigma^2
   Eigen::MatrixXd shape;        ///< laser columns of H_c^-1 (the correlations, also without noise)
-  double sigma = 0.0;
+  double sigma = 0.0;           ///< unweighted residual standard deviation
+  double rangeSigma = 0.0;      ///< range noise standard deviation estimated from the residuals
 };
+
+/// The information with the gauges fixed by constraints: H_c = H + lambda * g g^T (g in the laser columns).
+Eigen::MatrixXd constrainedInformation(const Eigen::MatrixXd& h, int laserColumns,
+                                       const std::vector<std::pair<std::string, Eigen::VectorXd>>& gaugeList) {
+  Eigen::MatrixXd hc = h;
+  double meanDiag = 0.0;
+  for (int i = 0; i < laserColumns; ++i) {
+    meanDiag += h(i, i) / laserColumns;
+  }
+  for (const auto& gauge : gaugeList) {
+    const Eigen::VectorXd& grad = gauge.second;
+    hc += 1e3 * meanDiag / grad.squaredNorm() * grad * grad.transpose();
+  }
+  return hc;
+}
+
+/// Range noise sigma from the residuals: E[ssr] = sigma^2 sumV, less the parameters' share.
+double rangeNoiseSigma(const Information& info, const Columns& c) {
+  if (info.n == 0 || info.sumV <= 0.0) {
+    return 0.0;
+  }
+  const double n = static_cast<double>(info.n);
+  const double dof = info.n > static_cast<std::size_t>(c.count) ? n - static_cast<double>(c.count) : 1.0;
+  return std::sqrt(info.ssr / (info.sumV * dof / n));
+}
 
 std::string laserColumnName(const Columns& c, int col) {
   return "laser " + std::to_string(c.laserColumnLaser[static_cast<std::size_t>(col)]) + " " +
          laserParamName(c.laserColumnParam[static_cast<std::size_t>(col)]);
 }
 
+/// `given`: the information already accumulated (at these or nearly these values), else accumulated here.
 Analysis analyse(const State& st, const Columns& c, const EstimatedParams& est, double nullThreshold,
-                 bool holdMeanTheta, bool alongBeam) {
+                 bool holdMeanTheta, bool alongBeam, const Information* given = nullptr) {
   Analysis out;
-  const Information info = accumulate(st, c, alongBeam);
+  const Information info = given != nullptr ? *given : accumulate(st, c, alongBeam);
   const int nl = c.laserCount;
   const int np = c.count - nl;
   out.report.parameters = static_cast<std::size_t>(nl);
@@ -353,16 +401,7 @@ Analysis analyse(const State& st, const Columns& c, const EstimatedParams& est, 
       out.report.smallest.push_back(d);
     }
   }
-  // Gauges fixed by constraints: H_c = H + lambda * g g^T (g in the laser columns).
-  Eigen::MatrixXd hc = info.h;
-  double meanDiag = 0.0;
-  for (int i = 0; i < nl; ++i) {
-    meanDiag += info.h(i, i) / nl;
-  }
-  for (const auto& gauge : g) {
-    const Eigen::VectorXd& grad = gauge.second;
-    hc += 1e3 * meanDiag / grad.squaredNorm() * grad * grad.transpose();
-  }
+  const Eigen::MatrixXd hc = constrainedInformation(info.h, nl, g);
   Eigen::MatrixXd snc = sn;
   for (const auto& gauge : g) {
     const Eigen::VectorXd gn = (gauge.second.head(nl).array() / scale.array()).matrix();
@@ -372,10 +411,62 @@ Analysis analyse(const State& st, const Columns& c, const EstimatedParams& est, 
   out.report.conditionNumber = std::sqrt(esc.eigenvalues()[nl - 1] / std::max(esc.eigenvalues()[0], 1e-300));
   const std::size_t dof = info.n > static_cast<std::size_t>(c.count) ? info.n - static_cast<std::size_t>(c.count) : 1;
   out.sigma = std::sqrt(info.ssr / static_cast<double>(dof));
+  out.rangeSigma = rangeNoiseSigma(info, c);
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(hc);
   const Eigen::MatrixXd hinv = ldlt.solve(Eigen::MatrixXd::Identity(c.count, c.count));
-  out.covariance = (hinv * info.m * hinv).topLeftCorner(nl, nl) * out.sigma * out.sigma;
+  // Residual i has the variance sigma_range^2 v_i (v_i = (n . u_i)^2 for the orthogonal distance):
+  // the sandwich's middle carries v_i, the scale is the range noise's.
+  out.covariance = (hinv * info.m * hinv).topLeftCorner(nl, nl) * out.rangeSigma * out.rangeSigma;
   out.shape = hinv.topLeftCorner(nl, nl);
+  return out;
+}
+
+/// The thesis' cost's noise bias removed from its minimum: Gauss-Newton steps on the cost less its
+/// expected noise part, sum_i w_i^2 (r_i^2 - sigma^2 c_i^2), c_i = n . u_i. At the thesis' minimum the
+/// cost's own gradient G is zero and the step is H_c^-1 sigma^2 B: the first-order bias of the
+/// minimiser (the expected noise part sigma^2 sum w^2 c^2 is smallest towards grazing beams, and the
+/// minimiser leans that way). sigma is the range noise estimated from the residuals there. The
+/// laser parameters and the planes move; the gauge constraints hold.
+NoiseBiasCorrection correctNoiseBias(State& st, const Columns& c, const EstimatedParams& est, bool holdMeanTheta,
+                                     const Information& atMinimum, int steps) {
+  NoiseBiasCorrection out;
+  const auto g = gauges(st, c, est, holdMeanTheta);
+  double sigma2 = 0.0;
+  for (int it = 0; it < steps; ++it) {
+    const Information info = it == 0 ? atMinimum : accumulate(st, c, false);
+    if (it == 0) {
+      out.rangeSigma = rangeNoiseSigma(info, c);
+      sigma2 = out.rangeSigma * out.rangeSigma;
+    }
+    const Eigen::VectorXd grad = info.g - sigma2 * info.b;
+    const Eigen::MatrixXd hc = constrainedInformation(info.h, c.laserCount, g);
+    const Eigen::VectorXd delta = -hc.ldlt().solve(grad);
+    if (!delta.allFinite()) {
+      break;
+    }
+    double largest = 0.0;  // step times sqrt(H_ii): in units of the range noise, about sigma x (step / its 1-sigma)
+    for (std::size_t l = 0; l < st.x.size(); ++l) {
+      for (int k = 0; k < kLaserParamCount; ++k) {
+        const int col = c.laser[l][static_cast<std::size_t>(k)];
+        if (col >= 0) {
+          st.x[l][k] += delta[col];
+          out.step[k] = std::max(out.step[k], std::fabs(st.x[l][k] - st.beforeCorrection[l][k]));
+          largest = std::max(largest, std::fabs(delta[col]) * std::sqrt(info.h(col, col)));
+        }
+      }
+    }
+    for (std::size_t s = 0; s < st.normal.size(); ++s) {
+      const int p0 = c.planeStart + 3 * static_cast<int>(s);
+      const Eigen::Matrix<double, 3, 2> b = planeAxes(st.normal[s]);
+      st.normal[s] = (st.normal[s] + b * delta.segment<2>(p0)).normalized();
+      st.offset[s] += delta[p0 + 2];
+    }
+    out.iterations = it + 1;
+    if (largest < 1e-3 * std::max(out.rangeSigma, 1e-12)) {  // below a thousandth of a 1-sigma
+      break;
+    }
+  }
+  out.applied = out.iterations > 0;
   return out;
 }
 
@@ -531,6 +622,7 @@ bool calibrateIntrinsics(const std::vector<CalibrationScan>& scans, const LaserI
     result.lasers[l].laser = l;
     result.lasers[l].start = start.params(l);
     result.lasers[l].estimate = start.params(l);
+    result.lasers[l].minimum = start.params(l);
   }
 
   LaserIntrinsics current = start;
@@ -761,7 +853,8 @@ bool calibrateIntrinsics(const std::vector<CalibrationScan>& scans, const LaserI
     }
   }
 
-  // Figures at the solution.
+  // Figures at the solution (the thesis' minimum; with the noise-bias correction, below, the
+  // calibrated values move off it by their bias).
   const Clock::time_point t3 = Clock::now();
   double joint = 0.0;
   std::vector<double> sumSq(scans.size(), 0.0);
@@ -789,14 +882,39 @@ bool calibrateIntrinsics(const std::vector<CalibrationScan>& scans, const LaserI
         std::max(result.maxPlaneAngle, std::acos(std::min(1.0, std::fabs(pca.normal.dot(st.normal[s])))));
   }
   result.costFinalJoint = joint;
+  result.costCalibrated = result.costFinal;
   const Columns cols = makeColumns(st, est);
-  const Analysis a = analyse(st, cols, est, config.nullThreshold, config.holdMeanTheta, alongBeam);
+  const Information atMinimum = accumulate(st, cols, alongBeam);
+  const bool correct = !alongBeam && config.correctNoiseBias && config.noiseBiasSteps > 0;
+  if (correct) {
+    st.beforeCorrection = st.x;
+    result.noiseBias = correctNoiseBias(st, cols, est, config.holdMeanTheta, atMinimum, config.noiseBiasSteps);
+    for (std::size_t l = 0; l < start.size(); ++l) {
+      if (!st.held[l]) {
+        static_cast<void>(current.set(l, toLaserParams(st.x[l])));
+      }
+    }
+    const std::vector<double> corrected = planeResiduals(scans, targets, current);
+    result.costCalibrated = 0.0;
+    for (std::size_t s = 0; s < scans.size(); ++s) {
+      result.scans[s].rmsFinal = corrected[s];
+      result.costCalibrated += corrected[s] * corrected[s];
+    }
+  }
+  // One correction step (the default) moves the values by about their bias, which changes the
+  // geometry of the information negligibly: the analysis at the minimum serves (and its residuals
+  // are the noise's estimate). More steps: analysed again at the corrected values.
+  const bool again = correct && config.noiseBiasSteps > 1;
+  const Analysis a =
+      analyse(st, cols, est, config.nullThreshold, config.holdMeanTheta, alongBeam, again ? nullptr : &atMinimum);
   result.conditioning = a.report;
   result.noiseSigma = a.sigma;
+  result.rangeSigma = a.rangeSigma;
   result.calibrated = current;
   for (std::size_t l = 0; l < start.size(); ++l) {
     LaserReport& lr = result.lasers[l];
     lr.estimate = current.params(l);
+    lr.minimum = st.held[l] || st.beforeCorrection.empty() ? lr.estimate : toLaserParams(st.beforeCorrection[l]);
     lr.estimated = !st.held[l];
     if (lr.estimated) {
       ++result.lasersEstimated;

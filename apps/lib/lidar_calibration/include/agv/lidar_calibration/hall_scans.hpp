@@ -4,6 +4,7 @@
 /// the form `calibrateIntrinsics` takes, and the comparison of a result with the simulated truth.
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -36,13 +37,15 @@ struct TruthComparison {
   Eigen::Matrix<double, kLaserParamCount, 1> maxAbs = Eigen::Matrix<double, kLaserParamCount, 1>::Zero();
   Eigen::Matrix<double, kLaserParamCount, 1> rms = Eigen::Matrix<double, kLaserParamCount, 1>::Zero();
   Eigen::Matrix<double, kLaserParamCount, 1> maxAbsStart =
-      Eigen::Matrix<double, kLaserParamCount, 1>::Zero();  ///< start - truth, same gauge
-  double commonAlpha = 0.0;                                ///< [rad] removed gauge offset
-  double commonTheta = 0.0;                                ///< [rad] removed near-gauge offset
-  double commonZ = 0.0;                                    ///< [m] removed common z shift (D_corr and V_o estimated)
-  double maxSigmaRatio = 0.0;                              ///< largest |error| / sigma over the estimated parameters
-  std::size_t beyondThreeSigma = 0;                        ///< estimated parameters with |error| > 3 sigma
-  std::size_t compared = 0;                                ///< estimated parameters compared
+      Eigen::Matrix<double, kLaserParamCount, 1>::Zero();     ///< start - truth, same gauge
+  double commonAlpha = 0.0;                                   ///< [rad] removed gauge offset
+  double commonTheta = 0.0;                                   ///< [rad] removed near-gauge offset
+  double commonZ = 0.0;                                       ///< [m] removed common z shift (D_corr and V_o estimated)
+  double maxSigmaRatio = 0.0;                                 ///< largest |error| / sigma over the estimated parameters
+  std::size_t beyondThreeSigma = 0;                           ///< estimated parameters with |error| > 3 sigma
+  std::size_t compared = 0;                                   ///< estimated parameters compared
+  std::array<std::size_t, kLaserParamCount> beyondByParam{};  ///< the same per parameter kind
+  std::array<std::size_t, kLaserParamCount> comparedByParam{};  ///< the same per parameter kind
 };
 
 /// Compares `result` with `truth` (estimated lasers only).

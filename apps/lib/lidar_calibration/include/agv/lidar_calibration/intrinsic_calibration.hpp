@@ -8,8 +8,10 @@
 /// Solved with Ceres as one least-squares problem in which each scan's plane (unit normal on the sphere manifold,
 /// offset) is a parameter next to the per-laser parameters, residual = (n . P - d) / sqrt(N_scan): for fixed intrinsics
 /// the best plane is the PCA plane, so the joint minimum is the thesis' minimum (the result reports both figures to
-/// show it). `PlaneResidual::AlongBeam` replaces the distance by the range error along the beam (unbiased under range
-/// noise; same planes, same structure).
+/// show it). The thesis' minimum is biased under range noise (the noise's share of the cost depends on the
+/// parameters); by default its first-order bias is removed after the solve (`correctNoiseBias`), which makes the
+/// reported 1-sigma describe the errors. `PlaneResidual::AlongBeam` replaces the distance by the range error along
+/// the beam (unbiased under range noise; same planes, same structure).
 ///
 /// Gauge: rotating every point about the sensor's z axis (the same offset on every alpha) moves
 /// each plane along and leaves the cost unchanged, so the mean of the alphas is held at the start
@@ -90,6 +92,14 @@ struct IntrinsicCalibrationConfig {
   /// which each placement's free plane absorbs: the wall protocol observes it only through the
   /// wide-angle near placements (normalised singular value ~0.01) and the solve wanders along it.
   bool holdMeanTheta = true;
+  /// Orthogonal residual: remove the thesis' cost's noise bias from its minimum (Gauss-Newton steps
+  /// on the cost less its expected noise part sigma^2 sum w^2 (n . u)^2, sigma the range noise
+  /// estimated from the residuals; `NoiseBiasCorrection`). Without it the minimiser's errors are
+  /// dominated by that bias and not described by the reported 1-sigma (docs/lidar-calibration.md).
+  bool correctNoiseBias = true;
+  /// Gauss-Newton steps of the correction (1: the first-order bias, from the information already
+  /// computed for the analysis at the minimum; more steps stop when below 1e-3 of a 1-sigma).
+  int noiseBiasSteps = 1;
   std::function<void(const std::string&)> progress;  ///< progress lines (none when empty)
 };
 
@@ -98,6 +108,7 @@ struct LaserReport {
   std::size_t laser = 0;
   LaserParams start;
   LaserParams estimate;
+  LaserParams minimum;  ///< the thesis' minimum (= estimate unless the noise-bias correction moved it)
   Eigen::Matrix<double, kLaserParamCount, 1> sigma =
       Eigen::Matrix<double, kLaserParamCount, 1>::Zero();  ///< 1-sigma (0: not estimated)
   std::size_t points = 0;                                  ///< target points over all scans
@@ -114,7 +125,7 @@ struct ScanReport {
   std::size_t returns = 0;
   std::size_t targetPoints = 0;
   double rmsStart = 0.0;  ///< [m] plane residual (root of the thesis' per-scan cost) with the start intrinsics
-  double rmsFinal = 0.0;  ///< [m] the same with the calibrated intrinsics (same target points)
+  double rmsFinal = 0.0;  ///< [m] the same with the calibrated intrinsics (same target points; after the correction)
   Eigen::Vector2d extent = Eigen::Vector2d::Zero();  ///< [m] target region found
   std::vector<std::size_t> targets;                  ///< indices of the target returns (last pass)
 };
@@ -136,6 +147,15 @@ struct ConditioningReport {
   std::size_t nullDirections = 0;            ///< below the null threshold, gauges excluded
 };
 
+/// The noise-bias correction of the thesis' minimum (`IntrinsicCalibrationConfig::correctNoiseBias`).
+struct NoiseBiasCorrection {
+  bool applied = false;
+  int iterations = 0;
+  double rangeSigma = 0.0;  ///< [m] range noise used (estimated at the thesis' minimum)
+  Eigen::Matrix<double, kLaserParamCount, 1> step =
+      Eigen::Matrix<double, kLaserParamCount, 1>::Zero();  ///< largest |change| per parameter kind [m, rad]
+};
+
 /// The outcome.
 struct IntrinsicCalibrationResult {
   LaserIntrinsics calibrated;  ///< start values for held / refused lasers
@@ -144,11 +164,14 @@ struct IntrinsicCalibrationResult {
   ConditioningReport startConditioning;  ///< at the start values (what decided the held lasers)
   ConditioningReport conditioning;       ///< at the solution
   double costStart = 0.0;                ///< thesis cost (sum over scans of mean squared plane distance) [m^2], start
-  double costFinal = 0.0;                ///< the same, calibrated, PCA planes
+  double costFinal = 0.0;                ///< the same at the thesis' minimum, PCA planes
   double costFinalJoint = 0.0;           ///< the same from the Ceres problem's own planes (agrees with costFinal)
+  double costCalibrated = 0.0;           ///< the same at the calibrated values (= costFinal without the correction)
+  NoiseBiasCorrection noiseBias;         ///< the correction applied to the thesis' minimum (orthogonal residual)
   double maxPlaneAngle = 0.0;            ///< [rad] largest angle between a scan's Ceres plane and its PCA plane
   double noiseSigma = 0.0;               ///< [m] residual standard deviation (unweighted) at the solution
-  int iterations = 0;                    ///< Ceres iterations, all passes
+  double rangeSigma = 0.0;  ///< [m] range noise estimated from the residuals (orthogonal: ssr / sum (n . u)^2)
+  int iterations = 0;       ///< Ceres iterations, all passes
   double secondsSegmentation = 0.0;
   double secondsSolve = 0.0;
   double secondsAnalysis = 0.0;
