@@ -586,6 +586,79 @@ TEST_CASE("each safe-state trigger quick-stops the traction axis within one cycl
   }
 }
 
+TEST_CASE("heartbeats queued while the controller was held up count at their receive stamps", "[drives]") {
+  // The controller's process is held up 170 ms (beyond its 150 ms consumer time for the drives'
+  // heartbeats, within the drives' 200 ms for its own) while the drives keep sending; then it reads
+  // what queued. With the transport's receive stamps the heartbeats are on time; without stamps
+  // (in-process buses) they count at the previous poll, which reports the loss: the false alarm a
+  // loaded vehicle computer would raise without the stamps.
+  for (const bool stamped : {true, false}) {
+    Bench b;
+    b.bringUp();
+    b.drive(0.4, 0.0, Duration::fromMilliseconds(300));
+    // Start the hold-up right after the controller's own heartbeat (0x77F).
+    for (int i = 0; i < 10 && !(b.log.back().sender == 0 && b.log.back().frame.id == 0x77FU); ++i) {
+      b.drive(0.4, 0.0, kCycle);
+    }
+    REQUIRE(b.log.back().frame.id == 0x77FU);
+    std::vector<CanFrame> queued;
+    b.toController = [&](CanFrame& f) {
+      f.stamp = stamped ? b.now : Timestamp{};
+      queued.push_back(f);
+      return false;  // held in the queue
+    };
+    const Timestamp end = b.now + Duration::fromMilliseconds(170);
+    while (b.now < end) {
+      b.now = b.now + kCycle;
+      b.fromNode(b.traction, b.steering, 1);
+      b.fromNode(b.steering, b.traction, 2);
+    }
+    b.toController = nullptr;
+    int heartbeats = 0;
+    for (const CanFrame& f : queued) {
+      heartbeats += f.id == 0x701U ? 1 : 0;
+      b.ctl->onFrame(f);
+    }
+    CHECK(heartbeats >= 3);
+    b.ctl->poll(b.now);
+    b.flush();
+    INFO((stamped ? "receive stamps" : "no stamps"));
+    CHECK(b.ctl->traction().heartbeatLost() == !stamped);
+    CHECK((b.ctl->state() == DriveControllerState::Enabled) == stamped);
+    if (stamped) {
+      b.drive(0.4, 0.0, Duration::fromMilliseconds(500));  // and on it goes
+      CHECK(b.ctl->state() == DriveControllerState::Enabled);
+      CHECK_FALSE(b.traction.controllerLost());
+    }
+  }
+}
+
+TEST_CASE("a receive stamp ahead of the controller's clock counts as now, and a silent drive is still lost",
+          "[drives]") {
+  Bench b;
+  b.bringUp();
+  b.drive(0.4, 0.0, Duration::fromMilliseconds(200));
+  // One heartbeat stamped 10 s ahead (a wrong clock), then the traction drive falls silent.
+  b.toController = [&](CanFrame& f) {
+    if (f.id == 0x701U) {
+      f.stamp = b.now + Duration::fromSeconds(10.0);
+      b.toController = nullptr;
+    }
+    return true;
+  };
+  b.drive(0.4, 0.0, Duration::fromMilliseconds(60));
+  REQUIRE_FALSE(b.toController);
+  b.traction.setSilent(true);
+  int cycles = 0;
+  while (b.ctl->state() == DriveControllerState::Enabled && cycles < 100) {
+    b.drive(0.4, 0.0, kCycle);
+    ++cycles;
+  }
+  CHECK(b.ctl->safeStopReason() == SafeStopReason::DriveHeartbeatLost);
+  // As in "heartbeat loss of the traction drive": the 150 ms consumer time and up to one period.
+  CHECK(cycles <= 21);
+}
+
 TEST_CASE("a silent controller faults both drives through their heartbeat consumers", "[drives]") {
   Bench b;
   b.bringUp();

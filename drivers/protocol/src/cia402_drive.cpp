@@ -359,7 +359,7 @@ bool Cia402Axis::onFrame(const CanFrame& f) noexcept {
     }
     ++counters_.heartbeats;
     nmt_ = static_cast<NmtState>(s);
-    lastHeartbeat_ = now_;
+    lastHeartbeat_ = f.stamp > now_ ? f.stamp : now_;  // the receive stamp, when the transport gave one
     if (nmt_ == NmtState::BootUp && started_) {
       heartbeatLost_ = true;  // the drive restarted under us: its configuration is gone
       enterFaulted();
@@ -488,7 +488,11 @@ void Cia402Axis::poll(Timestamp now) noexcept {
   if (phase_ == AxisPhase::Idle) {
     return;
   }
-  // Supervision of the drive's heartbeat, once its producer time is configured.
+  // Supervision of the drive's heartbeat, once its producer time is configured. A receive stamp
+  // ahead of this poll (another clock, a wrong stamp) counts as received now, never later.
+  if (lastHeartbeat_ > now) {
+    lastHeartbeat_ = now;
+  }
   if (supervised_ && !heartbeatLost_ && now - lastHeartbeat_ > config_.heartbeatTimeout) {
     heartbeatLost_ = true;
     enterFaulted();

@@ -143,6 +143,10 @@ class Cia402Axis {
   /// Clears a previous quick stop, fault or failure record (not the error code).
   void start(Timestamp now) noexcept;
   /// Handles a received frame; true when it was this node's (SDO response, TPDO, heartbeat, EMCY).
+  /// A heartbeat counts as received at the frame's `stamp` when that lies after the previous
+  /// poll (the transport's receive stamp, on the clock of `poll`'s `now`; a later `poll` clamps a
+  /// stamp ahead of its `now` to it), else at the previous poll: a controller held up between
+  /// two polls does not take the heartbeats queued meanwhile for late ones.
   bool onFrame(const CanFrame& frame) noexcept;
   /// Advances the bring-up, the set-point handshake and the supervision at `now`; emits the SDO
   /// request due and, once the node is started, the RPDO with the current controlword and target.
