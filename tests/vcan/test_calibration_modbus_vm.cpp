@@ -836,9 +836,9 @@ TEST_CASE("the agvnav-vehicle program calibrates against agvnav-sim-drives --veh
   // No quick stop while the routine ran. After it (register 44 = done) the vehicle stops commanding
   // and the set-point watchdog quick-stops the standing traction 200 ms later (docs/drives.md).
   Timestamp doneAt = b.terminated;
-  for (const PlcRead& x : b.plc.reads) {
-    if (x.r[44] == 7U) {
-      doneAt = x.t;
+  for (const PlcRead& read : b.plc.reads) {
+    if (read.r[44] == stateCode(cal::RoutineState::Done)) {
+      doneAt = read.t;
       break;
     }
   }
