@@ -42,6 +42,8 @@ class SocketCanDrives final : public VehicleDrives {
 
   void quickStop() noexcept override { drives_.quickStop(canopen::SafeStopReason::PlcStop); }
 
+  void release() noexcept override { static_cast<void>(drives_.release()); }
+
   std::uint32_t faultCode() const noexcept override { return drivesFaultCode(drives_.controller()); }
 
   void cycle(Timestamp now) noexcept override {
@@ -76,6 +78,9 @@ Status drivesHealth(const canopen::Cia402DriveController& c, const char*& why) n
     case canopen::DriveControllerState::Idle:
     case canopen::DriveControllerState::BringingUp:
       why = "coming up";
+      return Status::NotInitialized;
+    case canopen::DriveControllerState::Released:
+      why = "released after the last routine";
       return Status::NotInitialized;
     case canopen::DriveControllerState::SafeStop:
       why = canopen::toString(c.safeStopReason());
@@ -179,6 +184,7 @@ struct VehicleCalibrationRoutine::Impl {
       calibration::DriveHooks hooks;
       hooks.quickStop = [this] { drives->quickStop(); };
       hooks.faultCode = [this] { return drives->faultCode(); };
+      hooks.release = [this] { drives->release(); };
       session = std::make_unique<calibration::CalibrationSession>(drives->control(), hooks, sc, log);
       period = sc.routine.controlPeriod;
     }

@@ -38,6 +38,9 @@ class VehicleDrives {
   virtual Status health(const char*& why) const noexcept = 0;
   /// Traction quick stop now (the PLC's Stop, an abort).
   virtual void quickStop() noexcept = 0;
+  /// The routine is done and the vehicle stands: hand the drives back in order (CiA 402 disable
+  /// operation), not by the set-point watchdog's quick stop.
+  virtual void release() noexcept = 0;
   /// The fault or error code of the drive that stopped (0: none known).
   virtual std::uint32_t faultCode() const noexcept = 0;
   /// One control cycle (SocketCAN: frames in, controller polled, frames out).
@@ -45,8 +48,8 @@ class VehicleDrives {
 };
 
 /// The CiA 402 drive controller's state as the routine sees it: `Ok` enabled; `NotInitialized`
-/// idle or coming up; `Timeout` quick-stopped for a lost drive heartbeat; `DeviceFault` any other
-/// safe stop (drive fault, bus-off, PLC Stop, stale set-point) or a failed bring-up; `why` names it.
+/// idle, coming up or released after a routine; `Timeout` quick-stopped for a lost drive heartbeat; `DeviceFault` any
+/// other safe stop (drive fault, bus-off, PLC Stop, stale set-point) or a failed bring-up; `why` names it.
 Status drivesHealth(const drivers::canopen::Cia402DriveController& controller, const char*& why) noexcept;
 /// The error code (0x603F / EMCY) of the traction drive if it is in fault, else of the steering
 /// drive if it is (0: none in fault, only a lost heartbeat, or the code not known yet).

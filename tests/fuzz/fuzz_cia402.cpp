@@ -98,8 +98,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       cmd.steeringAngle = static_cast<double>(static_cast<std::int8_t>(p[5])) / 64.0;
       (void)ctl.command(cmd);
     }
-    check(static_cast<unsigned>(ctl.state()) <= static_cast<unsigned>(DriveControllerState::Failed));
-    check(static_cast<unsigned>(ctl.traction().phase()) <= static_cast<unsigned>(AxisPhase::Failed));
+    if ((p[3] & 96) == 96) {
+      (void)ctl.release();  // the end of a motion task, in whatever state the controller is
+    }
+    check(static_cast<unsigned>(ctl.state()) <= static_cast<unsigned>(DriveControllerState::Released));
+    check(static_cast<unsigned>(ctl.traction().phase()) <= static_cast<unsigned>(AxisPhase::Released));
   }
   return 0;
 }

@@ -586,6 +586,83 @@ TEST_CASE("each safe-state trigger quick-stops the traction axis within one cycl
   }
 }
 
+TEST_CASE("release: the drives handed back by disable operation, not by the set-point watchdog", "[drives]") {
+  Bench b;
+  b.bringUp();
+  b.drive(0.6, 0.1, Duration::fromMilliseconds(1500));
+  REQUIRE(b.traction.velocity() > 5000.0);
+  // Stopped by set-point (the profile deceleration), as a routine ends a segment.
+  for (int i = 0; i < 200 && !b.ctl->isStandstill(); ++i) {
+    REQUIRE(b.ctl->stop() == Status::Ok);
+    b.cycle();
+  }
+  REQUIRE(b.ctl->isStandstill());
+  const std::size_t mark = b.log.size();
+  REQUIRE(b.ctl->release() == Status::Ok);
+  // Five watchdog periods without a set-point: no quick stop, both drives in Switched on.
+  b.run(Duration::fromMilliseconds(1000));
+  CHECK(b.ctl->state() == DriveControllerState::Released);
+  CHECK(b.ctl->safeStopReason() == SafeStopReason::None);
+  for (std::uint8_t node : {b.cfg.traction.nodeId, b.cfg.steering.nodeId}) {
+    const std::vector<std::uint16_t> cws = b.controlwords(node, mark);
+    REQUIRE(cws.size() >= 50);  // an RPDO per 10 ms cycle
+    for (std::uint16_t cw : cws) {
+      CHECK((cw & 0x008F) == kSwitchOn);  // "disable operation" has the bits of switch on
+    }
+  }
+  for (std::size_t i = mark; i < b.log.size(); ++i) {
+    if (b.log[i].sender == 0 && b.log[i].frame.id == 0x200U + b.cfg.traction.nodeId) {
+      CHECK(Bench::rpdoTarget(b.log[i].frame) == 0);
+    }
+  }
+  CHECK(b.traction.state() == PowerState::SwitchedOn);
+  CHECK(b.steering.state() == PowerState::SwitchedOn);
+  CHECK(b.traction.velocity() == 0.0);
+  hal::DriveCommand c;
+  c.speed = 0.2;
+  CHECK(b.ctl->command(c) == Status::DeviceFault);  // no set-points until started again
+  CHECK(b.ctl->release() == Status::Rejected);
+
+  SECTION("the heartbeats stay supervised") {
+    b.traction.setSilent(true);
+    std::size_t before = b.log.size();
+    for (int i = 0; i < 100 && b.ctl->state() == DriveControllerState::Released; ++i) {
+      before = b.log.size();
+      b.cycle();
+    }
+    CHECK(b.ctl->state() == DriveControllerState::SafeStop);
+    CHECK(b.ctl->safeStopReason() == SafeStopReason::DriveHeartbeatLost);
+    const std::vector<std::uint16_t> cws = b.controlwords(b.cfg.traction.nodeId, before);
+    REQUIRE_FALSE(cws.empty());
+    CHECK((cws.back() & 0x008F) == kQuickStop);
+  }
+  SECTION("a drive fault stops as in any state") {
+    b.steering.injectFault(0x7305);
+    for (int i = 0; i < 20 && b.ctl->state() == DriveControllerState::Released; ++i) {
+      b.cycle();
+    }
+    CHECK(b.ctl->state() == DriveControllerState::SafeStop);
+    CHECK(b.ctl->safeStopReason() == SafeStopReason::DriveFault);
+  }
+  SECTION("start() enables the drives again") {
+    b.bringUp();
+    b.drive(0.3, 0.0, Duration::fromMilliseconds(1000));
+    CHECK(b.traction.velocity() > 2000.0);
+  }
+}
+
+TEST_CASE("release is refused unless the drives are enabled; a safe stop stays one", "[drives]") {
+  Bench b;
+  CHECK(b.ctl->release() == Status::Rejected);  // idle
+  CHECK(b.ctl->state() == DriveControllerState::Idle);
+  b.bringUp();
+  b.ctl->quickStop(SafeStopReason::PlcStop);
+  b.cycle();
+  CHECK(b.ctl->release() == Status::Rejected);
+  CHECK(b.ctl->state() == DriveControllerState::SafeStop);
+  CHECK(b.ctl->safeStopReason() == SafeStopReason::PlcStop);
+}
+
 TEST_CASE("heartbeats queued while the controller was held up count at their receive stamps", "[drives]") {
   // The controller's process is held up 170 ms (beyond its 150 ms consumer time for the drives'
   // heartbeats, within the drives' 200 ms for its own) while the drives keep sending; then it reads

@@ -833,16 +833,32 @@ TEST_CASE("the agvnav-vehicle program calibrates against agvnav-sim-drives --veh
   CHECK(b.count(enable->stamp, b.terminated, [](const CanFrame& f) {
     return f.id == kTractionRpdo && u16(f, 0) == 0x000F && i32(f, 2) > 4000;
   }) > 100);
-  // No quick stop while the routine ran. After it (register 44 = done) the vehicle stops commanding
-  // and the set-point watchdog quick-stops the standing traction 200 ms later (docs/drives.md).
-  Timestamp doneAt = b.terminated;
+  // No quick stop at all: the routine's end hands the drives back with "disable operation"
+  // (controlword 0x0007, target 0) instead of leaving the standing traction to the set-point
+  // watchdog (docs/drives.md), and the traction drive reports Switched on (statusword 0x23).
+  CHECK(b.count(Timestamp{}, b.terminated, isQuickStop) == 0);
+  const CanFrame* released = b.firstAfter(enable->stamp, [](const CanFrame& f) {
+    return f.id == kTractionRpdo && f.dlc == 6 && u16(f, 0) == 0x0007 && i32(f, 2) == 0;
+  });
+  REQUIRE(released != nullptr);
+  const CanFrame* switchedOn = b.firstAfter(released->stamp, [](const CanFrame& f) {
+    return f.id == kTractionTpdo1 && f.dlc >= 2 && (u16(f, 0) & 0x006FU) == 0x0023U;
+  });
+  CHECK(switchedOn != nullptr);
+  CHECK(b.count(released->stamp, b.terminated, [](const CanFrame& f) {
+    return (f.id == kTractionRpdo || f.id == kSteeringRpdo) && f.dlc == 6 && u16(f, 0) != 0x0007;
+  }) == 0);
+  const PlcRead* doneRead = nullptr;
   for (const PlcRead& read : b.plc.reads) {
     if (read.r[44] == stateCode(cal::RoutineState::Done)) {
-      doneAt = read.t;
+      doneRead = &read;
       break;
     }
   }
-  CHECK(b.count(Timestamp{}, doneAt, isQuickStop) == 0);
+  REQUIRE(doneRead != nullptr);
+  std::printf("  drives released %.1f ms before the PLC read done (Switched on %.1f ms after the release)\n",
+              ms(doneRead->t - released->stamp),
+              switchedOn != nullptr ? ms(switchedOn->stamp - released->stamp) : -1.0);
   agv::test::checkCalibrationFile(b.file, agv::sim::SimVehicleParams{}, "program routine", 2.0);
   CHECK(agv::test::readFile(b.file + ".bak") == kOldCalibration);
 }

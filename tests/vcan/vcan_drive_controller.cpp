@@ -59,6 +59,8 @@ const char* stateName(agv::drivers::canopen::DriveControllerState s) {
       return "SafeStop";
     case S::Failed:
       return "Failed";
+    case S::Released:
+      return "Released";
   }
   return "?";
 }

@@ -54,6 +54,7 @@ class SimDrives final : public agv::vehicle::VehicleDrives, public hal::DriveCon
     ++quickStops;
     static_cast<void>(inner_.stop());
   }
+  void release() noexcept override { ++releases; }
   std::uint32_t faultCode() const noexcept override { return code; }
   void cycle(Timestamp) noexcept override {}
   Status command(const hal::DriveCommand& cmd) noexcept override {
@@ -73,6 +74,7 @@ class SimDrives final : public agv::vehicle::VehicleDrives, public hal::DriveCon
 
   int bringUps = 0;
   int quickStops = 0;
+  int releases = 0;
   int commands = 0;
   const char* reason = "";
   std::uint32_t code = 0;
@@ -109,6 +111,7 @@ class Cia402Drives final : public agv::vehicle::VehicleDrives, public hal::Encod
     ++quickStops;
     ctl_.quickStop(agv::drivers::canopen::SafeStopReason::PlcStop);
   }
+  void release() noexcept override { static_cast<void>(ctl_.release()); }
   std::uint32_t faultCode() const noexcept override { return agv::vehicle::drivesFaultCode(ctl_); }
   void cycle(Timestamp now) noexcept override {
     using agv::drivers::CanFrame;
@@ -313,6 +316,8 @@ TEST_CASE("vehicle.calibration: the PLC's Calibrate runs the routine, writes and
   CHECK(b.routine->progress().state == cal::RoutineState::Done);
   REQUIRE(b.wrote);
   CHECK(b.maxSegment == 8);
+  CHECK(b.drives->releases == 1);  // handed back at the end
+  CHECK(b.drives->quickStops == 0);
   // The cycles while collecting (taps, set-points, observations) allocate nothing.
   CHECK(b.collectingCycles > 10000);
   CHECK(b.collectingAllocations == 0U);
@@ -356,6 +361,7 @@ TEST_CASE("vehicle.calibration: a PLC Stop mid-segment quick-stops in the cycle 
   static_cast<void>(b.pipeline->cycle());  // reads the Stop: the quick stop happens here
   CHECK(b.drives->quickStops == 1);
   CHECK(b.routine->progress().state == cal::RoutineState::Aborted);
+  CHECK(b.drives->releases == 0);  // an abort quick-stops; it does not hand back
   const int commands = b.drives->commands;
   REQUIRE(b.cycleUntil([&] { return b.sim->drive().isStandstill(); }, 500));
   for (int i = 0; i < 100; ++i) {
@@ -465,6 +471,26 @@ TEST_CASE("vehicle.calibration: through the CiA 402 controller and simulated dri
     CHECK(b.routine->progress().state == cal::RoutineState::Done);
     REQUIRE(b.wrote);
     static_cast<void>(agv::test::checkCalibrationFile(file, b.truth, "vehicle routine through CiA 402"));
+    // The drives handed back at the end (disable operation), not quick-stopped by the set-point
+    // watchdog 200 ms later: one second on, both still in Switched on, no safe stop.
+    using agv::drivers::canopen::DriveControllerState;
+    using agv::drivers::canopen::PowerState;
+    CHECK(b.cia->controller().state() == DriveControllerState::Released);
+    for (int i = 0; i < 100; ++i) {
+      b.cycle();
+    }
+    CHECK(b.cia->controller().state() == DriveControllerState::Released);
+    CHECK(b.cia->quickStops == 0);
+    CHECK(b.cia->nodes().traction().state() == PowerState::SwitchedOn);
+    CHECK(b.cia->nodes().steering().state() == PowerState::SwitchedOn);
+    // A second Calibrate brings them up again; the PLC's Stop then ends it.
+    b.plc.send(hal::PlcCommandKind::Calibrate);
+    REQUIRE(b.cycleUntil([&] { return b.routine->progress().state == cal::RoutineState::Settling; }, 500));
+    CHECK(b.cia->controller().state() == DriveControllerState::Enabled);
+    b.plc.send(hal::PlcCommandKind::Stop);
+    REQUIRE(b.cycleUntil([&] { return !b.routine->running(); }, 100));
+    CHECK(b.routine->progress().state == cal::RoutineState::Aborted);
+    CHECK(b.cia->controller().state() == DriveControllerState::SafeStop);
   }
   SECTION("heartbeat loss of the traction node, and a traction fault") {
     for (int k = 0; k < 2; ++k) {

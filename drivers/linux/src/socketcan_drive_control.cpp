@@ -76,6 +76,12 @@ void SocketCanDriveControl::quickStop(canopen::SafeStopReason reason) noexcept {
   flush();
 }
 
+Status SocketCanDriveControl::release() noexcept {
+  const Status s = controller_.release();
+  flush();
+  return s;
+}
+
 BusStateReports busStateReports(bool reportedOff, bool offSeen, bool usable) noexcept {
   BusStateReports r;
   r.off = !reportedOff && (offSeen || !usable);

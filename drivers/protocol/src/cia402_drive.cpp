@@ -108,6 +108,8 @@ const char* toString(AxisPhase phase) noexcept {
       return "faulted";
     case AxisPhase::Failed:
       return "failed";
+    case AxisPhase::Released:
+      return "released";
   }
   return "unknown phase";
 }
@@ -238,7 +240,7 @@ void Cia402Axis::enterFaulted() noexcept {
   if (phase_ == AxisPhase::Idle || phase_ == AxisPhase::Failed || phase_ == AxisPhase::Faulted || !started_) {
     return;
   }
-  if (phase_ != AxisPhase::Enabled && phase_ != AxisPhase::QuickStopping) {
+  if (phase_ != AxisPhase::Enabled && phase_ != AxisPhase::QuickStopping && phase_ != AxisPhase::Released) {
     lastError_ = Status::DeviceFault;  // during the bring-up
   }
   phase_ = AxisPhase::Faulted;
@@ -397,6 +399,15 @@ void Cia402Axis::quickStop() noexcept {
   }
 }
 
+Status Cia402Axis::release() noexcept {
+  if (phase_ != AxisPhase::Enabled) {
+    return Status::Rejected;
+  }
+  phase_ = AxisPhase::Released;
+  targetVelocity_ = 0;  // the RPDO of the next poll carries the controlword
+  return Status::Ok;
+}
+
 Status Cia402Axis::faultReset(Timestamp now) noexcept {
   if (phase_ != AxisPhase::Faulted || powerState() != PowerState::Fault || heartbeatLost_) {
     return Status::Rejected;
@@ -453,6 +464,8 @@ void Cia402Axis::sendRpdo(bool urgent) noexcept {
     cw = controlwordFor(Cia402Command::QuickStop);
   } else if (phase_ == AxisPhase::Enabling) {
     cw = controlwordFor(lastStep_);
+  } else if (phase_ == AxisPhase::Released) {
+    cw = controlwordFor(Cia402Command::DisableOperation);
   } else if (phase_ == AxisPhase::Enabled) {
     cw = controlwordFor(Cia402Command::EnableOperation);
     if (config_.mode == OperationMode::ProfilePosition) {
@@ -642,6 +655,8 @@ const char* toString(DriveControllerState state) noexcept {
       return "safe stop";
     case DriveControllerState::Failed:
       return "failed";
+    case DriveControllerState::Released:
+      return "released";
   }
   return "unknown state";
 }
@@ -755,6 +770,17 @@ void Cia402DriveController::trigger(SafeStopReason reason) noexcept {
   traction_.quickStop();
 }
 
+Status Cia402DriveController::release() noexcept {
+  if (state_ != DriveControllerState::Enabled) {
+    return Status::Rejected;
+  }
+  traction_.setTargetVelocity(0);
+  static_cast<void>(traction_.release());
+  static_cast<void>(steering_.release());
+  state_ = DriveControllerState::Released;
+  return Status::Ok;
+}
+
 void Cia402DriveController::quickStop(SafeStopReason reason) noexcept {
   trigger(reason == SafeStopReason::None ? SafeStopReason::Requested : reason);
 }
@@ -811,6 +837,13 @@ void Cia402DriveController::poll(Timestamp now) noexcept {
         trigger(SafeStopReason::DriveFault);
       } else if (now - lastCommand_ > config_.setpointTimeout) {
         trigger(SafeStopReason::SetpointTimeout);
+      }
+      break;
+    case DriveControllerState::Released:
+      if (lost) {
+        trigger(SafeStopReason::DriveHeartbeatLost);
+      } else if (faulted) {
+        trigger(SafeStopReason::DriveFault);
       }
       break;
     default:

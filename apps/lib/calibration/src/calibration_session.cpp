@@ -299,6 +299,9 @@ bool CalibrationSession::step(Timestamp now) {
   if (s != RoutineState::Done) {
     return false;
   }
+  if (hooks_.release) {
+    hooks_.release();
+  }
   const CalibrationOutcome& o = run_.outcome();
   if (o.status != Status::Ok) {
     refuse(o.status, "calibration failed: " + o.message + "; calibration file untouched");

@@ -57,6 +57,9 @@ struct DriveHooks {
   /// The drive's fault or error code when the drive refused a set-point (0: none): in the log and
   /// `SessionProgress::driveFault`.
   std::function<std::uint32_t()> faultCode;
+  /// The run ended at standstill (done, solved or not): hand the drives back in order. May be
+  /// empty (the drives are then left enabled with a zero set-point).
+  std::function<void()> release;
 };
 
 /// Configuration of the vehicle's routine.

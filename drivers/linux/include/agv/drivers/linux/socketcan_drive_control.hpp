@@ -81,6 +81,9 @@ class SocketCanDriveControl final : public hal::DriveControl, private canopen::C
   /// Traction quick stop (PLC Stop or the application's reason); sent at once when the bus takes it.
   void quickStop(canopen::SafeStopReason reason) noexcept;
   Status faultReset(Timestamp now) noexcept { return controller_.faultReset(now); }
+  /// Hands the drives back at the end of a motion task (`Cia402DriveController::release`); the
+  /// "disable operation" RPDOs are sent at once when the bus takes them.
+  Status release() noexcept;
 
   // hal::DriveControl: forwarded to the drive controller (docs/drives.md).
   Status command(const hal::DriveCommand& cmd) noexcept override { return controller_.command(cmd); }

@@ -109,6 +109,7 @@ enum class AxisPhase : std::uint8_t {
   QuickStopping,   ///< quick stop commanded (held until the next start)
   Faulted,         ///< started, and the drive reports a fault (statusword, EMCY) or its heartbeat was lost
   Failed,          ///< the bring-up failed (`lastError()`, `lastAbortCode()`)
+  Released,        ///< disable operation commanded (held until the next start): the drive in Switched on
 };
 
 /// Name of a phase (e.g. "enabled"). Never null.
@@ -161,6 +162,10 @@ class Cia402Axis {
   /// Quick stop: the controlword "quick stop" is held from now on, and its RPDO is queued at once
   /// (urgently) when the node has been started. Left only by `start()`.
   void quickStop() noexcept;
+  /// Disable operation: from Operation enabled the drive goes to Switched on (powered, no torque
+  /// demand, target velocity 0 in the RPDO); held until the next `start()`. Supervision (heartbeat,
+  /// faults) goes on. Only in `Enabled`; `Rejected` otherwise.
+  Status release() noexcept;
   /// Fault reset: bit 7 cleared for one poll, then set (the rising edge), then the power state
   /// machine is stepped to Operation enabled again. Only in `Faulted` with the drive in Fault;
   /// `Rejected` otherwise.
@@ -321,6 +326,7 @@ enum class DriveControllerState : std::uint8_t {
   Enabled,     ///< both axes in Operation enabled: `command()` accepted
   SafeStop,    ///< traction quick-stopped after a trigger (`safeStopReason()`); `start()` to resume
   Failed,      ///< a bring-up failed (see the axes' `lastError()`)
+  Released,    ///< both axes handed back by `release()` (Switched on); no watchdog; `start()` to enable again
 };
 
 /// Why the controller quick-stopped the traction axis.
@@ -373,6 +379,12 @@ class Cia402DriveController final : public hal::DriveControl {
   /// Quick stop of the traction axis now (the frame is queued at once): PLC Stop, or the
   /// application's own reason. The steering axis holds its position.
   void quickStop(SafeStopReason reason) noexcept;
+  /// The end of a motion task (the calibration routine done, the vehicle standing): the traction
+  /// target goes to 0 and both axes get "disable operation" (Operation enabled -> Switched on), so
+  /// the set-point watchdog does not quick-stop a vehicle that was told to stop. The heartbeats and
+  /// faults stay supervised (a trigger then quick-stops as in any state). Only while `Enabled`;
+  /// `Rejected` otherwise (a safe stop stays a safe stop).
+  Status release() noexcept;
   /// The process is exiting: quick stop (reason `Shutdown`).
   void shutdown() noexcept { quickStop(SafeStopReason::Shutdown); }
   /// Fault reset of the axes in Fault, then re-enabling (`Rejected` when no axis is in Fault).
