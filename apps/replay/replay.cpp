@@ -467,7 +467,7 @@ class ScanReplay {
     if (reloc_ == RelocState::Idle && !h.lost) {
       return;
     }
-    scanPoints(*points_);
+    scanToMatchPoints(*scan_, *points_);
     const Pose2d& mount = lp_.laser.mounting;
     if (reloc_ == RelocState::Confirming) {
       const Pose2d carried = candidate_.compose(inc_[i]);
@@ -527,7 +527,7 @@ class ScanReplay {
   const LocalizerHealth& correct() {
     if (field_ && changes_) {
       // All valid beams, less those on the changes since the mapping run (seen from the prior).
-      scanPoints(*allPoints_);
+      scanToMatchPoints(*scan_, *allPoints_);
       std::size_t dropped = 0;
       (void)changeDetector_->keepUnchanged(*allPoints_, localizer_->pose().compose(lp_.laser.mounting), *field_,
                                            changes_->field(), *keptPoints_, dropped);
@@ -543,18 +543,6 @@ class ScanReplay {
     surface_->takenBeams(*scan_, *surfacePoints_);
     return surface_->field().built() ? localizer_->correct(*obs_, *scan_, *surfacePoints_, *map_, surface_->field())
                                      : localizer_->correct(*obs_, *scan_, *map_);
-  }
-
-  /// The valid beams of the current scan as points in the laser frame.
-  void scanPoints(MatchPoints& out) const {
-    out.clear();
-    for (std::size_t b = 0; b < scan_->size(); ++b) {
-      if (scan_->isValid(b)) {
-        const double a = static_cast<double>(scan_->angle(b));
-        const double r = static_cast<double>(scan_->ranges[b]);
-        (void)out.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))});
-      }
-    }
   }
 
   /// Whether the current scan is on the map at the vehicle pose `truth` (`ReplayResult::onMap`).

@@ -48,19 +48,6 @@ double distanceTo(const std::vector<Segment>& segs, std::size_t first, std::size
   return best;
 }
 
-/// The valid beams of `scan` as points in the laser frame.
-void toPoints(const LaserScan& scan, MatchPoints& out) {
-  out.clear();
-  for (std::size_t i = 0; i < scan.size(); ++i) {
-    if (scan.isValid(i)) {
-      const double a = static_cast<double>(scan.angle(i));
-      const double r = static_cast<double>(scan.ranges[i]);
-      REQUIRE(out.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))}) ==
-              Status::Ok);
-    }
-  }
-}
-
 struct World {
   std::unique_ptr<HallField> field = std::make_unique<HallField>();
   std::unique_ptr<LaserScan> scan = std::make_unique<LaserScan>();
@@ -72,7 +59,7 @@ struct World {
   /// Scans the moved hall from vehicle pose `truth`.
   void view(const Pose2d& truth, double sigma) {
     castScan(moved, truth.compose(kLaser), sigma, rng, *scan);
-    toPoints(*scan, *points);
+    scanToMatchPoints(*scan, *points);
   }
 };
 
@@ -125,7 +112,7 @@ TEST_CASE("map changes: an unchanged hall has no change, and the threshold follo
     std::size_t total = 0;
     for (const Pose2d truth : {Pose2d{3.0, 3.5, 0.0}, Pose2d{2.5, 2.0, 0.3}, Pose2d{8.0, 1.5, 2.5}}) {
       castScan(hall(), truth.compose(kLaser), sigma, rng, *scan);
-      toPoints(*scan, *points);
+      scanToMatchPoints(*scan, *points);
       REQUIRE(detector->select(*points, truth.compose(kLaser), *field, *out) == Status::Ok);
       // At least the floor; 3 robust sigmas of the residuals across the surfaces, which are the
       // range noise times the cosine of the incidence (1.5-3 sigma of the range noise here), plus a
@@ -217,7 +204,7 @@ TEST_CASE("map changes: a change next to an unchanged surface takes nothing from
   REQUIRE(detector->select(*w.points, truth.compose(kLaser), *w.field, *w.out) == Status::Ok);
   REQUIRE(changes->insert(*w.out, truth.compose(kLaser)).status == Status::Ok);
   castScan(hall(), truth.compose(kLaser), 0.01, w.rng, *w.scan);  // the column back where mapped
-  toPoints(*w.scan, *w.points);
+  scanToMatchPoints(*w.scan, *w.points);
   std::size_t dropped = 99;
   REQUIRE(detector->keepUnchanged(*w.points, truth.compose(kLaser), *w.field, changes->field(), *kept, dropped) ==
           Status::Ok);

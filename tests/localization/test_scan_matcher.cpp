@@ -601,23 +601,6 @@ TEST_CASE("localizer with a likelihood field: the steady-state cycle allocates n
   }
 }
 
-namespace {
-
-/// The scan's valid beams as points in the laser frame.
-void toPoints(const LaserScan& scan, MatchPoints& points) {
-  points.clear();
-  for (std::size_t b = 0; b < scan.size(); ++b) {
-    if (scan.isValid(b)) {
-      const double a = static_cast<double>(scan.angle(b));
-      const double r = static_cast<double>(scan.ranges[b]);
-      REQUIRE(points.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))}) ==
-              Status::Ok);
-    }
-  }
-}
-
-}  // namespace
-
 TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with no prior, allocation-free",
           "[localization][scanmatch][reloc]") {
   auto field = std::make_unique<HallField>();
@@ -640,7 +623,7 @@ TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with
     }
     ++tried;
     castScan(segs, truth.compose(laser), 0.01, rng, *scan);
-    toPoints(*scan, *points);
+    scanToMatchPoints(*scan, *points);
     FieldRelocResult r;
     AGV_CHECK_NO_ALLOCATIONS(r = reloc->localize(*points, laser, *field));
     INFO("truth " << truth.x << " " << truth.y << " " << truth.theta << ": outcome " << static_cast<int>(r.outcome));
@@ -660,7 +643,7 @@ TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with
     const Pose2d next = truth.compose(Pose2d{0.3, 0.0, 0.0});
     if (inFreeSpace(next.compose(laser).translation())) {
       castScan(segs, next.compose(laser), 0.01, rng, *scan);
-      toPoints(*scan, *points);
+      scanToMatchPoints(*scan, *points);
       Pose2d refined;
       CHECK(reloc->confirm(*points, laser, r.pose.compose(Pose2d{0.38, 0.0, 0.05}), *field, refined));
       CHECK(std::hypot(refined.x - next.x, refined.y - next.y) < 0.02);
@@ -687,7 +670,7 @@ TEST_CASE("field relocalizer: a symmetric room is ambiguous, a region bounds the
   const Pose2d laser{0.6, 0.0, 0.0};
   const Pose2d truth{3.0, 2.0, 0.4};
   castScan(room, truth.compose(laser), 0.01, rng, *scan);
-  toPoints(*scan, *points);
+  scanToMatchPoints(*scan, *points);
   const FieldRelocResult sym = reloc->localize(*points, laser, *field);
   CHECK(sym.outcome == FieldRelocOutcome::Ambiguous);
   CHECK(sym.status == Status::Rejected);
@@ -728,4 +711,36 @@ TEST_CASE("field relocalizer: a symmetric room is ambiguous, a region bounds the
   bad = FieldRelocalizerParams{};
   bad.ambiguityRatio = 1.5;
   CHECK(bad.validate() == Status::InvalidArgument);
+}
+
+TEST_CASE("scanToMatchPoints: the valid beams within the range limit, in beam order, laser frame", "[scanmatch]") {
+  auto scan = std::make_unique<LaserScan>();
+  scan->angleMin = -1.0F;
+  scan->angleIncrement = 0.5F;
+  scan->rangeMin = 0.1F;
+  scan->rangeMax = 30.0F;
+  const float ranges[] = {2.0F,  std::numeric_limits<float>::quiet_NaN(), 0.05F, 12.0F,
+                          30.0F, std::numeric_limits<float>::infinity(),  5.0F};
+  for (float r : ranges) {
+    REQUIRE(scan->ranges.push_back(r) == Status::Ok);
+  }
+  MatchPoints points;
+  REQUIRE(points.push_back(MatchPoint{9.0F, 9.0F}) == Status::Ok);  // cleared first
+  scanToMatchPoints(*scan, points);
+  // Beams 0, 3 and 6 are valid: NaN, below rangeMin, at rangeMax and inf are not.
+  REQUIRE(points.size() == 3U);
+  const int beams[] = {0, 3, 6};
+  for (std::size_t k = 0; k < 3U; ++k) {
+    const double a = -1.0 + 0.5 * beams[k];
+    const double r = static_cast<double>(ranges[beams[k]]);
+    CHECK(static_cast<double>(points[k].x) == Approx(r * std::cos(a)).margin(1e-5));
+    CHECK(static_cast<double>(points[k].y) == Approx(r * std::sin(a)).margin(1e-5));
+    CHECK(std::hypot(static_cast<double>(points[k].x), static_cast<double>(points[k].y)) == Approx(r).margin(1e-5));
+  }
+  scanToMatchPoints(*scan, points, 10.0);  // the 12 m beam left out
+  REQUIRE(points.size() == 2U);
+  CHECK(static_cast<double>(points[1].x) == Approx(5.0 * std::cos(2.0)).margin(1e-5));
+  scan->ranges.clear();
+  scanToMatchPoints(*scan, points);
+  CHECK(points.empty());
 }

@@ -68,6 +68,18 @@ double huberCost(double r, double k) noexcept {
 
 }  // namespace
 
+void scanToMatchPoints(const LaserScan& scan, MatchPoints& out, double maxRange) noexcept {
+  out.clear();
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    const double r = static_cast<double>(scan.ranges[i]);
+    if (scan.isValid(i) && r <= maxRange) {
+      const double a = static_cast<double>(scan.angle(i));
+      static_cast<void>(
+          out.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))}));
+    }
+  }
+}
+
 void ScanMatcher::keepPoint(const Eigen::Vector2d& p) noexcept {
   if (!p.allFinite()) {
     return;

@@ -130,15 +130,7 @@ void SurfaceMapBase::finish() noexcept {
 }
 
 void SurfaceMapBase::takenBeams(const LaserScan& scan, MatchPoints& out) const noexcept {
-  out.clear();
-  for (std::size_t i = 0; i < scan.size(); ++i) {
-    const double r = static_cast<double>(scan.ranges[i]);
-    if (scan.isValid(i) && r <= params_.maxRange) {
-      const double a = static_cast<double>(scan.angle(i));
-      static_cast<void>(
-          out.push_back(MatchPoint{static_cast<float>(r * std::cos(a)), static_cast<float>(r * std::sin(a))}));
-    }
-  }
+  scanToMatchPoints(scan, out, params_.maxRange);
 }
 
 SurfaceInsert SurfaceMapBase::insert(const LaserScan& scan, const Pose2d& sensor) noexcept {

@@ -22,6 +22,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 
 #include "agv/core/capacities.hpp"
 #include "agv/core/fixed_vector.hpp"
@@ -40,6 +41,12 @@ struct MatchPoint {
 /// The points of one scan, for scans that must be de-skewed first (each beam moved to the sensor
 /// frame at one instant with the motion during the sweep, `SweepCompensation::atBeam`).
 using MatchPoints = FixedVector<MatchPoint, kMaxScanBeams>;
+
+/// The valid beams of `scan` (`LaserScan::isValid`) no farther than `maxRange` [m], as points in
+/// the laser frame in beam order, into `out` (cleared first). No motion correction: the points of
+/// a scan taken at rest, or whose sweep has been de-skewed already.
+void scanToMatchPoints(const LaserScan& scan, MatchPoints& out,
+                       double maxRange = std::numeric_limits<double>::infinity()) noexcept;
 
 /// Parameters of the scan matcher.
 struct ScanMatchParams {
