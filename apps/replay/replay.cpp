@@ -364,7 +364,8 @@ class ScanReplay {
       std::fputs(
           "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
           "map,match,match_inliers,match_rms,match_d2,correction,heading_correction,match_err_xy,match_err_theta,"
-          "window,hypothesis,hypothesis_checked\n",
+          "window,hypothesis,hypothesis_checked,on_map,lost,true_x,true_y,true_theta,est_x,est_y,est_theta,reloc,"
+          "reloc_err_xy,reloc_err_theta,reloc_inliers,reloc_points,reloc_rms,reloc_truth_in_region,reloc_truth_fits\n",
           trace_);
     }
     return true;
@@ -474,6 +475,8 @@ class ScanReplay {
       Pose2d refined;
       if (relocalizer_->confirm(*points_, mount, carried, *field_, refined)) {
         candidate_ = refined;
+        traceRelocLabel_ = "confirming";
+        traceReloc_.pose = refined;
         if (++confirmations_ >= options_.relocConfirmations) {
           Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
           // The candidate's fit over the confirmations, loosely: the tracking refines it.
@@ -483,12 +486,14 @@ class ScanReplay {
             ++r_.relocConfirmed;
             const Pose2d& t = log_.scans[i].robotPose;
             r_.relocWrong += isWrongRestart(candidate_, t) ? 1U : 0U;
+            traceRelocLabel_ = "confirmed";
           }
           reloc_ = RelocState::Idle;
         }
         return;
       }
       ++r_.relocUnconfirmed;
+      traceRelocLabel_ = "unconfirmed";  // then a new search: the label below overrides it
       reloc_ = RelocState::Searching;
     }
     const auto t0 = std::chrono::steady_clock::now();
@@ -505,6 +510,19 @@ class ScanReplay {
     ++r_.relocSearches;
     r_.relocAmbiguous += f.outcome == FieldRelocOutcome::Ambiguous ? 1U : 0U;
     r_.relocWeak += f.outcome == FieldRelocOutcome::WeakSupport ? 1U : 0U;
+    traceReloc_ = f;
+    traceRelocLabel_ = f.outcome == FieldRelocOutcome::Found         ? "found"
+                       : f.outcome == FieldRelocOutcome::WeakSupport ? "weak"
+                       : f.outcome == FieldRelocOutcome::Ambiguous   ? "ambiguous"
+                                                                     : "none";
+    if (trace_ != nullptr) {
+      // For the trace: whether the true pose lay inside the searched region and whether the
+      // relocalizer would accept it there (its confirmation from the true pose: the fit it demands).
+      const Pose2d& t = log_.scans[i].robotPose;
+      Pose2d refined;
+      traceTruthInRegion_ = region.radius <= 0.0 || std::hypot(t.x - region.x, t.y - region.y) <= region.radius;
+      traceTruthFits_ = relocalizer_->confirm(*points_, mount, t, *field_, refined);
+    }
     if (f.outcome == FieldRelocOutcome::Found) {
       ++r_.relocFound;
       candidate_ = f.pose;
@@ -615,17 +633,28 @@ class ScanReplay {
     }
     const Pose2d& e = r_.localizer.back();
     const Pose2d& t = log_.scans[i].robotPose;
-    std::fprintf(
-        trace_,
-        "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f,%.4f,%.5f,%.4f,%.4f,%.2f,%u,%d\n", i,
-        obs_->points.size(), unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched},
-        unsigned{h.rejectedGate}, unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma, h.headingSigma,
-        std::hypot(e.x - t.x, e.y - t.y), normalizeAngle(e.theta - t.theta), map_->size(),
-        h.scanMatch.attempted ? toString(h.scanMatch.status) : "-", unsigned{h.scanMatch.inliers},
-        h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2, h.correction, h.headingCorrection,
-        std::hypot(h.scanMatch.pose.x - t.x, h.scanMatch.pose.y - t.y),
-        normalizeAngle(h.scanMatch.pose.theta - t.theta), h.scanMatch.window, unsigned{h.scanMatch.consecutiveGated},
-        h.scanMatch.hypothesisChecked ? 1 : 0);
+    std::fprintf(trace_,
+                 "%zu,%zu,%u,%u,%u,%u,%u,%u,%#x,%.4f,%.4f,%.4f,%.4f,%zu,%s,%u,%.4f,%.2f,%.4f,%.5f,%.4f,%.4f,%.2f,%u,%d",
+                 i, obs_->points.size(), unsigned{h.used}, unsigned{h.expectedInView}, unsigned{h.unmatched},
+                 unsigned{h.rejectedGate}, unsigned{h.inserted}, unsigned{h.deleted}, h.flags, h.positionSigma,
+                 h.headingSigma, std::hypot(e.x - t.x, e.y - t.y), normalizeAngle(e.theta - t.theta), map_->size(),
+                 h.scanMatch.attempted ? toString(h.scanMatch.status) : "-", unsigned{h.scanMatch.inliers},
+                 h.scanMatch.rmsResidual, h.scanMatch.mahalanobis2, h.correction, h.headingCorrection,
+                 std::hypot(h.scanMatch.pose.x - t.x, h.scanMatch.pose.y - t.y),
+                 normalizeAngle(h.scanMatch.pose.theta - t.theta), h.scanMatch.window,
+                 unsigned{h.scanMatch.consecutiveGated}, h.scanMatch.hypothesisChecked ? 1 : 0);
+    // Appended columns (the ones above keep their order): whether the scan is on the map at its
+    // true pose, the poses, and this scan's field relocalization (its best refined match).
+    const FieldRelocResult& f = traceReloc_;
+    std::fprintf(trace_, ",%d,%d,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%s,%.4f,%.4f,%u,%u,%.4f,%d,%d\n",
+                 !r_.onMap.empty() && r_.onMap.back() ? 1 : 0, h.lost ? 1 : 0, t.x, t.y, t.theta, e.x, e.y, e.theta,
+                 traceRelocLabel_, std::hypot(f.pose.x - t.x, f.pose.y - t.y), normalizeAngle(f.pose.theta - t.theta),
+                 unsigned{f.inliers}, unsigned{f.points}, f.rmsResidual, traceTruthInRegion_ ? 1 : 0,
+                 traceTruthFits_ ? 1 : 0);
+    traceRelocLabel_ = "-";
+    traceTruthInRegion_ = false;
+    traceTruthFits_ = false;
+    traceReloc_ = FieldRelocResult{};
   }
 
   const datasets::CarmenLog& log_;
@@ -645,6 +674,10 @@ class ScanReplay {
   std::unique_ptr<ScanObservations> obs_ = std::make_unique<ScanObservations>();
   enum class RelocState : std::uint8_t { Idle, Searching, Confirming };
   RelocState reloc_ = RelocState::Idle;
+  FieldRelocResult traceReloc_{};      // this scan's search, for the trace
+  const char* traceRelocLabel_ = "-";  // "-": no search this scan
+  bool traceTruthInRegion_ = false;    // the search's region held the true position
+  bool traceTruthFits_ = false;        // the relocalizer accepts the true pose (its confirmation)
   std::unique_ptr<FieldRelocalizer> relocalizer_;
   std::unique_ptr<MatchPoints> points_ = std::make_unique<MatchPoints>();
   // With `mapChanges`: the changes since the mapping run, and the scan's points (all, those kept
