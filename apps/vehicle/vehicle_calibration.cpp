@@ -42,11 +42,17 @@ class SocketCanDrives final : public VehicleDrives {
 
   void quickStop() noexcept override { drives_.quickStop(canopen::SafeStopReason::PlcStop); }
 
-  void release() noexcept override { static_cast<void>(drives_.release()); }
+  void release() noexcept override {
+    releasePending_ = true;
+    releaseSince_ = Timestamp{};
+  }
 
   std::uint32_t faultCode() const noexcept override { return drivesFaultCode(drives_.controller()); }
 
   void cycle(Timestamp now) noexcept override {
+    if (releasePending_) {
+      serveRelease(now);
+    }
     if (opened_) {
       static_cast<void>(drives_.cycle(now));
     }
@@ -60,8 +66,26 @@ class SocketCanDrives final : public VehicleDrives {
     return d;
   }
 
+  /// The controller releases only at a standstill it has seen in a recent TPDO: until then
+  /// (a late TPDO in a loaded cycle) the zero set-point is held; after `kReleaseWait` without one
+  /// the release is given up and the set-point watchdog quick-stops as before.
+  void serveRelease(Timestamp now) noexcept {
+    if (releaseSince_.ns == 0) {
+      releaseSince_ = now;
+    }
+    if (drives_.controller().state() != canopen::DriveControllerState::Enabled || drives_.release() == Status::Ok ||
+        now - releaseSince_ > kReleaseWait) {
+      releasePending_ = false;
+      return;
+    }
+    static_cast<void>(drives_.stop());
+  }
+
+  static constexpr Duration kReleaseWait = Duration::fromMilliseconds(1000);
   std::string name_;
   drivers::SocketCanDriveControl drives_;
+  bool releasePending_ = false;
+  Timestamp releaseSince_{};
   bool opened_ = false;
   bool startRefused_ = false;  // the last bring-up could not start (no bus)
 };

@@ -39,7 +39,9 @@ class VehicleDrives {
   /// Traction quick stop now (the PLC's Stop, an abort).
   virtual void quickStop() noexcept = 0;
   /// The routine is done and the vehicle stands: hand the drives back in order (CiA 402 disable
-  /// operation), not by the set-point watchdog's quick stop.
+  /// operation), not by the set-point watchdog's quick stop. The CiA 402 drives do it in a later
+  /// `cycle()` once a recent TPDO shows the standstill (zero set-point held meanwhile, for at most
+  /// 1 s; then the watchdog's quick stop ends it as before).
   virtual void release() noexcept = 0;
   /// The fault or error code of the drive that stopped (0: none known).
   virtual std::uint32_t faultCode() const noexcept = 0;

@@ -591,6 +591,11 @@ TEST_CASE("release: the drives handed back by disable operation, not by the set-
   b.bringUp();
   b.drive(0.6, 0.1, Duration::fromMilliseconds(1500));
   REQUIRE(b.traction.velocity() > 5000.0);
+  // Not while moving: nothing changes, the set-points go on.
+  CHECK(b.ctl->release() == Status::Rejected);
+  CHECK(b.ctl->state() == DriveControllerState::Enabled);
+  b.drive(0.6, 0.1, Duration::fromMilliseconds(100));
+  CHECK(b.traction.velocity() > 5000.0);
   // Stopped by set-point (the profile deceleration), as a routine ends a segment.
   for (int i = 0; i < 200 && !b.ctl->isStandstill(); ++i) {
     REQUIRE(b.ctl->stop() == Status::Ok);

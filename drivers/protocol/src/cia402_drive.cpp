@@ -771,7 +771,9 @@ void Cia402DriveController::trigger(SafeStopReason reason) noexcept {
 }
 
 Status Cia402DriveController::release() noexcept {
-  if (state_ != DriveControllerState::Enabled) {
+  // Only a standing vehicle: how a drive leaves Operation enabled on "disable operation" is its
+  // option code 0x605C (some coast), and a moving one is stopped by stop() or the quick stop.
+  if (state_ != DriveControllerState::Enabled || !isStandstill()) {
     return Status::Rejected;
   }
   traction_.setTargetVelocity(0);

@@ -382,8 +382,10 @@ class Cia402DriveController final : public hal::DriveControl {
   /// The end of a motion task (the calibration routine done, the vehicle standing): the traction
   /// target goes to 0 and both axes get "disable operation" (Operation enabled -> Switched on), so
   /// the set-point watchdog does not quick-stop a vehicle that was told to stop. The heartbeats and
-  /// faults stay supervised (a trigger then quick-stops as in any state). Only while `Enabled`;
-  /// `Rejected` otherwise (a safe stop stays a safe stop).
+  /// faults stay supervised (a trigger then quick-stops as in any state). Only while `Enabled`
+  /// with the traction at standstill (`isStandstill()`: a drive's reaction to "disable operation",
+  /// 0x605C, may be to coast); `Rejected` otherwise, changing nothing (a safe stop stays a safe
+  /// stop; a moving vehicle is left to `stop()`, the quick stop or the set-point watchdog).
   Status release() noexcept;
   /// The process is exiting: quick stop (reason `Shutdown`).
   void shutdown() noexcept { quickStop(SafeStopReason::Shutdown); }
