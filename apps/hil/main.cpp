@@ -69,6 +69,7 @@ struct Options {
   int relocSpurious = 0;
   double relocMiss = 0.0;
   int relocDecoys = 0;
+  std::size_t relocRefutedMargin = agv::GlobalLocalizerParams{}.refutedMargin;
   std::size_t relocMargin = agv::GlobalLocalizerParams{}.ambiguityMargin;
 };
 
@@ -117,6 +118,10 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
                  "relocalization: adversarial reflector detections per trial where the best wrong pose expects "
                  "landmarks the true view lacks (default 0)")
       ->check(CLI::Range(0, 16));
+  app.add_option("--reloc-margin-refuted", o.relocRefutedMargin,
+                 "relocalization: the search's margin against a runner-up the scan's negative evidence refutes "
+                 "(default 2)")
+      ->check(CLI::Range(0, 16));
   app.add_option("--reloc-margin", o.relocMargin,
                  "relocalization: the search's ambiguity margin in inliers (default 2)")
       ->check(CLI::Range(0, 16));
@@ -154,6 +159,7 @@ ScenarioConfig scenarioConfig(const Options& o) {
   cfg.relocSpurious = o.relocSpurious;
   cfg.relocMissProbability = o.relocMiss;
   cfg.relocDecoys = o.relocDecoys;
+  cfg.relocRefutedMargin = o.relocRefutedMargin;
   cfg.relocAmbiguityMargin = o.relocMargin;
   if (o.shortScenario) {
     cfg.relocColdStarts = 4;

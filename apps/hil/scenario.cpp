@@ -579,6 +579,7 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
   ClutteredLaser cluttered(laser, vehicle, std::move(spurious), cfg.relocMissProbability, seed ^ 0x2545F4914F6CDD1DULL);
   nav::PipelineParams params = pipelineParams(cfg, LocalizationMode::Reflectors);
   params.relocalization.search.ambiguityMargin = cfg.relocAmbiguityMargin;
+  params.relocalization.search.refutedMargin = cfg.relocRefutedMargin;
   nav::Pipeline pipeline(params, map, nav::PipelineDevices{canEncoders, cluttered, plc, clock});
   Timestamp t{};
   vehicle.reset(kidnapFrom != nullptr ? *kidnapFrom : start, t);

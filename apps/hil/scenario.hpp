@@ -120,6 +120,8 @@ struct ScenarioConfig {
   int relocDecoys = 0;
   /// The relocalization search's ambiguity margin (GlobalLocalizerParams::ambiguityMargin).
   std::size_t relocAmbiguityMargin = GlobalLocalizerParams{}.ambiguityMargin;
+  /// The margin against a negative-evidence-refuted runner-up (GlobalLocalizerParams::refutedMargin).
+  std::size_t relocRefutedMargin = GlobalLocalizerParams{}.refutedMargin;
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
   std::int16_t dynamicMinHitsToCorrect = 10;
   /// Missions (`runMissions`): runs per mission, standstill at each operation point (pick or drop)
