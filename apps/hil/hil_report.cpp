@@ -389,6 +389,7 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                           {"unique", tr.unique},
                           {"visible_reflectors", tr.visibleReflectors},
                           {"distinct_pose_support", tr.otherSupport},
+                          {"decoys", tr.decoys},
                           {"searches", tr.searches},
                           {"candidates", tr.candidates},
                           {"unconfirmed", tr.unconfirmed},

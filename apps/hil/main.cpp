@@ -68,6 +68,8 @@ struct Options {
   bool relocalizationOnly = false;
   int relocSpurious = 0;
   double relocMiss = 0.0;
+  int relocDecoys = 0;
+  std::size_t relocRefutedMargin = agv::GlobalLocalizerParams{}.refutedMargin;
   std::size_t relocMargin = agv::GlobalLocalizerParams{}.ambiguityMargin;
 };
 
@@ -112,6 +114,14 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
   app.add_option("--reloc-miss", o.relocMiss,
                  "relocalization: probability that a visible reflector is not detected in a sweep (default 0)")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--reloc-decoys", o.relocDecoys,
+                 "relocalization: adversarial reflector detections per trial where the best wrong pose expects "
+                 "landmarks the true view lacks (default 0)")
+      ->check(CLI::Range(0, 16));
+  app.add_option("--reloc-margin-refuted", o.relocRefutedMargin,
+                 "relocalization: the search's margin against a runner-up the scan's negative evidence refutes "
+                 "(default 2)")
+      ->check(CLI::Range(0, 16));
   app.add_option("--reloc-margin", o.relocMargin,
                  "relocalization: the search's ambiguity margin in inliers (default 2)")
       ->check(CLI::Range(0, 16));
@@ -148,6 +158,8 @@ ScenarioConfig scenarioConfig(const Options& o) {
   }
   cfg.relocSpurious = o.relocSpurious;
   cfg.relocMissProbability = o.relocMiss;
+  cfg.relocDecoys = o.relocDecoys;
+  cfg.relocRefutedMargin = o.relocRefutedMargin;
   cfg.relocAmbiguityMargin = o.relocMargin;
   if (o.shortScenario) {
     cfg.relocColdStarts = 4;
@@ -413,9 +425,13 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
     if (tr.kidnapped) {
       std::printf(" (lost %s)", tr.lostDetected ? "detected" : "NOT detected");
     }
-    std::printf("%s; %s (%zu visible, a distinct pose explains %zu)\n",
+    std::printf("%s; %s (%zu visible, a distinct pose explains %zu",
                 tr.ambiguous > 0 ? " (ambiguous searches refused)" : "", tr.unique ? "unique" : "NOT unique",
                 tr.visibleReflectors, tr.otherSupport);
+    if (cfg.relocDecoys > 0) {
+      std::printf("; %zu decoys for it", tr.decoys);
+    }
+    std::printf(")\n");
     if (!tr.found) {
       // Why: the last sweep searched again with the pipeline's parameters.
       std::printf("        not found: %" PRIu64 " searches, %" PRIu64 " candidates, %" PRIu64
@@ -449,6 +465,16 @@ std::size_t printRelocalizationSummary(const ScenarioConfig& cfg, const SessionR
   std::printf(
       "cold starts unique beyond the ambiguity margin (every distinct pose explains %zu fewer): found %zu of %zu\n",
       margin + 1, cs.uniqueBeyondMarginFound, cs.uniqueBeyondMargin);
+  if (cfg.relocDecoys > 0) {
+    std::size_t placed = 0;
+    std::size_t full = 0;
+    for (const agv::hil::RelocTrial& tr : s.reloc) {
+      placed += tr.decoys;
+      full += tr.decoys == static_cast<std::size_t>(cfg.relocDecoys) ? 1U : 0U;
+    }
+    std::printf("decoys: %zu placed (up to %d per trial; all %d in %zu of %zu trials)\n", placed, cfg.relocDecoys,
+                cfg.relocDecoys, full, s.reloc.size());
+  }
   return wrong;
 }
 

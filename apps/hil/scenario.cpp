@@ -472,12 +472,72 @@ class ClutteredLaser final : public hal::LaserSource {
   std::normal_distribution<double> normal_{0.0, 1.0};
 };
 
+/// Adversarial decoys: up to `count` world places where a shiny object completes the wrong pose
+/// `other` (the oracle's runner-up: the distinct pose explaining most of the reflectors visible
+/// from `truth`). A map reflector L that the wrong pose's laser would see (field of view, the
+/// reflector range, beyond the minimum range) and that none of the true view's reflectors
+/// explains under it (within `gate`) is a place the wrong hypothesis expects and the truth lacks.
+/// The decoy goes where the true laser sees the point the wrong laser would see L at:
+/// trueLaser * otherLaser^-1 * L, so it lands on L under the wrong pose. Physical rules: the true
+/// laser must see the decoy (a ray from it reaches the place with nothing in front, within 0.05 m),
+/// and it must not be within 0.3 m of a real reflector pole (a decoy is an object next to the
+/// poles, not one of them). Nearest first. Empty when the oracle found no distinct pose.
+std::vector<Pose2d::Vector2> relocDecoys(const sim::RayCaster& caster, const ScenarioConfig& cfg,
+                                         const std::vector<OraclePoint>& landmarks,
+                                         const std::vector<OraclePoint>& seenVehicle, const Pose2d& truth,
+                                         const Pose2d& other, int count, double gate) {
+  std::vector<std::pair<double, Pose2d::Vector2>> places;
+  if (count <= 0) {
+    return {};
+  }
+  const Pose2d trueLaser = truth.compose(cfg.vehicle.laserMount);
+  const Pose2d otherLaser = other.compose(cfg.vehicle.laserMount);
+  const sim::World& world = caster.world();
+  for (const OraclePoint& l : landmarks) {
+    const Pose2d::Vector2 v = otherLaser.inverseTransformPoint(Pose2d::Vector2(l.x, l.y));
+    const double d = v.norm();
+    const double bearing = std::atan2(v.y(), v.x());
+    if (std::fabs(bearing) > 0.5 * cfg.laser.fieldOfView || d > cfg.laser.reflectorMaxRange ||
+        d < std::max(cfg.laser.rangeMin, 2.0 * gate)) {
+      continue;
+    }
+    bool explained = false;
+    for (const OraclePoint& o : seenVehicle) {
+      const Pose2d::Vector2 w = other.transformPoint(Pose2d::Vector2(o.x, o.y));
+      explained = explained || std::hypot(w.x() - l.x, w.y() - l.y) <= gate;
+    }
+    if (explained) {
+      continue;
+    }
+    const Pose2d::Vector2 w = trueLaser.transformPoint(v);
+    const sim::RayHit hit = caster.cast(sim::Point2{trueLaser.x, trueLaser.y}, trueLaser.theta + bearing, d);
+    if (hit.hit && hit.range < d - 0.05) {
+      continue;  // something in front of it: the true laser would not see it
+    }
+    bool nearPole = false;
+    for (const sim::Circle& c : world.circles) {
+      nearPole = nearPole ||
+                 (c.kind == sim::ObstacleKind::Reflector && std::hypot(c.centre.x - w.x(), c.centre.y - w.y()) < 0.3);
+    }
+    if (!nearPole) {
+      places.emplace_back(d, w);
+    }
+  }
+  std::sort(places.begin(), places.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<Pose2d::Vector2> out;
+  for (std::size_t i = 0; i < places.size() && out.size() < static_cast<std::size_t>(count); ++i) {
+    out.push_back(places[i].second);
+  }
+  return out;
+}
+
 /// One relocalization trial (see `RelocTrial`): standing vehicle, reflectors on the surveyed map.
 RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, LandmarkMap& map, const Pose2d& start,
                       const Pose2d* kidnapFrom, double maxSeconds, std::uint64_t seed) {
   RelocTrial trial;
   trial.kidnapped = kidnapFrom != nullptr;
   trial.truth = start;
+  std::vector<Pose2d::Vector2> decoys;
   {
     // The oracle: the reflectors visible from the truth, noise-free, in the vehicle frame, against
     // the surveyed map's reflectors.
@@ -496,6 +556,10 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
     trial.unique = u.unique;
     trial.visibleReflectors = u.visible;
     trial.otherSupport = u.otherSupport;
+    if (u.otherSupport > 0) {
+      decoys = relocDecoys(caster, cfg, landmarks, seen, start, u.other, cfg.relocDecoys, UniquenessParams{}.tolerance);
+    }
+    trial.decoys = decoys.size();
   }
   sim::SimVehicleParams truth = cfg.vehicle;
   sim::SimVehicle vehicle(truth, seed ^ 0x9E3779B97F4A7C15ULL);
@@ -511,9 +575,11 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
     const double a = 2.0 * 3.14159265358979323846 * unit(clutterRng);
     spurious.emplace_back(start.x + r * std::cos(a), start.y + r * std::sin(a));
   }
+  spurious.insert(spurious.end(), decoys.begin(), decoys.end());
   ClutteredLaser cluttered(laser, vehicle, std::move(spurious), cfg.relocMissProbability, seed ^ 0x2545F4914F6CDD1DULL);
   nav::PipelineParams params = pipelineParams(cfg, LocalizationMode::Reflectors);
   params.relocalization.search.ambiguityMargin = cfg.relocAmbiguityMargin;
+  params.relocalization.search.refutedMargin = cfg.relocRefutedMargin;
   nav::Pipeline pipeline(params, map, nav::PipelineDevices{canEncoders, cluttered, plc, clock});
   Timestamp t{};
   vehicle.reset(kidnapFrom != nullptr ? *kidnapFrom : start, t);

@@ -114,8 +114,14 @@ struct ScenarioConfig {
   /// Probability that the laser misses a visible reflector in a sweep of a relocalization trial
   /// (0: none, the default; the simulated laser itself detects every visible pole).
   double relocMissProbability = 0.0;
+  /// Adversarial decoys per relocalization trial (0: none, the default): reflector detections at
+  /// the places where the oracle's best wrong pose expects landmarks the true view lacks (see
+  /// `relocDecoys` in scenario.cpp), the worst case for the ambiguity margin.
+  int relocDecoys = 0;
   /// The relocalization search's ambiguity margin (GlobalLocalizerParams::ambiguityMargin).
   std::size_t relocAmbiguityMargin = GlobalLocalizerParams{}.ambiguityMargin;
+  /// The margin against a negative-evidence-refuted runner-up (GlobalLocalizerParams::refutedMargin).
+  std::size_t relocRefutedMargin = GlobalLocalizerParams{}.refutedMargin;
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
   std::int16_t dynamicMinHitsToCorrect = 10;
   /// Missions (`runMissions`): runs per mission, standstill at each operation point (pick or drop)
@@ -228,6 +234,7 @@ struct RelocTrial {
   bool unique = false;                ///< no pose 0.5 m / 10 deg away explains the same reflectors
   std::size_t visibleReflectors = 0;  ///< reflectors visible from `truth` (noise-free)
   std::size_t otherSupport = 0;       ///< of those, the most a distinct pose puts on the map
+  std::size_t decoys = 0;             ///< adversarial decoys placed (`ScenarioConfig::relocDecoys`)
   // Why a trial was not found: the pipeline's counters (searches, those that gave a candidate,
   // candidates a later sweep rejected) and, on the last sweep, a search of the same reflectors
   // with the pipeline's parameters: their count, its outcome, its best pose's inliers and the

@@ -495,3 +495,81 @@ TEST_CASE("global localizer: a scan's clear view refutes a pose that expects und
     CHECK(r.secondMissed == 0U);
   }
 }
+
+#ifndef AGV_TEST_MCU  // host only: a second map, localizer and scan would not fit the M7 image's RAM budget
+TEST_CASE("global localizer: the margin against a runner-up the scan refutes, and decoys completing a copy",
+          "[loop][reloc]") {
+  // Four poles seen from the origin; 40 m away a copy of three of them and `extra` more poles in
+  // a vehicle's clear view at the copy. The copy explains 3 of the 4 observations.
+  static LandmarkMap map;
+  const Eigen::Vector2d seen[4] = {{5.0, 0.5}, {0.5, 6.0}, {-4.0, -3.0}, {3.0, -5.5}};
+  // Farther from the copy than the seen poles: the three nearest detections (the anchors) stay true.
+  const Eigen::Vector2d extraPoles[3] = {{48.0, 3.0}, {33.0, 4.0}, {46.0, -6.0}};
+  const auto build = [&](std::size_t extra) {
+    map.clear();
+    std::uint32_t id = 1;
+    for (const Eigen::Vector2d& p : seen) {
+      REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
+    }
+    for (std::size_t i = 0; i < 3; ++i) {
+      REQUIRE(map.addSurveyed(LandmarkKind::Reflector, seen[i].x() + 40.0, seen[i].y(), 0.001, id++).ok());
+    }
+    for (std::size_t i = 0; i < extra; ++i) {
+      REQUIRE(map.addSurveyed(LandmarkKind::Reflector, extraPoles[i].x(), extraPoles[i].y(), 0.001, id++).ok());
+    }
+    map.setMode(MapMode::Static);
+  };
+  PointObservation obs[7];
+  for (std::size_t i = 0; i < 4; ++i) {
+    obs[i] = PointObservation{seen[i].x(), seen[i].y(), LandmarkKind::Reflector};
+  }
+  static GlobalLocalizer loc;  // laser at the logical point
+  static LaserScan scan;
+  scan.angleMin = -3.14159265F;
+  scan.angleIncrement = 2.0F * 3.14159265F / 720.0F;
+  scan.rangeMin = 0.1F;
+  scan.rangeMax = 50.0F;
+  scan.ranges.clear();
+  for (std::size_t i = 0; i < 720; ++i) {
+    REQUIRE(scan.ranges.push_back(20.0F) == Status::Ok);  // walls 20 m away, nothing nearer
+  }
+  RelocReport r;
+  GlobalLocalizerParams p;
+  {  // one extra pole: the copy scores 3 - 1 = 2 against 4. Margin 2: ambiguous.
+    build(1);
+    loc.setParams(p);
+    CHECK(loc.localize(map, Span<const PointObservation>(obs, 4), scan, r) == Status::Rejected);
+    CHECK(r.outcome == RelocOutcome::Ambiguous);
+    CHECK(r.secondInliers == 3U);
+    CHECK(r.secondMissed == 1U);
+    // Margin 1 against a refuted runner-up: found, at the truth.
+    p.refutedMargin = 1;
+    loc.setParams(p);
+    REQUIRE(loc.localize(map, Span<const PointObservation>(obs, 4), scan, r) == Status::Ok);
+    CHECK(r.outcome == RelocOutcome::Found);
+    CHECK(std::hypot(r.pose.x, r.pose.y) < 0.01);
+    CHECK(r.secondMissed == 1U);
+    AGV_CHECK_NO_ALLOCATIONS((void)loc.localize(map, Span<const PointObservation>(obs, 4), scan, r));
+  }
+  {  // three extra poles and three decoys where the copy expects them: the copy explains 6 of 7,
+     // nothing missed; the truth 4, nothing missed. The truth is not refuted: margin 2 holds.
+    build(3);
+    for (std::size_t i = 0; i < 3; ++i) {
+      obs[4 + i] = PointObservation{extraPoles[i].x() - 40.0, extraPoles[i].y(), LandmarkKind::Reflector};
+    }
+    const Span<const PointObservation> o(obs, 7);
+    p.refutedMargin = 1;
+    loc.setParams(p);
+    CHECK(loc.localize(map, o, scan, r) == Status::Rejected);
+    CHECK(r.outcome == RelocOutcome::Ambiguous);
+    CHECK(r.inliers == 6U);
+    CHECK(r.secondInliers == 4U);
+    CHECK(r.secondMissed == 0U);
+    // A margin of 1 for every runner-up takes the decoy-completed copy: the wrong pose.
+    p.ambiguityMargin = 1;
+    loc.setParams(p);
+    REQUIRE(loc.localize(map, o, scan, r) == Status::Ok);
+    CHECK(std::fabs(r.pose.x - 40.0) < 0.05);
+  }
+}
+#endif

@@ -430,6 +430,8 @@ Status GlobalLocalizer::search(const LandmarkMap& map, Span<const PointObservati
   out.missed = missed(best_.pose, observations, *scan);
   const long bestScore = static_cast<long>(best_.inliers) - static_cast<long>(out.missed);
   const auto margin = static_cast<long>(params_.ambiguityMargin);
+  // Against a place the scan refutes (it misses a landmark): refutedMargin, never more than margin.
+  const long refutedMargin = std::min(margin, static_cast<long>(params_.refutedMargin));
   bool ambiguous = false;
   bool haveCompetitor = false;
   long competitorScore = 0;
@@ -448,7 +450,7 @@ Status GlobalLocalizer::search(const LandmarkMap& map, Span<const PointObservati
       out.secondInliers = m.inliers;
       out.secondMissed = mMissed;
     }
-    ambiguous = ambiguous || score + margin >= bestScore;
+    ambiguous = ambiguous || score + (mMissed > 0 ? refutedMargin : margin) >= bestScore;
   }
   if (modesDropped_ && static_cast<long>(droppedInliers_) + margin >= bestScore) {
     out.modesOverflowed = true;
