@@ -104,6 +104,19 @@ GlobalLocalizerParams params() {
   return p;
 }
 
+/// A 720-beam full-turn scan of walls 20 m away all round, nothing nearer: every pole of the
+/// map within 20 m of a pose is in its clear view.
+void openRoomScan(LaserScan& scan) {
+  scan.angleMin = -3.14159265F;
+  scan.angleIncrement = 2.0F * 3.14159265F / 720.0F;
+  scan.rangeMin = 0.1F;
+  scan.rangeMax = 50.0F;
+  scan.ranges.clear();
+  for (std::size_t i = 0; i < 720; ++i) {
+    REQUIRE(scan.ranges.push_back(20.0F) == Status::Ok);
+  }
+}
+
 }  // namespace
 
 TEST_CASE("global localizer: finds random poses in a 256-pole warehouse, never a wrong one", "[loop][reloc]") {
@@ -452,14 +465,7 @@ TEST_CASE("global localizer: a scan's clear view refutes a pose that expects und
   const Span<const PointObservation> o(obs, 4);
   static GlobalLocalizer loc;  // laser at the logical point
   static LaserScan scan;
-  scan.angleMin = -3.14159265F;
-  scan.angleIncrement = 2.0F * 3.14159265F / 720.0F;
-  scan.rangeMin = 0.1F;
-  scan.rangeMax = 50.0F;
-  scan.ranges.clear();
-  for (std::size_t i = 0; i < 720; ++i) {
-    REQUIRE(scan.ranges.push_back(20.0F) == Status::Ok);  // walls 20 m away, nothing nearer
-  }
+  openRoomScan(scan);
   RelocReport r;
   {  // inliers alone: ambiguous
     CHECK(loc.localize(map, o, r) == Status::Rejected);
@@ -525,14 +531,7 @@ TEST_CASE("global localizer: the margin against a runner-up the scan refutes, an
   }
   static GlobalLocalizer loc;  // laser at the logical point
   static LaserScan scan;
-  scan.angleMin = -3.14159265F;
-  scan.angleIncrement = 2.0F * 3.14159265F / 720.0F;
-  scan.rangeMin = 0.1F;
-  scan.rangeMax = 50.0F;
-  scan.ranges.clear();
-  for (std::size_t i = 0; i < 720; ++i) {
-    REQUIRE(scan.ranges.push_back(20.0F) == Status::Ok);  // walls 20 m away, nothing nearer
-  }
+  openRoomScan(scan);
   RelocReport r;
   GlobalLocalizerParams p;
   {  // one extra pole: the copy scores 3 - 1 = 2 against 4. Margin 2: ambiguous.

@@ -40,6 +40,7 @@
 #include "calibration_check.hpp"
 #include "plc_modbus_client.hpp"
 #include "sim_drive_side.hpp"
+#include "cia402_frames.hpp"
 #include "vcan_peer.hpp"
 #include "vcan_programs.hpp"
 
@@ -48,6 +49,10 @@ using agv::Pose2d;
 using agv::Status;
 using agv::Timestamp;
 using agv::drivers::CanFrame;
+using agv::test::i32;
+using agv::test::isQuickStop;
+using agv::test::kTractionRpdo;
+using agv::test::u16;
 using agv::drivers::monotonicNow;
 using agv::drivers::canopen::decodeStatusword;
 using agv::drivers::canopen::PowerState;
@@ -65,7 +70,6 @@ const Pose2d kStart{10.0, 12.5, 0.0};
 constexpr std::uint32_t kNmt = 0x000;
 constexpr std::uint32_t kTractionEmcy = 0x081;
 constexpr std::uint32_t kTractionTpdo1 = 0x181;
-constexpr std::uint32_t kTractionRpdo = 0x201;
 constexpr std::uint32_t kSteeringRpdo = 0x203;
 constexpr std::uint32_t kTractionTpdo2 = 0x281;
 constexpr std::uint32_t kTractionSdo = 0x601;
@@ -76,19 +80,6 @@ constexpr std::uint32_t kControllerHeartbeat = 0x77F;
 /// The traction drive's velocity unit: 10000 per m/s (the controller's default, docs/drives.md).
 constexpr double kVelocityUnitsPerMps = 10000.0;
 
-std::uint16_t u16(const CanFrame& f, unsigned at) {
-  return static_cast<std::uint16_t>(f.data[at] | (f.data[at + 1] << 8U));
-}
-std::int32_t i32(const CanFrame& f, unsigned at) {
-  std::uint32_t v = 0;
-  for (unsigned i = 0; i < 4U; ++i) {
-    v |= static_cast<std::uint32_t>(f.data[at + i]) << (8U * i);
-  }
-  return static_cast<std::int32_t>(v);
-}
-bool isQuickStop(const CanFrame& f) {
-  return f.id == kTractionRpdo && f.dlc == 6 && u16(f, 0) == 0x0002;
-}
 /// A frame of the drive controller: NMT other than the encoder source's Start of nodes 1 and 2,
 /// RPDOs, SDO requests, its heartbeat.
 bool fromDriveController(const CanFrame& f) {

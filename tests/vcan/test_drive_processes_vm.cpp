@@ -27,6 +27,7 @@
 #include "agv/drivers/linux/socketcan_bus.hpp"
 #include "agv/drivers/protocol/canopen/cia402.hpp"
 #include "agv_test.hpp"
+#include "cia402_frames.hpp"
 #include "vcan_peer.hpp"
 #include "vcan_programs.hpp"
 
@@ -36,6 +37,10 @@ using agv::Duration;
 using agv::Status;
 using agv::Timestamp;
 using agv::drivers::CanFrame;
+using agv::test::i32;
+using agv::test::isQuickStop;
+using agv::test::kTractionRpdo;
+using agv::test::u16;
 using agv::drivers::monotonicNow;
 using agv::drivers::canopen::decodeStatusword;
 using agv::drivers::canopen::PowerState;
@@ -48,26 +53,12 @@ constexpr std::uint32_t kTractionEmcy = 0x081;
 constexpr std::uint32_t kSteeringEmcy = 0x083;
 constexpr std::uint32_t kTractionTpdo1 = 0x181;
 constexpr std::uint32_t kTractionTpdo2 = 0x281;
-constexpr std::uint32_t kTractionRpdo = 0x201;
 constexpr std::uint32_t kSteeringSdoRequest = 0x603;
 constexpr std::uint32_t kTractionHeartbeat = 0x701;
 constexpr std::uint32_t kSteeringHeartbeat = 0x703;
 constexpr std::uint32_t kControllerHeartbeat = 0x77F;
 constexpr std::uint16_t kControllerLostCode = 0x8130;  // the drives' heartbeat consumer fault
 
-std::uint16_t u16(const CanFrame& f, unsigned at) {
-  return static_cast<std::uint16_t>(f.data[at] | (f.data[at + 1] << 8U));
-}
-std::int32_t i32(const CanFrame& f, unsigned at) {
-  std::uint32_t v = 0;
-  for (unsigned i = 0; i < 4U; ++i) {
-    v |= static_cast<std::uint32_t>(f.data[at + i]) << (8U * i);
-  }
-  return static_cast<std::int32_t>(v);
-}
-bool isQuickStop(const CanFrame& f) {
-  return !f.error && f.id == kTractionRpdo && f.dlc == 6 && u16(f, 0) == 0x0002;
-}
 /// A frame the controller transmits: NMT, RPDOs, SDO requests, its heartbeat.
 bool fromController(const CanFrame& f) {
   return !f.error && (f.id == 0x000 || f.id == kTractionRpdo || f.id == 0x203 || f.id == 0x601 ||
