@@ -69,8 +69,8 @@ struct Options {
   int relocSpurious = 0;
   double relocMiss = 0.0;
   int relocDecoys = 0;
-  std::size_t relocRefutedMargin = agv::GlobalLocalizerParams{}.refutedMargin;
-  std::size_t relocMargin = agv::GlobalLocalizerParams{}.ambiguityMargin;
+  std::size_t relocRefutedMargin = agv::nav::relocalizationSearchDefaults().refutedMargin;
+  std::size_t relocMargin = agv::nav::relocalizationSearchDefaults().ambiguityMargin;
 };
 
 /// False with `exitCode` set when the program ends here (help, or a refused command line).
@@ -120,7 +120,7 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
       ->check(CLI::Range(0, 16));
   app.add_option("--reloc-margin-refuted", o.relocRefutedMargin,
                  "relocalization: the search's margin against a runner-up the scan's negative evidence refutes "
-                 "(default 2)")
+                 "(default 1, the pipeline's)")
       ->check(CLI::Range(0, 16));
   app.add_option("--reloc-margin", o.relocMargin,
                  "relocalization: the search's ambiguity margin in inliers (default 2)")

@@ -15,6 +15,7 @@
 #include "agv/localization/likelihood_field.hpp"
 #include "agv/loop/global_localizer.hpp"
 #include "agv/mapping/surface_mapper.hpp"
+#include "agv/nav/pipeline.hpp"
 #include "agv/sim/can_encoder_source.hpp"
 #include "agv/sim/pallet_moves.hpp"
 #include "agv/sim/sim_laser.hpp"
@@ -119,9 +120,10 @@ struct ScenarioConfig {
   /// `relocDecoys` in scenario.cpp), the worst case for the ambiguity margin.
   int relocDecoys = 0;
   /// The relocalization search's ambiguity margin (GlobalLocalizerParams::ambiguityMargin).
-  std::size_t relocAmbiguityMargin = GlobalLocalizerParams{}.ambiguityMargin;
-  /// The margin against a negative-evidence-refuted runner-up (GlobalLocalizerParams::refutedMargin).
-  std::size_t relocRefutedMargin = GlobalLocalizerParams{}.refutedMargin;
+  std::size_t relocAmbiguityMargin = nav::relocalizationSearchDefaults().ambiguityMargin;
+  /// The margin against a negative-evidence-refuted runner-up (GlobalLocalizerParams::refutedMargin;
+  /// the pipeline's default, nav::relocalizationSearchDefaults()).
+  std::size_t relocRefutedMargin = nav::relocalizationSearchDefaults().refutedMargin;
   /// Dynamic mode: matches before a new corner corrects the pose (`LocalizerParams::minHitsToCorrect`).
   std::int16_t dynamicMinHitsToCorrect = 10;
   /// Missions (`runMissions`): runs per mission, standstill at each operation point (pick or drop)

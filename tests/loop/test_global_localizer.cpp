@@ -571,4 +571,103 @@ TEST_CASE("global localizer: the margin against a runner-up the scan refutes, an
     CHECK(std::fabs(r.pose.x - 40.0) < 0.05);
   }
 }
+
+TEST_CASE("reloc confirmer: a place passed over by its refutation must stay refuted on every sweep", "[loop][reloc]") {
+  // The map of the margin test with one extra pole: four poles seen from the origin, a copy of
+  // three of them 40 m away and a pole at (48, 3) that a vehicle at the copy has in clear view.
+  // With refutedMargin 1 the truth is found over the copy (3 inliers, 1 missed) by the copy's
+  // refutation alone; the confirmer keeps checking it.
+  static LandmarkMap map;
+  map.clear();
+  const Eigen::Vector2d seen[4] = {{5.0, 0.5}, {0.5, 6.0}, {-4.0, -3.0}, {3.0, -5.5}};
+  std::uint32_t id = 1;
+  for (const Eigen::Vector2d& p : seen) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
+  }
+  for (std::size_t i = 0; i < 3; ++i) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, seen[i].x() + 40.0, seen[i].y(), 0.001, id++).ok());
+  }
+  REQUIRE(map.addSurveyed(LandmarkKind::Reflector, 48.0, 3.0, 0.001, id++).ok());
+  map.setMode(MapMode::Static);
+  PointObservation obs[5];
+  for (std::size_t i = 0; i < 4; ++i) {
+    obs[i] = PointObservation{seen[i].x(), seen[i].y(), LandmarkKind::Reflector};
+  }
+  const Span<const PointObservation> truthView(obs, 4);
+  // A detection where the copy's laser would see the pole at (48, 3): under the truth it lands on
+  // nothing, under the copy on that pole (a decoy).
+  obs[4] = PointObservation{8.0, 3.0, LandmarkKind::Reflector};
+  const Span<const PointObservation> withDecoy(obs, 5);
+  static GlobalLocalizer loc;
+  static LaserScan scan;
+  openRoomScan(scan);
+  GlobalLocalizerParams p;
+  p.refutedMargin = 1;
+  loc.setParams(p);
+  RelocReport r;
+  REQUIRE(loc.localize(map, truthView, scan, r) == Status::Ok);
+  CHECK(std::hypot(r.pose.x, r.pose.y) < 0.01);
+  REQUIRE(r.refutedRivals == 1U);
+  CHECK(std::fabs(r.rivals[0].x - 40.0) < 0.05);
+  CHECK(std::fabs(r.rivals[0].y) < 0.05);
+  // The free function agrees with the search's count.
+  CHECK(missedLandmarks(map, truthView, scan, r.pose, p) == r.missed);
+  CHECK(missedLandmarks(map, truthView, scan, r.rivals[0], p) == r.secondMissed);
+  CHECK(missedLandmarks(map, truthView, scan, r.rivals[0], p) == 1U);
+  CHECK(loc.sameAnswer(r, Pose2d(0.1, -0.1, 0.05)));
+  CHECK_FALSE(loc.sameAnswer(r, Pose2d(1.0, 0.0, 0.0)));
+  CHECK_FALSE(loc.sameAnswer(r, Pose2d(0.0, 0.0, 0.5)));
+  // Without the refuted margin (margin 2 for every place) the same sweep is ambiguous: no rivals.
+  RelocReport strict;
+  GlobalLocalizerParams p2 = p;
+  p2.refutedMargin = 2;
+  loc.setParams(p2);
+  CHECK(loc.localize(map, truthView, scan, strict) == Status::Rejected);
+  CHECK_FALSE(loc.sameAnswer(strict, Pose2d{}));
+  CHECK(strict.refutedRivals == 0U);
+  loc.setParams(p);
+
+  const RelocConfirmParams cp{2, 0.15, 3, 0.6};
+  const Pose2d still{};
+  {  // the same view on the next sweeps: the copy stays refuted, confirmed after 2 sweeps
+    RelocConfirmer c(cp);
+    c.start(r, p, map, truthView, scan);
+    CHECK(c.step(still, map, truthView, p.laserMount, &scan) == RelocConfirmState::Pending);
+    CHECK(c.step(still, map, truthView, p.laserMount, &scan) == RelocConfirmState::Confirmed);
+    CHECK(std::hypot(c.pose().x, c.pose().y) < 0.01);
+  }
+  {  // a confirming sweep whose detections explain the pole at (48, 3) under the copy: the copy
+     // scores 4 with nothing missed, within the margin of the truth's 4: rejected
+    RelocConfirmer c(cp);
+    c.start(r, p, map, truthView, scan);
+    CHECK(c.step(still, map, withDecoy, p.laserMount, &scan) == RelocConfirmState::Rejected);
+  }
+  {  // the pole hidden on a later sweep (something 1 m away all round): the first sweep's
+     // refutation stands, nothing explains the pole (the evidence of all sweeps)
+    RelocConfirmer c(cp);
+    c.start(r, p, map, truthView, scan);
+    static LaserScan blocked;
+    openRoomScan(blocked);
+    for (std::size_t i = 0; i < blocked.ranges.size(); ++i) {
+      blocked.ranges[i] = 1.0F;
+    }
+    CHECK(c.step(still, map, truthView, p.laserMount, &blocked) == RelocConfirmState::Pending);
+    AGV_CHECK_NO_ALLOCATIONS((void)c.step(still, map, truthView, p.laserMount, &blocked));
+    CHECK(c.state() == RelocConfirmState::Confirmed);
+  }
+  {  // rivals to refute but no scan to refute them with: rejected
+    RelocConfirmer c(cp);
+    c.start(r, p, map, truthView, scan);
+    CHECK(c.step(still, map, truthView, p.laserMount, nullptr) == RelocConfirmState::Rejected);
+  }
+  {  // a report that is not Found, or invalid search parameters, cannot be started
+    RelocConfirmer c(cp);
+    c.start(strict, p, map, truthView, scan);
+    CHECK(c.state() == RelocConfirmState::Rejected);
+    GlobalLocalizerParams bad = p;
+    bad.inlierGate = std::nan("");
+    c.start(r, bad, map, truthView, scan);
+    CHECK(c.state() == RelocConfirmState::Rejected);
+  }
+}
 #endif

@@ -495,7 +495,7 @@ TEST_CASE("pipeline: the first sweep is searched before any encoder sample; conf
   }
   REQUIRE(rig.pipeline.localizing());
   CHECK(rig.pipeline.counters().sweeps == sweepsBefore + 5U);  // waited 3, then two confirming ones
-  CHECK(rig.pipeline.counters().searches == 1U);
+  CHECK(rig.pipeline.counters().searches == 3U);               // each confirming sweep is searched again
   CHECK(rig.pipeline.counters().unconfirmed == 0U);
   rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(300));
   CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.005);

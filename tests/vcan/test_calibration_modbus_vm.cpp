@@ -38,9 +38,9 @@
 #include "agv/drivers/protocol/canopen/cia402.hpp"
 #include "agv/sim/world.hpp"
 #include "calibration_check.hpp"
+#include "cia402_frames.hpp"
 #include "plc_modbus_client.hpp"
 #include "sim_drive_side.hpp"
-#include "cia402_frames.hpp"
 #include "vcan_peer.hpp"
 #include "vcan_programs.hpp"
 
@@ -49,15 +49,15 @@ using agv::Pose2d;
 using agv::Status;
 using agv::Timestamp;
 using agv::drivers::CanFrame;
-using agv::test::i32;
-using agv::test::isQuickStop;
-using agv::test::kTractionRpdo;
-using agv::test::u16;
 using agv::drivers::monotonicNow;
 using agv::drivers::canopen::decodeStatusword;
 using agv::drivers::canopen::PowerState;
 using agv::drivers::plc::unpackFloat;
 using agv::drivers::plc::WordOrder;
+using agv::test::i32;
+using agv::test::isQuickStop;
+using agv::test::kTractionRpdo;
+using agv::test::u16;
 namespace cal = agv::calibration;
 namespace hal = agv::hal;
 

@@ -37,15 +37,15 @@ using agv::Duration;
 using agv::Status;
 using agv::Timestamp;
 using agv::drivers::CanFrame;
-using agv::test::i32;
-using agv::test::isQuickStop;
-using agv::test::kTractionRpdo;
-using agv::test::u16;
 using agv::drivers::monotonicNow;
 using agv::drivers::canopen::decodeStatusword;
 using agv::drivers::canopen::PowerState;
 using agv::test::Child;
+using agv::test::i32;
+using agv::test::isQuickStop;
+using agv::test::kTractionRpdo;
 using agv::test::programPath;
+using agv::test::u16;
 
 namespace {
 

@@ -20,6 +20,79 @@ bool poseFinite(const Pose2d& p) noexcept {
   return finite(p.x) && finite(p.y) && finite(p.theta);
 }
 
+/// Calls onExpected(index, explained) for every landmark of the observed kinds that `pose` expects
+/// in the scan's clear view (docs/loop-closure.md, "Negative evidence"), `explained` when an
+/// observation lands within the gate of it. `forEachLandmark(visit)` calls visit(index, x, y,
+/// kind) for every landmark.
+template <typename ForEachLandmark, typename OnExpected>
+void forEachExpected(const GlobalLocalizerParams& params, const Pose2d& pose, Span<const PointObservation> observations,
+                     const LaserScan& scan, ForEachLandmark&& forEachLandmark, OnExpected&& onExpected) noexcept {
+  const std::size_t beams = scan.size();
+  if (beams == 0 || !(scan.angleIncrement > 0.0F)) {
+    return;
+  }
+  std::uint32_t kinds = 0;  // the kinds the detectors reported: only those are expected
+  for (std::size_t i = 0; i < observations.size(); ++i) {
+    kinds |= 1U << static_cast<unsigned>(observations[i].kind);
+  }
+  const double inc = static_cast<double>(scan.angleIncrement);
+  const double angleMin = static_cast<double>(scan.angleMin);
+  const bool fullCircle = static_cast<double>(beams) * inc >= 2.0 * kPi<double> - 0.5 * inc;
+  const double gate = params.inlierGate;
+  const double maxRange = std::min(params.expectRange, static_cast<double>(scan.rangeMax));
+  const Pose2d laser = pose.compose(params.laserMount);
+  forEachLandmark([&](std::size_t index, double lx, double ly, LandmarkKind kind) {
+    if ((kinds & (1U << static_cast<unsigned>(kind))) == 0U) {
+      return;
+    }
+    const Eigen::Vector2d v = laser.inverseTransformPoint(Eigen::Vector2d(lx, ly));
+    const double d = v.norm();
+    if (d > maxRange || d <= std::max(2.0 * gate, static_cast<double>(scan.rangeMin))) {
+      return;
+    }
+    // The beams within `gate` of the landmark: all must reach it (nothing in front), one at least.
+    const double bearing = std::atan2(v.y(), v.x());
+    const double half = std::atan2(gate, d);
+    const auto first = static_cast<long>(std::ceil((bearing - half - angleMin) / inc));
+    const auto last = static_cast<long>(std::floor((bearing + half - angleMin) / inc));
+    const auto n = static_cast<long>(beams);
+    if (!fullCircle && (first < 0 || last >= n)) {
+      return;  // not wholly in the field of view
+    }
+    bool clear = true;
+    std::size_t reaching = 0;
+    for (long b = first; b <= last && b - first < n && clear; ++b) {
+      const auto i = static_cast<std::size_t>(((b % n) + n) % n);
+      if (!scan.isValid(i)) {
+        continue;
+      }
+      if (static_cast<double>(scan.ranges[i]) < d - gate) {
+        clear = false;  // something in front of it: hidden
+      }
+      ++reaching;
+    }
+    if (!clear || reaching == 0) {
+      return;
+    }
+    bool explained = false;
+    for (std::size_t i = 0; i < observations.size() && !explained; ++i) {
+      if (observations[i].kind != kind) {
+        continue;
+      }
+      const Eigen::Vector2d w = laser.transformPoint(Eigen::Vector2d(observations[i].x, observations[i].y));
+      explained = (w - Eigen::Vector2d(lx, ly)).squaredNorm() <= gate * gate;
+    }
+    onExpected(index, explained);
+  });
+}
+
+/// Every live landmark of `map` as visit(index, x, y, kind).
+auto landmarksOf(const LandmarkMap& map) noexcept {
+  return [&map](auto&& visit) {
+    map.forEach([&](LandmarkIndex index, const Landmark& l) { visit(index, l.x, l.y, l.kind); });
+  };
+}
+
 }  // namespace
 
 bool isValid(const GlobalLocalizerParams& p) noexcept {
@@ -178,65 +251,26 @@ void GlobalLocalizer::keepMode(const Hypothesis& h) noexcept {
 
 std::size_t GlobalLocalizer::missed(const Pose2d& pose, Span<const PointObservation> observations,
                                     const LaserScan& scan) const noexcept {
-  const std::size_t beams = scan.size();
-  if (beams == 0 || !(scan.angleIncrement > 0.0F)) {
+  std::size_t count = 0;
+  forEachExpected(
+      params_, pose, observations, scan,
+      [&](auto&& visit) {
+        for (std::size_t j = 0; j < mapSize_; ++j) {
+          visit(j, static_cast<double>(map_[j].x), static_cast<double>(map_[j].y), map_[j].kind);
+        }
+      },
+      [&](std::size_t /*index*/, bool explained) { count += explained ? 0U : 1U; });
+  return count;
+}
+
+std::size_t missedLandmarks(const LandmarkMap& map, Span<const PointObservation> observations, const LaserScan& scan,
+                            const Pose2d& pose, const GlobalLocalizerParams& params) noexcept {
+  if (!isValid(params) || !poseFinite(pose)) {
     return 0;
   }
-  std::uint32_t kinds = 0;  // the kinds the detectors reported: only those are expected
-  for (std::size_t i = 0; i < observations.size(); ++i) {
-    kinds |= 1U << static_cast<unsigned>(observations[i].kind);
-  }
-  const double inc = static_cast<double>(scan.angleIncrement);
-  const double angleMin = static_cast<double>(scan.angleMin);
-  const bool fullCircle = static_cast<double>(beams) * inc >= 2.0 * kPi<double> - 0.5 * inc;
-  const double gate = params_.inlierGate;
-  const double maxRange = std::min(params_.expectRange, static_cast<double>(scan.rangeMax));
-  const Pose2d laser = pose.compose(params_.laserMount);
   std::size_t count = 0;
-  for (std::size_t j = 0; j < mapSize_; ++j) {
-    const MapPoint& l = map_[j];
-    if ((kinds & (1U << static_cast<unsigned>(l.kind))) == 0U) {
-      continue;
-    }
-    const Eigen::Vector2d v = laser.inverseTransformPoint(Eigen::Vector2d(l.x, l.y));
-    const double d = v.norm();
-    if (d > maxRange || d <= std::max(2.0 * gate, static_cast<double>(scan.rangeMin))) {
-      continue;
-    }
-    // The beams within `gate` of the landmark: all must reach it (nothing in front), one at least.
-    const double bearing = std::atan2(v.y(), v.x());
-    const double half = std::atan2(gate, d);
-    const auto first = static_cast<long>(std::ceil((bearing - half - angleMin) / inc));
-    const auto last = static_cast<long>(std::floor((bearing + half - angleMin) / inc));
-    const auto n = static_cast<long>(beams);
-    if (!fullCircle && (first < 0 || last >= n)) {
-      continue;  // not wholly in the field of view
-    }
-    bool clear = true;
-    std::size_t reaching = 0;
-    for (long b = first; b <= last && b - first < n && clear; ++b) {
-      const auto i = static_cast<std::size_t>(((b % n) + n) % n);
-      if (!scan.isValid(i)) {
-        continue;
-      }
-      if (static_cast<double>(scan.ranges[i]) < d - gate) {
-        clear = false;  // something in front of it: hidden
-      }
-      ++reaching;
-    }
-    if (!clear || reaching == 0) {
-      continue;
-    }
-    bool explained = false;
-    for (std::size_t i = 0; i < observations.size() && !explained; ++i) {
-      if (observations[i].kind != l.kind) {
-        continue;
-      }
-      const Eigen::Vector2d w = laser.transformPoint(Eigen::Vector2d(observations[i].x, observations[i].y));
-      explained = (w - Eigen::Vector2d(l.x, l.y)).squaredNorm() <= gate * gate;
-    }
-    count += explained ? 0U : 1U;
-  }
+  forEachExpected(params, pose, observations, scan, landmarksOf(map),
+                  [&](std::size_t /*index*/, bool explained) { count += explained ? 0U : 1U; });
   return count;
 }
 
@@ -244,6 +278,10 @@ std::size_t GlobalLocalizer::lowerBound(float x) const noexcept {
   const MapPoint* begin = map_.data();
   const MapPoint* it = std::lower_bound(begin, begin + mapSize_, x, [](const MapPoint& p, float v) { return p.x < v; });
   return static_cast<std::size_t>(it - begin);
+}
+
+bool GlobalLocalizer::sameAnswer(const RelocReport& report, const Pose2d& pose) const noexcept {
+  return report.outcome == RelocOutcome::Found && poseFinite(pose) && !distinct(report.pose, pose);
 }
 
 Status GlobalLocalizer::localize(const LandmarkMap& map, Span<const PointObservation> observations,
@@ -450,7 +488,16 @@ Status GlobalLocalizer::search(const LandmarkMap& map, Span<const PointObservati
       out.secondInliers = m.inliers;
       out.secondMissed = mMissed;
     }
-    ambiguous = ambiguous || score + (mMissed > 0 ? refutedMargin : margin) >= bestScore;
+    const bool withinMargin = score + margin >= bestScore;
+    const bool withinUsed = score + (mMissed > 0 ? refutedMargin : margin) >= bestScore;
+    ambiguous = ambiguous || withinUsed;
+    if (withinMargin && !withinUsed) {  // passed over by its refutation alone: confirmed again later
+      if (out.refutedRivals < out.rivals.size()) {
+        out.rivals[out.refutedRivals++] = m.pose;
+      } else {
+        ambiguous = true;  // more than can be followed: refuse
+      }
+    }
   }
   if (modesDropped_ && static_cast<long>(droppedInliers_) + margin >= bestScore) {
     out.modesOverflowed = true;
@@ -462,11 +509,95 @@ Status GlobalLocalizer::search(const LandmarkMap& map, Span<const PointObservati
 void RelocConfirmer::start(const Pose2d& candidate) noexcept {
   pose_ = candidate;
   confirmed_ = 0;
+  rivalCount_ = 0;
   state_ = poseFinite(candidate) ? RelocConfirmState::Pending : RelocConfirmState::Rejected;
 }
 
+void RelocConfirmer::start(const RelocReport& found, const GlobalLocalizerParams& search, const LandmarkMap& map,
+                           Span<const PointObservation> observations, const LaserScan& scan) noexcept {
+  start(found.pose);
+  search_ = search;
+  if (found.outcome != RelocOutcome::Found || found.refutedRivals > found.rivals.size() || !isValid(search)) {
+    state_ = RelocConfirmState::Rejected;
+    return;
+  }
+  rivalCount_ = 0;
+  for (std::size_t i = 0; i < found.refutedRivals; ++i) {
+    rivals_[rivalCount_++] = found.rivals[i];
+  }
+  const auto apart = [&](const Pose2d& a, const Pose2d& b) {
+    return std::hypot(a.x - b.x, a.y - b.y) > search.ambiguityDistance ||
+           std::fabs(normalizeAngle(a.theta - b.theta)) > search.ambiguityAngle;
+  };
+  bool secondKnown = !found.hasSecond || !poseFinite(found.secondPose);
+  for (std::size_t i = 0; i < rivalCount_ && !secondKnown; ++i) {
+    secondKnown = !apart(rivals_[i], found.secondPose);
+  }
+  if (!secondKnown) {
+    rivals_[rivalCount_++] = found.secondPose;
+  }
+  mine_ = Evidence{};
+  accumulate(mine_, map, observations, scan, pose_);
+  for (std::size_t i = 0; i < rivalCount_; ++i) {
+    rivalEvidence_[i] = Evidence{};
+    accumulate(rivalEvidence_[i], map, observations, scan, rivals_[i]);
+  }
+}
+
+long RelocConfirmer::Evidence::score(std::size_t& missed) const noexcept {
+  missed = (expected & ~explained).count();
+  return static_cast<long>(explained.count()) - static_cast<long>(missed);
+}
+
+void RelocConfirmer::accumulate(Evidence& e, const LandmarkMap& map, Span<const PointObservation> observations,
+                                const LaserScan& scan, const Pose2d& pose) const noexcept {
+  const Pose2d laser = pose.compose(search_.laserMount);
+  const double gate = search_.inlierGate;
+  for (std::size_t j = 0; j < observations.size(); ++j) {  // the landmark each observation lands on
+    const PointObservation& o = observations[j];
+    if (!finite(o.x) || !finite(o.y)) {
+      continue;
+    }
+    const Eigen::Vector2d w = laser.transformPoint(Eigen::Vector2d(o.x, o.y));
+    double bestD2 = gate * gate;
+    LandmarkIndex nearest = kNoLandmark;
+    map.forEachNear(w.x(), w.y(), gate, [&](LandmarkIndex index, const Landmark& l) {
+      const double d2 = (Eigen::Vector2d(l.x, l.y) - w).squaredNorm();
+      if (l.kind == o.kind && d2 <= bestD2) {
+        bestD2 = d2;
+        nearest = index;
+      }
+    });
+    if (nearest < kMaxLandmarks) {
+      e.explained[nearest] = true;
+    }
+  }
+  forEachExpected(search_, pose, observations, scan, landmarksOf(map), [&](std::size_t index, bool explained) {
+    if (index < kMaxLandmarks) {
+      e.expected[index] = true;
+      e.explained[index] = e.explained[index] || explained;
+    }
+  });
+}
+
+bool RelocConfirmer::rivalsRefuted() const noexcept {
+  std::size_t myMissed = 0;
+  const long myScore = mine_.score(myMissed);
+  const auto margin = static_cast<long>(search_.ambiguityMargin);
+  const auto refutedMargin = static_cast<long>(std::min(search_.refutedMargin, search_.ambiguityMargin));
+  for (std::size_t i = 0; i < rivalCount_; ++i) {
+    std::size_t missed = 0;
+    const long score = rivalEvidence_[i].score(missed);
+    if (score + (missed > 0 ? refutedMargin : margin) >= myScore) {
+      return false;  // the search's rule on the evidence so far: ambiguous
+    }
+  }
+  return true;
+}
+
 RelocConfirmState RelocConfirmer::step(const Pose2d& odometry, const LandmarkMap& map,
-                                       Span<const PointObservation> observations, const Pose2d& laserMount) noexcept {
+                                       Span<const PointObservation> observations, const Pose2d& laserMount,
+                                       const LaserScan* scan) noexcept {
   if (state_ != RelocConfirmState::Pending) {
     return state_;  // Idle, Rejected and Confirmed stay until start()
   }
@@ -482,6 +613,25 @@ RelocConfirmState RelocConfirmer::step(const Pose2d& odometry, const LandmarkMap
     return state_;
   }
   pose_ = c.refit.normalized();
+  if (rivalCount_ > 0) {
+    // Every place passed over by its refutation must stay refuted on the evidence of all sweeps.
+    if (scan == nullptr) {
+      state_ = RelocConfirmState::Rejected;
+      return state_;
+    }
+    accumulate(mine_, map, observations, *scan, pose_);
+    for (std::size_t i = 0; i < rivalCount_; ++i) {
+      const Pose2d carried = rivals_[i].compose(odometry).normalized();
+      const PoseCheck first = checkPose(map, observations, search_.laserMount, carried, search_.inlierGate);
+      const PoseCheck refined = checkPose(map, observations, search_.laserMount, first.refit, search_.inlierGate);
+      rivals_[i] = refined.inliers >= first.inliers ? first.refit.normalized() : carried;
+      accumulate(rivalEvidence_[i], map, observations, *scan, rivals_[i]);
+    }
+    if (!rivalsRefuted()) {
+      state_ = RelocConfirmState::Rejected;
+      return state_;
+    }
+  }
   ++confirmed_;
   state_ = confirmed_ >= params_.scansToConfirm ? RelocConfirmState::Confirmed : RelocConfirmState::Pending;
   return state_;

@@ -391,8 +391,22 @@ void Pipeline::Impl::relocalize() noexcept {
   }
   const Span<const PointObservation> obs(observations->points.data(), observations->points.size());
   const Pose2d& mount = params.localizer.laser.mounting;
+  // Every sweep is searched, the confirming ones too: a candidate holds only while each sweep's
+  // own search finds it again (a standing vehicle's sweeps differ in which poles the laser missed:
+  // a wrong place that won one sweep's draw must win every one).
+  RelocReport rr;
+  (void)globalLocalizer->localize(map, obs, measurement->scan, rr);  // the sweep: negative evidence
+  ++counters.searches;
+  report.searched = true;
+  report.searchOutcome = rr.outcome;
+  lastSearchAmbiguous = rr.outcome == RelocOutcome::Ambiguous;
+  counters.ambiguous += lastSearchAmbiguous ? 1U : 0U;
   if (confirmer->state() == RelocConfirmState::Pending) {
-    const RelocConfirmState st = confirmer->step(moved, map, obs, mount);
+    RelocConfirmState st = confirmer->step(moved, map, obs, mount, &measurement->scan);
+    if (st != RelocConfirmState::Rejected && !globalLocalizer->sameAnswer(rr, confirmer->pose())) {
+      st = RelocConfirmState::Rejected;
+      *confirmer = RelocConfirmer(params.relocalization.confirm);  // Idle: the candidate dropped
+    }
     if (st == RelocConfirmState::Confirmed) {
       // Restart at the newest sample: the confirmed pose carried there by dead reckoning.
       const Timestamp t = haveSample ? lastSample.stamp : ref;
@@ -418,18 +432,11 @@ void Pipeline::Impl::relocalize() noexcept {
     if (st == RelocConfirmState::Pending) {
       return;
     }
-    ++counters.unconfirmed;  // Rejected: search again on this sweep
+    ++counters.unconfirmed;  // Rejected: this sweep's search result starts over
   }
-  RelocReport rr;
-  (void)globalLocalizer->localize(map, obs, measurement->scan, rr);  // the sweep: negative evidence
-  ++counters.searches;
-  report.searched = true;
-  report.searchOutcome = rr.outcome;
-  lastSearchAmbiguous = rr.outcome == RelocOutcome::Ambiguous;
-  counters.ambiguous += lastSearchAmbiguous ? 1U : 0U;
   if (rr.outcome == RelocOutcome::Found) {
     ++counters.candidates;
-    confirmer->start(rr.pose);
+    confirmer->start(rr, globalLocalizer->params(), map, obs, measurement->scan);
   }
 }
 

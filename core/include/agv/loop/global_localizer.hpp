@@ -40,6 +40,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <bitset>
 #include <cstddef>
 #include <cstdint>
 
@@ -94,6 +95,10 @@ struct GlobalLocalizerParams {
 /// minSupport >= 3, anchorCount >= 1, node budgets >= 1).
 bool isValid(const GlobalLocalizerParams& p) noexcept;
 
+/// Most places a search may find its answer over by the scan's refutation alone
+/// (`RelocReport::rivals`); more refuse as ambiguous.
+constexpr std::size_t kMaxRefutedRivals = 4;
+
 /// Why a global localization ended as it did.
 enum class RelocOutcome : std::uint8_t {
   Found = 0,           ///< unique, supported pose (Status::Ok)
@@ -128,6 +133,12 @@ struct RelocReport {
   std::size_t missed = 0;
   std::size_t secondMissed = 0;
   bool modesOverflowed = false;  ///< more distinct poses than kept: dropped ones count, unrefuted
+  /// With a scan and refutedMargin < ambiguityMargin (Found): the distinct places that came within
+  /// ambiguityMargin of the answer's score and were passed over only because the scan refutes
+  /// them (each misses a landmark). `RelocConfirmer` checks on every confirming sweep that the
+  /// refutation holds: one sweep's missed detection at the truth must not decide.
+  std::size_t refutedRivals = 0;
+  std::array<Pose2d, kMaxRefutedRivals> rivals{};
 };
 
 /// Status of an outcome (Found -> Ok, WeakSupport -> NotEnoughData, Ambiguous -> Rejected, ...).
@@ -143,6 +154,13 @@ struct PoseCheck {
 };
 PoseCheck checkPose(const LandmarkMap& map, Span<const PointObservation> observations, const Pose2d& laserMount,
                     const Pose2d& pose, double gate) noexcept;
+
+/// Landmarks of the observed kinds that vehicle pose `pose` expects in the scan's clear view and no
+/// observation (laser frame) explains: the negative evidence of `GlobalLocalizer::localize` with a
+/// scan, with the search's `laserMount`, `inlierGate` and `expectRange` (docs/loop-closure.md,
+/// "Negative evidence"). 0 for an empty scan. O(landmarks x (beams within the gate + n)).
+std::size_t missedLandmarks(const LandmarkMap& map, Span<const PointObservation> observations, const LaserScan& scan,
+                            const Pose2d& pose, const GlobalLocalizerParams& params) noexcept;
 
 class GlobalLocalizer {
  public:
@@ -164,6 +182,10 @@ class GlobalLocalizer {
 
   const GlobalLocalizerParams& params() const noexcept { return params_; }
   void setParams(const GlobalLocalizerParams& params) noexcept { params_ = params; }
+
+  /// Whether `report` is a Found answer at `pose`'s place (not distinct from it: within
+  /// ambiguityDistance and ambiguityAngle).
+  bool sameAnswer(const RelocReport& report, const Pose2d& pose) const noexcept;
 
  private:
   struct MapPoint {
@@ -234,10 +256,24 @@ class RelocConfirmer {
   explicit RelocConfirmer(const RelocConfirmParams& params = RelocConfirmParams{}) noexcept : params_(params) {}
   /// Starts over with a candidate (RelocReport::pose of a Found call) at the scan it came from.
   void start(const Pose2d& candidate) noexcept;
-  /// Moves the candidate by `odometry` (vehicle motion since the previous scan, in its frame) and
-  /// checks the next scan's observations (laser frame). Non-finite input rejects.
+  /// Starts over with the answer of a Found call made with `search` on `observations` and `scan`,
+  /// its rivals: the places it was found over only by the scan's refutation (`found.rivals`) and
+  /// the runner-up (`found.secondPose`). Each rival
+  /// is carried by the odometry and refitted like the candidate, and on every confirming sweep the
+  /// search's rule is applied again to the evidence of all sweeps so far, per landmark: a landmark
+  /// is explained when an observation landed on it in any sweep, missed when it was expected in
+  /// clear view and never explained; score = explained - missed. A rival that is no longer
+  /// refuted (nothing missed) within ambiguityMargin, or within refutedMargin, of the candidate's
+  /// score rejects the candidate. A standing vehicle's sweeps differ only in which poles the
+  /// laser failed to detect: taken together, a pole missed once at the truth does not refute it.
+  void start(const RelocReport& found, const GlobalLocalizerParams& search, const LandmarkMap& map,
+             Span<const PointObservation> observations, const LaserScan& scan) noexcept;
+  /// Moves the candidate (and its refuted rivals) by `odometry` (vehicle motion since the previous
+  /// scan, in its frame) and checks the next scan's observations (laser frame); `scan` is that
+  /// sweep, needed when there are rivals to refute (without it they cannot be: Rejected).
+  /// Non-finite input rejects.
   RelocConfirmState step(const Pose2d& odometry, const LandmarkMap& map, Span<const PointObservation> observations,
-                         const Pose2d& laserMount) noexcept;
+                         const Pose2d& laserMount, const LaserScan* scan = nullptr) noexcept;
   RelocConfirmState state() const noexcept { return state_; }
   std::size_t confirmedScans() const noexcept { return confirmed_; }
   const Pose2d& pose() const noexcept { return pose_; }
@@ -247,6 +283,26 @@ class RelocConfirmer {
   RelocConfirmState state_ = RelocConfirmState::Idle;
   std::size_t confirmed_ = 0;
   Pose2d pose_{};
+  /// Per landmark (map index), over the sweeps of one candidate: explained by an observation,
+  /// expected in clear view.
+  struct Evidence {
+    std::bitset<kMaxLandmarks> explained;
+    std::bitset<kMaxLandmarks> expected;
+    /// explained - (expected and never explained); `missed` set to the second term.
+    long score(std::size_t& missed) const noexcept;
+  };
+  /// Adds the sweep's evidence for vehicle pose `pose` to `e`.
+  void accumulate(Evidence& e, const LandmarkMap& map, Span<const PointObservation> observations, const LaserScan& scan,
+                  const Pose2d& pose) const noexcept;
+  /// Whether every rival is still refuted by the evidence so far.
+  bool rivalsRefuted() const noexcept;
+
+  GlobalLocalizerParams search_{};  ///< of the search whose rivals are checked
+  std::size_t rivalCount_ = 0;
+  /// The refuted rivals and the search's runner-up.
+  std::array<Pose2d, kMaxRefutedRivals + 1> rivals_{};
+  Evidence mine_{};
+  std::array<Evidence, kMaxRefutedRivals + 1> rivalEvidence_{};
 };
 
 }  // namespace agv

@@ -78,6 +78,18 @@ struct ObservationParams {
   bool mapChanges = false;
 };
 
+/// The pipeline's search: the core defaults with `refutedMargin` 1. The pipeline searches every
+/// sweep, the confirming ones too, and a candidate holds only while each sweep's search finds it
+/// again and its rivals stay refuted on the evidence of all its sweeps (`RelocConfirmer`); with
+/// that, margin 1 against a refuted runner-up gave no more wrong poses under adversarial decoys
+/// and missed detections than margin 2, and finds 95.5-95.8 % of the HIL's unique cold starts
+/// within 3 sweeps against 92.9-93.8 % (docs/loop-closure.md, "Confirmation by every sweep").
+inline GlobalLocalizerParams relocalizationSearchDefaults() noexcept {
+  GlobalLocalizerParams p;
+  p.refutedMargin = 1;
+  return p;
+}
+
 /// Relocalization: finding the pose on the map with no prior (`GlobalLocalizer`), confirming it over
 /// the next sweeps (`RelocConfirmer`), and only then (re-)initialising the localizer.
 struct RelocalizationParams {
@@ -85,7 +97,8 @@ struct RelocalizationParams {
   /// A PLC Stop ends the search until the next Localize; a set-pose always wins.
   bool enabled = true;
   bool atStart = true;
-  GlobalLocalizerParams search{};  ///< `laserMount` is taken from the localizer's laser model
+  /// `laserMount` is taken from the localizer's laser model.
+  GlobalLocalizerParams search = relocalizationSearchDefaults();
   /// Two further sweeps after the search's: three sweeps agree before the restart. Standing, a
   /// confirming sweep adds new detection noise, not a new view: more would only add time.
   RelocConfirmParams confirm{2, 0.15, 4, 0.6};
