@@ -201,6 +201,38 @@ TEST_CASE("noise-free walls: the perturbed intrinsics are recovered to 1e-6 m / 
   CHECK(result.costStart > 1e-4);
 }
 
+TEST_CASE("the scans are segmented in parallel: the result does not depend on the thread count",
+          "[lidar3d][lidar-calibration]") {
+  std::mt19937_64 rng(5);
+  const agv::LaserIntrinsics truth =
+      agv::sim::perturbIntrinsics(factory(), 0.05, agv::deg2rad(0.3), agv::deg2rad(0.5), 0.0, rng, true);
+  // 9 scans: more than the threads, not a multiple of 2 or 4.
+  const std::vector<lc::CalibrationScan> scans = lc::simulateHallScans(reducedProtocol(3, 3, 0.02), truth);
+  lc::IntrinsicCalibrationResult results[3];
+  const int threads[3] = {1, 2, 4};
+  for (int k = 0; k < 3; ++k) {
+    lc::IntrinsicCalibrationConfig config;
+    config.threads = threads[k];
+    config.maxIterations = 0;  // the segmentation and the set-up only: Ceres' own threads out of it
+    config.correctNoiseBias = false;
+    std::string error;
+    const bool ok = lc::calibrateIntrinsics(scans, factory(), config, results[k], error);
+    INFO(threads[k] << " threads: " << error);
+    REQUIRE(ok);
+  }
+  for (int k = 1; k < 3; ++k) {
+    REQUIRE(results[k].scans.size() == results[0].scans.size());
+    for (std::size_t s = 0; s < results[0].scans.size(); ++s) {
+      INFO(threads[k] << " threads, scan " << s);
+      CHECK(results[k].scans[s].targets == results[0].scans[s].targets);
+      CHECK(results[k].scans[s].extent == results[0].scans[s].extent);
+      CHECK(results[k].scans[s].rmsStart == results[0].scans[s].rmsStart);
+    }
+  }
+  CHECK(results[0].scans.size() == scans.size());
+  CHECK_FALSE(results[0].scans.front().targets.empty());
+}
+
 TEST_CASE("no perturbation: the factory values stay put (exactly without noise, within the noise's sigma with it)",
           "[lidar3d][lidar-calibration]") {
   lc::IntrinsicCalibrationConfig config;

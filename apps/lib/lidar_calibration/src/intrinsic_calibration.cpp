@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <string>
+#include <thread>
 
 namespace agv::lidar_calibration {
 
@@ -525,14 +527,32 @@ bool segmentAll(const std::vector<CalibrationScan>& scans, const LaserIntrinsics
   st.normal.assign(scans.size(), Eigen::Vector3d::UnitX());
   st.offset.assign(scans.size(), 0.0);
   st.scanPoints.assign(scans.size(), 0);
+  // The scans are segmented independently (each with its own seed) on `threads` threads; the
+  // results are taken in scan order, so the outcome does not depend on the thread count.
+  std::vector<TargetSegment> segments(scans.size());
+  std::vector<std::string> whys(scans.size());
+  std::vector<char> segmented(scans.size(), 0);
+  const auto segmentEvery = [&](std::size_t first, std::size_t stride) {
+    for (std::size_t s = first; s < scans.size(); s += stride) {
+      TargetSegmentationConfig sc = config.segmentation;
+      sc.seed = config.segmentation.seed + s;
+      segmented[s] = segmentTarget(scanPoints(scans[s], current), sc, segments[s], whys[s]) ? 1 : 0;
+    }
+  };
+  const std::size_t threads = std::max<std::size_t>(
+      1, std::min<std::size_t>(static_cast<std::size_t>(std::max(1, config.threads)), scans.size()));
+  std::vector<std::thread> helpers;
+  for (std::size_t t = 1; t < threads; ++t) {
+    helpers.emplace_back(segmentEvery, t, threads);
+  }
+  segmentEvery(0, threads);
+  for (std::thread& h : helpers) {
+    h.join();
+  }
   for (std::size_t s = 0; s < scans.size(); ++s) {
-    const std::vector<Eigen::Vector3d> points = scanPoints(scans[s], current);
-    TargetSegmentationConfig sc = config.segmentation;
-    sc.seed = config.segmentation.seed + s;
-    TargetSegment seg;
-    std::string why;
-    if (!segmentTarget(points, sc, seg, why)) {
-      error = "scan " + std::to_string(s) + " '" + scans[s].name + "': " + why;
+    const TargetSegment& seg = segments[s];
+    if (segmented[s] == 0) {
+      error = "scan " + std::to_string(s) + " '" + scans[s].name + "': " + whys[s];
       return false;
     }
     reports[s].targets = seg.indices;

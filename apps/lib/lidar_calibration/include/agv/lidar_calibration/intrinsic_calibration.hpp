@@ -81,6 +81,8 @@ struct IntrinsicCalibrationConfig {
   EstimatedParams estimate;
   int passes = 2;           ///< segment + solve rounds (later passes segment with the new intrinsics)
   int maxIterations = 100;  ///< Ceres iterations per pass
+  /// Threads of the solve (Ceres) and of the segmentation (the scans in parallel; the result does
+  /// not depend on the count).
   int threads = 2;
   std::size_t minLaserPoints = 30;   ///< lasers with fewer target points over all scans are refused
   double maxCorrelation = 0.999;     ///< two parameters of a laser correlated beyond this: laser held
