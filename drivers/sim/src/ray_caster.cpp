@@ -49,7 +49,7 @@ bool intersectSegment(const Point2& o, const Point2& d, const Segment& s, double
   const double sx = s.b.x - s.a.x;
   const double sy = s.b.y - s.a.y;
   const double denom = cross(d.x, d.y, sx, sy);
-  if (std::fabs(denom) < kParallel * std::hypot(sx, sy)) {
+  if (denom * denom < kParallel * kParallel * (sx * sx + sy * sy)) {  // |denom| < kParallel |s|
     return false;
   }
   const double ax = s.a.x - o.x;

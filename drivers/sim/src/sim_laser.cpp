@@ -78,10 +78,20 @@ Status SimLaser::scan(const Pose2d& poseFirstBeam, const Pose2d& poseLastBeam, T
   s.rangeMax = static_cast<float>(params_.rangeMax);
   s.ranges.clear();
   const double denom = n > 1 ? static_cast<double>(n - 1) : 1.0;
+  // poseAt() per beam, the heading difference taken once per sweep (the same values: the
+  // reduction to [-pi, pi] is the identity inside it, so it is applied only outside).
+  const Pose2d& a0 = poseFirstBeam;
+  const Pose2d& a1 = poseLastBeam;
+  const double turn = angleDiff(a1.theta, a0.theta);
   for (std::size_t i = 0; i < n; ++i) {
-    const Pose2d p = poseAt(poseFirstBeam, poseLastBeam, static_cast<double>(i) / denom);
-    const double a = p.theta + angleMin + static_cast<double>(i) * inc;
-    const RayHit hit = caster_->cast(Point2{p.x, p.y}, a, params_.rangeMax + 5.0 * params_.rangeNoiseStdDev);
+    const double f = static_cast<double>(i) / denom;
+    double theta = a0.theta + f * turn;
+    if (!(std::fabs(theta) < kPi<double>)) {
+      theta = normalizeAngle(theta);
+    }
+    const Point2 origin{a0.x + f * (a1.x - a0.x), a0.y + f * (a1.y - a0.y)};
+    const double a = theta + angleMin + static_cast<double>(i) * inc;
+    const RayHit hit = caster_->cast(origin, a, params_.rangeMax + 5.0 * params_.rangeNoiseStdDev);
     float value = params_.noReturnValue;
     if (hit.hit) {
       const double r = hit.range + params_.rangeNoiseStdDev * normal_(rng_);
