@@ -117,6 +117,31 @@ void openRoomScan(LaserScan& scan) {
   }
 }
 
+/// The copy scene of the negative-evidence tests: four poles seen from the origin (kSeenPoles),
+/// a copy of the first three 40 m along x, and `extras` (more poles, near the copy), static.
+const Eigen::Vector2d kSeenPoles[4] = {{5.0, 0.5}, {0.5, 6.0}, {-4.0, -3.0}, {3.0, -5.5}};
+void buildCopyScene(LandmarkMap& map, const Eigen::Vector2d* extras, std::size_t extraCount) {
+  map.clear();
+  std::uint32_t id = 1;
+  for (const Eigen::Vector2d& p : kSeenPoles) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
+  }
+  for (std::size_t i = 0; i < 3; ++i) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, kSeenPoles[i].x() + 40.0, kSeenPoles[i].y(), 0.001, id++).ok());
+  }
+  for (std::size_t i = 0; i < extraCount; ++i) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, extras[i].x(), extras[i].y(), 0.001, id++).ok());
+  }
+  map.setMode(MapMode::Static);
+}
+
+/// The four seen poles as observations from the origin (laser at the logical point), into obs[0..3].
+void seenPoleObservations(PointObservation* obs) {
+  for (std::size_t i = 0; i < 4; ++i) {
+    obs[i] = PointObservation{kSeenPoles[i].x(), kSeenPoles[i].y(), LandmarkKind::Reflector};
+  }
+}
+
 }  // namespace
 
 TEST_CASE("global localizer: finds random poses in a 256-pole warehouse, never a wrong one", "[loop][reloc]") {
@@ -446,22 +471,10 @@ TEST_CASE("global localizer: a scan's clear view refutes a pose that expects und
   // observations: within the margin of 2 by inliers alone. With the scan, it expects the two
   // extra poles, nothing was detected there, and it scores 3 - 2 = 1 against 4.
   static LandmarkMap map;
-  map.clear();
-  const Eigen::Vector2d seen[4] = {{5.0, 0.5}, {0.5, 6.0}, {-4.0, -3.0}, {3.0, -5.5}};
-  std::uint32_t id = 1;
-  for (const Eigen::Vector2d& p : seen) {
-    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
-  }
-  for (std::size_t i = 0; i < 3; ++i) {
-    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, seen[i].x() + 40.0, seen[i].y(), 0.001, id++).ok());
-  }
-  REQUIRE(map.addSurveyed(LandmarkKind::Reflector, 42.0, 2.0, 0.001, id++).ok());
-  REQUIRE(map.addSurveyed(LandmarkKind::Reflector, 38.0, 2.5, 0.001, id++).ok());
-  map.setMode(MapMode::Static);
+  const Eigen::Vector2d extras[2] = {{42.0, 2.0}, {38.0, 2.5}};
+  buildCopyScene(map, extras, 2);
   PointObservation obs[4];
-  for (std::size_t i = 0; i < 4; ++i) {
-    obs[i] = PointObservation{seen[i].x(), seen[i].y(), LandmarkKind::Reflector};
-  }
+  seenPoleObservations(obs);
   const Span<const PointObservation> o(obs, 4);
   static GlobalLocalizer loc;  // laser at the logical point
   static LaserScan scan;
@@ -508,27 +521,11 @@ TEST_CASE("global localizer: the margin against a runner-up the scan refutes, an
   // Four poles seen from the origin; 40 m away a copy of three of them and `extra` more poles in
   // a vehicle's clear view at the copy. The copy explains 3 of the 4 observations.
   static LandmarkMap map;
-  const Eigen::Vector2d seen[4] = {{5.0, 0.5}, {0.5, 6.0}, {-4.0, -3.0}, {3.0, -5.5}};
   // Farther from the copy than the seen poles: the three nearest detections (the anchors) stay true.
   const Eigen::Vector2d extraPoles[3] = {{48.0, 3.0}, {33.0, 4.0}, {46.0, -6.0}};
-  const auto build = [&](std::size_t extra) {
-    map.clear();
-    std::uint32_t id = 1;
-    for (const Eigen::Vector2d& p : seen) {
-      REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
-    }
-    for (std::size_t i = 0; i < 3; ++i) {
-      REQUIRE(map.addSurveyed(LandmarkKind::Reflector, seen[i].x() + 40.0, seen[i].y(), 0.001, id++).ok());
-    }
-    for (std::size_t i = 0; i < extra; ++i) {
-      REQUIRE(map.addSurveyed(LandmarkKind::Reflector, extraPoles[i].x(), extraPoles[i].y(), 0.001, id++).ok());
-    }
-    map.setMode(MapMode::Static);
-  };
+  const auto build = [&](std::size_t extra) { buildCopyScene(map, extraPoles, extra); };
   PointObservation obs[7];
-  for (std::size_t i = 0; i < 4; ++i) {
-    obs[i] = PointObservation{seen[i].x(), seen[i].y(), LandmarkKind::Reflector};
-  }
+  seenPoleObservations(obs);
   static GlobalLocalizer loc;  // laser at the logical point
   static LaserScan scan;
   openRoomScan(scan);
@@ -578,21 +575,10 @@ TEST_CASE("reloc confirmer: a place passed over by its refutation must stay refu
   // With refutedMargin 1 the truth is found over the copy (3 inliers, 1 missed) by the copy's
   // refutation alone; the confirmer keeps checking it.
   static LandmarkMap map;
-  map.clear();
-  const Eigen::Vector2d seen[4] = {{5.0, 0.5}, {0.5, 6.0}, {-4.0, -3.0}, {3.0, -5.5}};
-  std::uint32_t id = 1;
-  for (const Eigen::Vector2d& p : seen) {
-    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
-  }
-  for (std::size_t i = 0; i < 3; ++i) {
-    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, seen[i].x() + 40.0, seen[i].y(), 0.001, id++).ok());
-  }
-  REQUIRE(map.addSurveyed(LandmarkKind::Reflector, 48.0, 3.0, 0.001, id++).ok());
-  map.setMode(MapMode::Static);
+  const Eigen::Vector2d extra{48.0, 3.0};
+  buildCopyScene(map, &extra, 1);
   PointObservation obs[5];
-  for (std::size_t i = 0; i < 4; ++i) {
-    obs[i] = PointObservation{seen[i].x(), seen[i].y(), LandmarkKind::Reflector};
-  }
+  seenPoleObservations(obs);
   const Span<const PointObservation> truthView(obs, 4);
   // A detection where the copy's laser would see the pole at (48, 3): under the truth it lands on
   // nothing, under the copy on that pole (a decoy).
