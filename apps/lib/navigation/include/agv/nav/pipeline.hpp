@@ -154,7 +154,7 @@ struct PipelineCounters {
   std::uint64_t commands = 0;         ///< PLC commands read
   std::uint64_t refusedCommands = 0;  ///< of which not carried out (Calibrate)
   std::uint64_t setPoses = 0;         ///< set-poses applied
-  std::uint64_t searches = 0;         ///< global localization calls (one per sweep while searching)
+  std::uint64_t searches = 0;         ///< global localization calls (every sweep while searching or confirming)
   std::uint64_t candidates = 0;       ///< of which found a unique, supported pose (then confirmed or not)
   std::uint64_t ambiguous = 0;        ///< of which refused as ambiguous
   std::uint64_t unconfirmed = 0;      ///< candidates a later sweep did not support
