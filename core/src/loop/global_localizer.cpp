@@ -20,6 +20,28 @@ bool poseFinite(const Pose2d& p) noexcept {
   return finite(p.x) && finite(p.y) && finite(p.theta);
 }
 
+/// Two poses farther apart than the search's ambiguity distance or angle (either).
+bool distinctPoses(const Pose2d& a, const Pose2d& b, const GlobalLocalizerParams& p) noexcept {
+  const double dx = a.x - b.x;
+  const double dy = a.y - b.y;
+  return std::sqrt(dx * dx + dy * dy) > p.ambiguityDistance ||
+         std::fabs(angleDiff(a.theta, b.theta)) > p.ambiguityAngle;
+}
+
+/// A pose checked, refitted on its inliers and checked again: the refit when it keeps at least as
+/// many inliers, else `pose` (normalised either way), with the kept check.
+struct Refit {
+  Pose2d pose{};
+  PoseCheck check{};
+};
+Refit refitOnce(const LandmarkMap& map, Span<const PointObservation> observations, const GlobalLocalizerParams& p,
+                const Pose2d& pose) noexcept {
+  const PoseCheck first = checkPose(map, observations, p.laserMount, pose, p.inlierGate);
+  const PoseCheck refined = checkPose(map, observations, p.laserMount, first.refit, p.inlierGate);
+  const bool useRefined = refined.inliers >= first.inliers;
+  return Refit{useRefined ? first.refit.normalized() : pose.normalized(), useRefined ? refined : first};
+}
+
 /// Calls onExpected(index, explained) for every landmark of the observed kinds that `pose` expects
 /// in the scan's clear view (docs/loop-closure.md, "Negative evidence"), `explained` when an
 /// observation lands within the gate of it. `forEachLandmark(visit)` calls visit(index, x, y,
@@ -186,10 +208,7 @@ Status GlobalLocalizer::finish(RelocReport& out, RelocOutcome outcome) noexcept 
 }
 
 bool GlobalLocalizer::distinct(const Pose2d& a, const Pose2d& b) const noexcept {
-  const double dx = a.x - b.x;
-  const double dy = a.y - b.y;
-  return std::sqrt(dx * dx + dy * dy) > params_.ambiguityDistance ||
-         std::fabs(angleDiff(a.theta, b.theta)) > params_.ambiguityAngle;
+  return distinctPoses(a, b, params_);
 }
 
 void GlobalLocalizer::offer(const Hypothesis& h) noexcept {
@@ -423,14 +442,12 @@ Status GlobalLocalizer::search(const LandmarkMap& map, Span<const PointObservati
       if ((st != Status::Ok && st != Status::NotConverged) || assoc_.pairs.size() < 3) {
         continue;
       }
-      const PoseCheck first = checkPose(map, observations, params_.laserMount, assoc_.transform, params_.inlierGate);
-      const PoseCheck refined = checkPose(map, observations, params_.laserMount, first.refit, params_.inlierGate);
+      const Refit fit = refitOnce(map, observations, params_, assoc_.transform);
       Hypothesis h;
       h.valid = true;
-      const bool useRefined = refined.inliers >= first.inliers;
-      h.pose = useRefined ? first.refit.normalized() : assoc_.transform.normalized();
-      h.inliers = useRefined ? refined.inliers : first.inliers;
-      h.rms = useRefined ? refined.rms : first.rms;
+      h.pose = fit.pose;
+      h.inliers = fit.check.inliers;
+      h.rms = fit.check.rms;
       h.clique = assoc_.pairs.size();
       offer(h);
       keepMode(h);
@@ -525,13 +542,9 @@ void RelocConfirmer::start(const RelocReport& found, const GlobalLocalizerParams
   for (std::size_t i = 0; i < found.refutedRivals; ++i) {
     rivals_[rivalCount_++] = found.rivals[i];
   }
-  const auto apart = [&](const Pose2d& a, const Pose2d& b) {
-    return std::hypot(a.x - b.x, a.y - b.y) > search.ambiguityDistance ||
-           std::fabs(normalizeAngle(a.theta - b.theta)) > search.ambiguityAngle;
-  };
   bool secondKnown = !found.hasSecond || !poseFinite(found.secondPose);
   for (std::size_t i = 0; i < rivalCount_ && !secondKnown; ++i) {
-    secondKnown = !apart(rivals_[i], found.secondPose);
+    secondKnown = !distinctPoses(rivals_[i], found.secondPose, search);
   }
   if (!secondKnown) {
     rivals_[rivalCount_++] = found.secondPose;
@@ -621,10 +634,7 @@ RelocConfirmState RelocConfirmer::step(const Pose2d& odometry, const LandmarkMap
     }
     accumulate(mine_, map, observations, *scan, pose_);
     for (std::size_t i = 0; i < rivalCount_; ++i) {
-      const Pose2d carried = rivals_[i].compose(odometry).normalized();
-      const PoseCheck first = checkPose(map, observations, search_.laserMount, carried, search_.inlierGate);
-      const PoseCheck refined = checkPose(map, observations, search_.laserMount, first.refit, search_.inlierGate);
-      rivals_[i] = refined.inliers >= first.inliers ? first.refit.normalized() : carried;
+      rivals_[i] = refitOnce(map, observations, search_, rivals_[i].compose(odometry)).pose;
       accumulate(rivalEvidence_[i], map, observations, *scan, rivals_[i]);
     }
     if (!rivalsRefuted()) {
