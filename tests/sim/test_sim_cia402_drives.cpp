@@ -203,6 +203,13 @@ TEST_CASE("bring-up: NMT, SDO configuration, mode confirmed, then shutdown, swit
   CHECK(b.traction.read(0x1A00, 2) == 0x60640020U);
   CHECK(b.traction.read(0x1A01, 1) == 0x606C0020U);
   CHECK(b.traction.read(0x1800, 5) == 10);
+  // The drives' own reactions (CiA 402): a lost controller = fault signal (the simulated drive
+  // leaves the factory with 0, no reaction), quick stop and fault reaction on the quick-stop ramp.
+  for (const SimCia402Node* d : {&b.traction, &b.steering}) {
+    CHECK(d->read(0x6007, 0) == 1);
+    CHECK(d->read(0x605A, 0) == 2);
+    CHECK(d->read(0x605E, 0) == 2);
+  }
   CHECK(b.traction.counters().sdoAborts == 0);
 
   // The order on the bus for the traction node: NMT pre-operational, SDOs (0x6060 before the
@@ -797,6 +804,25 @@ TEST_CASE("bring-up failures: SDO abort named, SDO timeout, a mode not confirmed
     CHECK(b.ctl->traction().lastErrorIndex() == 0x6060);
     CHECK(b.traction.state() != PowerState::OperationEnabled);
   }
+  SECTION("a drive without the abort connection option code (0x6007) is not driven") {
+    Bench b;
+    b.toController = [](CanFrame& f) {
+      if (f.id == 0x581 && f.data[1] == 0x07 && f.data[2] == 0x60 && f.data[0] == 0x60) {
+        f.data[0] = 0x80;  // the answer to 0x6007 becomes an abort: object does not exist
+        f.data[4] = 0x00;
+        f.data[5] = 0x00;
+        f.data[6] = 0x02;
+        f.data[7] = 0x06;
+      }
+      return true;
+    };
+    REQUIRE(b.ctl->start(b.now) == Status::Ok);
+    b.run(Duration::fromMilliseconds(1000));
+    CHECK(b.ctl->state() == DriveControllerState::Failed);
+    CHECK(b.ctl->traction().lastAbortCode() == 0x06020000U);
+    CHECK(b.ctl->traction().lastErrorIndex() == 0x6007);
+    CHECK(b.traction.state() != PowerState::OperationEnabled);
+  }
   SECTION("no SDO answer") {
     Bench b;
     b.toController = [](CanFrame& f) { return f.id != 0x583; };
@@ -975,6 +1001,198 @@ TEST_CASE("the simulated drive follows the controlword through the CiA 402 state
   CHECK(cw(0x0006) == PowerState::Fault);             // only a fault reset leaves Fault
   CHECK(cw(0x0086) == PowerState::SwitchOnDisabled);  // the edge of bit 7
   CHECK((node.statusword() & 0x004F) == 0x0040);
+}
+
+namespace {
+
+/// One simulated drive on its own, talked to by SDO (expedited), NMT and the heartbeat of a
+/// controller with node id 127, stepped in 10 ms cycles; the frames it sends are kept.
+struct LoneDrive {
+  static constexpr std::uint8_t kNode = 5;
+  SimCia402Node node;
+  Timestamp t{Timestamp::fromSeconds(1.0)};
+  std::vector<CanFrame> sent;
+  bool controllerAlive = true;
+
+  explicit LoneDrive(const SimCia402NodeParams& p) : node(p) { step(); }
+  static SimCia402NodeParams params(bool quickStopToOperationEnabled = false) {
+    SimCia402NodeParams p;
+    p.nodeId = kNode;
+    p.options.quickStopToOperationEnabled = quickStopToOperationEnabled;
+    return p;
+  }
+
+  void step() {
+    if (controllerAlive && (t.ns / 1000000) % 50 == 0) {
+      CanFrame hb;
+      hb.id = 0x77F;
+      hb.dlc = 1;
+      hb.data[0] = 0x05;
+      node.receive(hb, t);
+    }
+    t = t + kCycle;
+    CanFrame buf[SimCia402Node::kOutbox];
+    const std::size_t n = node.step(t, Span<CanFrame>(buf));
+    sent.insert(sent.end(), buf, buf + n);
+  }
+  void run(Duration d) {
+    for (Timestamp end = t + d; t < end;)
+      step();
+  }
+  /// Expedited SDO download of `size` bytes; returns the abort code, 0 when confirmed.
+  std::uint32_t write(std::uint16_t index, std::uint8_t sub, std::uint32_t value, int size) {
+    CanFrame f;
+    f.id = 0x600U + kNode;
+    f.dlc = 8;
+    f.data[0] = static_cast<std::uint8_t>(0x23 | ((4 - size) << 2));
+    f.data[1] = static_cast<std::uint8_t>(index & 0xFF);
+    f.data[2] = static_cast<std::uint8_t>(index >> 8);
+    f.data[3] = sub;
+    for (int i = 0; i < 4; ++i)
+      f.data[4 + i] = static_cast<std::uint8_t>(value >> (8 * i));
+    node.receive(f, t);
+    const std::size_t before = sent.size();
+    step();
+    for (std::size_t i = before; i < sent.size(); ++i) {
+      const CanFrame& a = sent[i];
+      if (a.id == 0x580U + kNode)
+        return a.data[0] == 0x80 ? static_cast<std::uint32_t>(a.data[4] | (a.data[5] << 8) | (a.data[6] << 16) |
+                                                              (static_cast<std::uint32_t>(a.data[7]) << 24))
+                                 : 0U;
+    }
+    return 0xFFFFFFFFU;
+  }
+  /// Consumes the controller's heartbeat (200 ms), profile velocity, Operation enabled, target
+  /// velocity `v`, run until the ramp reached it (acceleration 1000 units/s^2 as the factory set).
+  void driveAt(std::int32_t v) {
+    REQUIRE(write(0x1016, 1, (127U << 16) | 200U, 4) == 0);
+    REQUIRE(write(0x6060, 0, 3, 1) == 0);
+    REQUIRE(write(0x6040, 0, 0x0006, 2) == 0);
+    REQUIRE(write(0x6040, 0, 0x000F, 2) == 0);
+    REQUIRE(write(0x60FF, 0, static_cast<std::uint32_t>(v), 4) == 0);
+    run(Duration::fromSeconds(1.5));
+    REQUIRE(node.state() == PowerState::OperationEnabled);
+    REQUIRE(node.velocity() == static_cast<double>(v));
+  }
+  bool sentEmcy(std::uint16_t code) const {
+    for (const CanFrame& f : sent) {
+      if (f.id == 0x080U + kNode && (f.data[0] | (f.data[1] << 8)) == code)
+        return true;
+    }
+    return false;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("the simulated drive meets a silent controller with the reaction of 0x6007", "[drives]") {
+  LoneDrive d(LoneDrive::params());
+  CHECK(d.node.read(0x6007, 0) == 0);  // as it leaves the factory: no reaction
+  int option = 0;
+  SECTION("0: no action, only the EMCY") {
+    option = 0;
+  }
+  SECTION("1: fault signal") {
+    option = 1;
+  }
+  SECTION("2: disable voltage") {
+    option = 2;
+  }
+  SECTION("3: quick stop") {
+    option = 3;
+  }
+  REQUIRE(d.write(0x6007, 0, static_cast<std::uint32_t>(option), 2) == 0);
+  d.driveAt(1000);
+  d.controllerAlive = false;
+  d.run(Duration::fromMilliseconds(250));  // 200 ms consumer time, then the reaction begins
+  CHECK(d.node.controllerLost());
+  CHECK(d.sentEmcy(0x8130));               // CiA 301 heartbeat error, whatever the reaction
+  d.run(Duration::fromMilliseconds(300));  // the quick-stop ramp: 1000 units/s at 5000 /s^2 = 0.2 s
+  switch (option) {
+    case 0:
+      CHECK(d.node.state() == PowerState::OperationEnabled);
+      CHECK(d.node.velocity() == 1000.0);
+      break;
+    case 1:
+      CHECK(d.node.state() == PowerState::Fault);
+      CHECK(d.node.errorCode() == 0x8130);
+      CHECK(d.node.velocity() == 0.0);
+      break;
+    case 2:
+    case 3:
+      CHECK(d.node.state() == PowerState::SwitchOnDisabled);  // 3: via Quick stop active
+      CHECK(d.node.velocity() == 0.0);
+      break;
+    default:
+      FAIL("no such option");
+  }
+}
+
+TEST_CASE("the simulated drive's quick stop and fault reaction follow 0x605A and 0x605E", "[drives]") {
+  SECTION("values it does not implement are refused") {
+    LoneDrive d(LoneDrive::params());
+    CHECK(d.write(0x6007, 0, 4, 2) == 0x06090030U);
+    CHECK(d.write(0x6007, 0, 0xFFFF, 2) == 0x06090030U);  // -1: manufacturer-specific
+    CHECK(d.write(0x605A, 0, 0, 2) == 0x06090030U);       // 0: coast
+    CHECK(d.write(0x605A, 0, 3, 2) == 0x06090030U);
+    CHECK(d.write(0x605E, 0, 0, 2) == 0x06090030U);
+    CHECK(d.write(0x605E, 0, 2, 4) == 0x06070012U);  // an i16 written as 4 bytes
+  }
+  SECTION("2: the quick-stop ramp, then Switch on disabled; 1: the slow-down ramp") {
+    LoneDrive d(LoneDrive::params());
+    CHECK(d.node.read(0x605A, 0) == 2);
+    int option = 2;
+    SECTION("2") {
+      option = 2;
+    }
+    SECTION("1") {
+      option = 1;
+    }
+    REQUIRE(d.write(0x605A, 0, static_cast<std::uint32_t>(option), 2) == 0);
+    d.driveAt(1000);
+    REQUIRE(d.write(0x6040, 0, 0x0002, 2) == 0);  // quick stop (11)
+    d.run(Duration::fromMilliseconds(500));
+    if (option == 2) {
+      CHECK(d.node.state() == PowerState::SwitchOnDisabled);  // stopped after 0.2 s
+      CHECK(d.node.velocity() == 0.0);
+    } else {
+      CHECK(d.node.state() == PowerState::QuickStopActive);  // 1000 /s^2: 1 s to stop
+      CHECK(d.node.velocity() == Approx(1000.0 - 1000.0 * 0.51).margin(15.0));
+      d.run(Duration::fromMilliseconds(600));
+      CHECK(d.node.state() == PowerState::SwitchOnDisabled);
+    }
+  }
+  SECTION("6 (as this drive's factory set it): stays in Quick stop active, may re-enable; 2 written: may not") {
+    LoneDrive d(LoneDrive::params(true));
+    CHECK(d.node.read(0x605A, 0) == 6);
+    bool configured = false;
+    SECTION("factory") {
+      configured = false;
+    }
+    SECTION("configured to 2") {
+      configured = true;
+    }
+    if (configured)
+      REQUIRE(d.write(0x605A, 0, 2, 2) == 0);
+    d.driveAt(1000);
+    REQUIRE(d.write(0x6040, 0, 0x0002, 2) == 0);
+    d.run(Duration::fromMilliseconds(500));
+    CHECK(d.node.velocity() == 0.0);
+    REQUIRE(d.write(0x6040, 0, 0x000F, 2) == 0);  // enable operation (16 where allowed)
+    CHECK(d.node.state() == (configured ? PowerState::SwitchOnDisabled : PowerState::OperationEnabled));
+  }
+  SECTION("fault reaction 1: the slow-down ramp, then Fault") {
+    LoneDrive d(LoneDrive::params());
+    REQUIRE(d.write(0x605E, 0, 1, 2) == 0);
+    d.driveAt(1000);
+    d.node.injectFault(0x2310);
+    d.run(Duration::fromMilliseconds(500));
+    CHECK(d.node.state() == PowerState::FaultReactionActive);
+    CHECK(d.node.velocity() > 0.0);
+    d.run(Duration::fromMilliseconds(600));
+    CHECK(d.node.state() == PowerState::Fault);
+    CHECK(d.node.velocity() == 0.0);
+  }
 }
 
 TEST_CASE("the controller and the simulated drives allocate nothing in steady state", "[drives]") {

@@ -151,6 +151,11 @@ void Cia402Axis::buildConfig() noexcept {
   addWrite(kProducerHeartbeat, 0, 2, u32ms(c.heartbeatPeriod));
   addWrite(kConsumerHeartbeat, 1, 4,
            (static_cast<std::uint32_t>(c.controllerNodeId) << 16U) | u32ms(c.controllerHeartbeatTimeout));
+  // The drive's own reactions: a silent controller faults it, a quick stop and a fault both end
+  // on the quick-stop ramp. A drive without these objects fails the bring-up (abort named).
+  addWrite(kAbortConnectionOption, 0, 2, static_cast<std::uint16_t>(kAbortConnectionFaultSignal));
+  addWrite(kQuickStopOption, 0, 2, static_cast<std::uint16_t>(kQuickStopRampThenDisabled));
+  addWrite(kFaultReactionOption, 0, 2, static_cast<std::uint16_t>(kFaultReactionQuickStopRamp));
   addWrite(kModesOfOperation, 0, 1, static_cast<std::uint8_t>(c.mode));
   addWrite(kProfileAcceleration, 0, 4, c.profileAcceleration);
   addWrite(kProfileDeceleration, 0, 4, c.profileDeceleration);

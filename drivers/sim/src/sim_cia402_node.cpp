@@ -90,6 +90,12 @@ void SimCia402Node::resetDictionary() noexcept {
   add(kProfileDeceleration, 0, 4, true, 1000);
   add(kQuickStopDeceleration, 0, 4, true, 5000);
   add(kTargetVelocity, 0, 4, true, 0);
+  // The drive's reactions as it leaves the factory: no reaction to a lost controller (the
+  // controller must configure one: the tests show its write is what faults a silent-controller
+  // drive), quick stop as `params_.options` says, fault reaction on the quick-stop ramp.
+  add(kAbortConnectionOption, 0, 2, true, 0);
+  add(kQuickStopOption, 0, 2, true, params_.options.quickStopToOperationEnabled ? 6U : 2U);
+  add(kFaultReactionOption, 0, 2, true, 2);
   modeDisplay_ = 0;
   controlword_ = 0;
   controllerSeen_ = false;
@@ -260,6 +266,12 @@ std::uint32_t SimCia402Node::write(std::uint16_t index, std::uint8_t sub, std::u
       return code(SdoAbortCode::InvalidValue);  // a valid PDO's COB-ID cannot change
     }
   }
+  const std::int16_t option = static_cast<std::int16_t>(value & 0xFFFFU);
+  if ((index == kAbortConnectionOption && (option < 0 || option > 3)) ||
+      (index == kQuickStopOption && option != 1 && option != 2 && option != 5 && option != 6) ||
+      (index == kFaultReactionOption && option != 1 && option != 2)) {
+    return code(SdoAbortCode::InvalidValue);  // the reactions this drive implements (header)
+  }
   if (index == kModesOfOperation) {
     const std::int8_t mode = static_cast<std::int8_t>(value & 0xFFU);
     if (mode != static_cast<std::int8_t>(OperationMode::ProfilePosition) &&
@@ -309,6 +321,38 @@ void SimCia402Node::enterFault(std::uint16_t errorCode) noexcept {
   ++counters_.emcys;
 }
 
+void SimCia402Node::onConnectionLost() noexcept {
+  // CiA 301: the heartbeat error is signalled by EMCY whatever the reaction; CiA 402 0x6007 says
+  // what the drive does about it.
+  switch (read(kAbortConnectionOption, 0)) {
+    case 1:  // fault signal
+      enterFault(params_.heartbeatErrorCode);
+      return;
+    case 2:  // disable voltage: the power stage off, the brake holds
+      if (state_ != PowerState::Fault && state_ != PowerState::FaultReactionActive) {
+        state_ = PowerState::SwitchOnDisabled;
+        velocity_ = 0.0;
+      }
+      break;
+    case 3:  // quick stop
+      if (state_ == PowerState::OperationEnabled) {
+        state_ = PowerState::QuickStopActive;
+      }
+      break;
+    default:  // 0: no action
+      break;
+  }
+  queue(encodeEmcy(params_.nodeId, params_.heartbeatErrorCode, 0x00, last_));
+  ++counters_.emcys;
+}
+
+Cia402Options SimCia402Node::options() const noexcept {
+  const std::uint32_t quickStop = read(kQuickStopOption, 0);
+  Cia402Options o;
+  o.quickStopToOperationEnabled = quickStop >= 5U && quickStop <= 8U;
+  return o;
+}
+
 void SimCia402Node::injectFault(std::uint16_t errorCode) noexcept {
   enterFault(errorCode);
 }
@@ -331,7 +375,7 @@ void SimCia402Node::onControlword(std::uint16_t cw) noexcept {
     e->value = cw;
   }
   const Cia402Command cmd = decodeControlword(prev, cw);
-  const Result<PowerState> next = nextState(state_, cmd, params_.options);
+  const Result<PowerState> next = nextState(state_, cmd, options());
   if (next.ok()) {
     const PowerState from = state_;
     state_ = next.value();
@@ -518,11 +562,20 @@ void SimCia402Node::move(double dt) noexcept {
   const double quick = static_cast<double>(read(kQuickStopDeceleration, 0));
   const bool halt = (controlword_ & kCwHalt) != 0U;
   if (state_ == PowerState::QuickStopActive || state_ == PowerState::FaultReactionActive) {
-    velocity_ = rampTo(velocity_, 0.0, quick, dt);
+    // Option codes 1 and 5 (quick stop) and 1 (fault reaction) ramp on the profile deceleration,
+    // the others on the quick-stop deceleration.
+    const bool quickStop = state_ == PowerState::QuickStopActive;
+    const std::uint32_t option = read(quickStop ? kQuickStopOption : kFaultReactionOption, 0);
+    velocity_ = rampTo(velocity_, 0.0, option == 1U || option == 5U ? decel : quick, dt);
     position_ += velocity_ * dt;
     if (velocity_ == 0.0) {
-      // Quick-stop option code 2: Switch on disabled once stopped; fault reaction done: Fault.
-      state_ = state_ == PowerState::QuickStopActive ? PowerState::SwitchOnDisabled : PowerState::Fault;
+      // Quick stop 1, 2: Switch on disabled once stopped (5, 6 stay in Quick stop active);
+      // the fault reaction done: Fault.
+      if (!quickStop) {
+        state_ = PowerState::Fault;
+      } else if (option == 1U || option == 2U) {
+        state_ = PowerState::SwitchOnDisabled;
+      }
     }
     return;
   }
@@ -588,7 +641,7 @@ std::size_t SimCia402Node::step(Timestamp now, Span<CanFrame> out) noexcept {
   const Duration consumerTime = Duration::fromMilliseconds(consumer & 0xFFFFU);
   if (controllerSeen_ && !controllerLost_ && consumerTime.ns > 0 && now - lastControllerHeartbeat_ > consumerTime) {
     controllerLost_ = true;
-    enterFault(params_.heartbeatErrorCode);
+    onConnectionLost();
   }
   std::size_t n = 0;
   auto emit = [&](const CanFrame& f) {

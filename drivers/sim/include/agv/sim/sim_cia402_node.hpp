@@ -7,7 +7,11 @@
 /// controller uses (aborts for unknown objects and sub-indices, read-only objects, bad lengths or
 /// values, mappings that do not fit), PDOs as mapped through 0x1400/0x1600/0x1800/0x1A00 (the RPDO
 /// written into the object dictionary, TPDOs sent every event-timer period), a heartbeat producer
-/// (0x1017) and a heartbeat consumer (0x1016) that faults the drive when the controller falls silent.
+/// (0x1017) and a heartbeat consumer (0x1016) whose timeout is met with the reaction of the abort
+/// connection option code 0x6007 (0 none, 1 fault, 2 disable voltage, 3 quick stop; 0 as the node
+/// leaves the factory, so only a controller that configures it gets a drive that stops when the
+/// controller falls silent). Quick stop (0x605A: 1, 2, 5, 6) and fault reaction (0x605E: 1, 2) end
+/// on the slow-down or quick-stop ramp as their option codes say; other values are refused.
 /// Faults can be injected (EMCY + Fault with an error code) and the node silenced (a dead node).
 ///
 /// Used by the drive-controller tests in-process and by `agvnav-sim-drives` on a CAN interface.
@@ -32,7 +36,8 @@ struct SimCia402NodeParams {
   std::int32_t initialPosition = 0;
   /// Error code of the heartbeat-consumer fault (CiA 301: 0x8130, life guard / heartbeat error).
   std::uint16_t heartbeatErrorCode = 0x8130;
-  /// Optional transitions of the state machine (quick-stop option code).
+  /// The quick-stop option code as the node leaves the factory: 6 (transition 16 allowed) when
+  /// `quickStopToOperationEnabled`, else 2. A write of 0x605A replaces it.
   drivers::canopen::Cia402Options options;
 };
 
@@ -94,7 +99,7 @@ class SimCia402Node {
   /// Profile position: the set-point being moved to.
   std::int32_t activeTargetPosition() const noexcept { return activeTarget_; }
   std::int32_t targetVelocity() const noexcept { return static_cast<std::int32_t>(read(0x60FF, 0)); }
-  /// The controller's heartbeat timed out (the drive faulted for it).
+  /// The controller's heartbeat timed out (the drive reacted as 0x6007 says).
   bool controllerLost() const noexcept { return controllerLost_; }
   const SimCia402Counters& counters() const noexcept { return counters_; }
   std::uint8_t nodeId() const noexcept { return params_.nodeId; }
@@ -109,7 +114,7 @@ class SimCia402Node {
     bool writable;
     std::uint32_t value;
   };
-  static constexpr std::size_t kEntries = 48;
+  static constexpr std::size_t kEntries = 52;
 
   void resetDictionary() noexcept;
   void resetCommunication() noexcept;
@@ -125,6 +130,8 @@ class SimCia402Node {
   void onControlword(std::uint16_t cw) noexcept;
   void queue(const drivers::CanFrame& frame) noexcept;
   void enterFault(std::uint16_t code) noexcept;
+  void onConnectionLost() noexcept;
+  drivers::canopen::Cia402Options options() const noexcept;
   void move(double dt) noexcept;
   bool pdoValid(std::uint16_t commIndex, std::uint32_t& cobId) const noexcept;
   drivers::CanFrame tpdoFrame(std::uint16_t pdo, std::uint32_t cobId) const noexcept;

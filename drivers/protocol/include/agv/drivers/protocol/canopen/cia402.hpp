@@ -32,9 +32,13 @@ inline constexpr std::uint16_t kProfileAcceleration = 0x6083;    ///< u32 [accel
 inline constexpr std::uint16_t kProfileDeceleration = 0x6084;    ///< u32 [acceleration units]
 inline constexpr std::uint16_t kQuickStopDeceleration = 0x6085;  ///< u32 [acceleration units]
 inline constexpr std::uint16_t kTargetVelocity = 0x60FF;         ///< i32 [velocity units] (pv)
-inline constexpr std::uint16_t kConsumerHeartbeat = 0x1016;      ///< u32 per sub-index: node << 16 | ms
-inline constexpr std::uint16_t kProducerHeartbeat = 0x1017;      ///< u16 [ms]
-inline constexpr std::uint16_t kRpdoCommunication = 0x1400;      ///< + PDO number - 1
+/// i16: the drive's reaction to a lost connection (its heartbeat consumer timing out).
+inline constexpr std::uint16_t kAbortConnectionOption = 0x6007;
+inline constexpr std::uint16_t kQuickStopOption = 0x605A;      ///< i16: how a quick stop ends
+inline constexpr std::uint16_t kFaultReactionOption = 0x605E;  ///< i16: how the drive stops on a fault
+inline constexpr std::uint16_t kConsumerHeartbeat = 0x1016;    ///< u32 per sub-index: node << 16 | ms
+inline constexpr std::uint16_t kProducerHeartbeat = 0x1017;    ///< u16 [ms]
+inline constexpr std::uint16_t kRpdoCommunication = 0x1400;    ///< + PDO number - 1
 inline constexpr std::uint16_t kRpdoMapping = 0x1600;
 inline constexpr std::uint16_t kTpdoCommunication = 0x1800;
 inline constexpr std::uint16_t kTpdoMapping = 0x1A00;
@@ -47,6 +51,17 @@ inline constexpr std::uint8_t kPdoEventDriven = 0xFF;
 constexpr std::uint32_t mappingEntry(std::uint16_t index, std::uint8_t subIndex, std::uint8_t bits) noexcept {
   return (static_cast<std::uint32_t>(index) << 16U) | (static_cast<std::uint32_t>(subIndex) << 8U) | bits;
 }
+
+/// Values of the option codes above that the drive controller writes at every bring-up, so that
+/// the drives' own reactions are the documented safe states whatever their factory settings
+/// (docs/drives.md, "Safe state"):
+/// - abort connection 1 = fault signal: a silent controller is a drive fault (fault reaction, then
+///   Fault; only a fault reset by a live controller leaves it);
+/// - quick stop 2 = slow down on the quick-stop ramp (0x6085), then Switch on disabled;
+/// - fault reaction 2 = slow down on the quick-stop ramp, then Fault (never coast).
+inline constexpr std::int16_t kAbortConnectionFaultSignal = 1;
+inline constexpr std::int16_t kQuickStopRampThenDisabled = 2;
+inline constexpr std::int16_t kFaultReactionQuickStopRamp = 2;
 
 // Statusword bits.
 inline constexpr std::uint16_t kSwReadyToSwitchOn = 1U << 0U;

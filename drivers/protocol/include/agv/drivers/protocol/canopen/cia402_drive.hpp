@@ -132,7 +132,7 @@ struct AxisCounters {
 class Cia402Axis {
  public:
   /// Most SDO writes of a bring-up.
-  static constexpr std::size_t kMaxConfigWrites = 32;
+  static constexpr std::size_t kMaxConfigWrites = 40;
 
   Cia402Axis(const Cia402AxisConfig& config, CanOutbox& outbox) noexcept;
 
