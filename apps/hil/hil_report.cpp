@@ -353,26 +353,16 @@ const char* relocOutcomeName(RelocOutcome outcome) noexcept {
   return "unknown";
 }
 
-report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& stages, const SessionResults& s,
-                         bool requirementMet) {
-  Json stageStates = Json::object();
-  for (const Stage& st : stages) {
-    stageStates[st.key] = st.failed ? "failed" : (st.wired ? "run" : "not wired");
-  }
-  Json runs = Json::array();
-  for (const RunResult& r : s.runs) {
-    runs.push_back(localizerRunJson(r));
-  }
-  for (const RunResult& r : s.runs) {
-    if (r.mode == LocalizationMode::Reflectors) {  // every mode repeats these vehicle runs (same seeds)
-      appendDeadReckoning(r, runs);
-    }
-  }
+namespace {
+
+/// One relocalization stage's trials and sums (on the corner map `visible_reflectors` counts the
+/// map corners in clear view).
+Json relocalizationJson(const std::vector<RelocTrial>& reloc, std::size_t margin) {
   Json trials = Json::array();
-  const ColdStartSummary cs = coldStartSummary(s.reloc, cfg.relocAmbiguityMargin);
+  const ColdStartSummary cs = coldStartSummary(reloc, margin);
   std::size_t found = 0;
   std::size_t wrong = 0;
-  for (const RelocTrial& tr : s.reloc) {
+  for (const RelocTrial& tr : reloc) {
     found += tr.found ? 1U : 0U;
     wrong += tr.wrong ? 1U : 0U;
     trials.push_back(Json{{"kind", tr.kidnapped ? "kidnapped" : "cold_start"},
@@ -401,6 +391,38 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                                                           {"missed", tr.lastMissed},
                                                           {"runner_up_missed", tr.lastSecondMissed}}}});
   }
+  return Json{{"trials", std::move(trials)},
+              {"found", found},
+              {"wrong", wrong},
+              {"count", reloc.size()},
+              {"cold_starts",
+               {{"unique", cs.unique},
+                {"found_unique", cs.uniqueFound},
+                {"found_unique_within_3_sweeps", cs.uniqueWithin3},
+                {"ambiguous", cs.ambiguous},
+                {"refused_ambiguous", cs.ambiguousRefused},
+                {"wrong", cs.wrong},
+                {"unique_beyond_margin", cs.uniqueBeyondMargin},
+                {"found_unique_beyond_margin", cs.uniqueBeyondMarginFound}}}};
+}
+
+}  // namespace
+
+report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& stages, const SessionResults& s,
+                         bool requirementMet) {
+  Json stageStates = Json::object();
+  for (const Stage& st : stages) {
+    stageStates[st.key] = st.failed ? "failed" : (st.wired ? "run" : "not wired");
+  }
+  Json runs = Json::array();
+  for (const RunResult& r : s.runs) {
+    runs.push_back(localizerRunJson(r));
+  }
+  for (const RunResult& r : s.runs) {
+    if (r.mode == LocalizationMode::Reflectors) {  // every mode repeats these vehicle runs (same seeds)
+      appendDeadReckoning(r, runs);
+    }
+  }
   Json mappingRuns = Json::array();
   for (const RunResult& r : s.mappingRuns) {
     mappingRuns.push_back(localizerRunJson(r));
@@ -414,20 +436,8 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
                {{"frozen_corners", s.mapCorners},
                 {"field_surface_cells", s.fieldSurfacePoints},
                 {"runs", std::move(mappingRuns)}}},
-              {"relocalization",
-               {{"trials", std::move(trials)},
-                {"found", found},
-                {"wrong", wrong},
-                {"count", s.reloc.size()},
-                {"cold_starts",
-                 {{"unique", cs.unique},
-                  {"found_unique", cs.uniqueFound},
-                  {"found_unique_within_3_sweeps", cs.uniqueWithin3},
-                  {"ambiguous", cs.ambiguous},
-                  {"refused_ambiguous", cs.ambiguousRefused},
-                  {"wrong", cs.wrong},
-                  {"unique_beyond_margin", cs.uniqueBeyondMargin},
-                  {"found_unique_beyond_margin", cs.uniqueBeyondMarginFound}}}}},
+              {"relocalization", relocalizationJson(s.reloc, cfg.relocAmbiguityMargin)},
+              {"relocalization_corners", relocalizationJson(s.relocCorners, cfg.relocAmbiguityMargin)},
               {"missions", missionsJson(cfg, s)},
               {"requirement_met", requirementMet}};
 }

@@ -39,7 +39,10 @@ struct SessionResults {
   std::size_t mapCorners = 0;          ///< corners frozen into the static FALKO map
   std::size_t fieldSurfacePoints = 0;  ///< surface points of the natural mode's likelihood field
   std::string naturalError;            ///< why the natural mode could not run (empty: it ran)
-  std::vector<RelocTrial> reloc;       ///< the relocalization stage's trials
+  std::vector<RelocTrial> reloc;       ///< the relocalization stage's trials (surveyed reflector map)
+  /// The same trials' poses searched on the static FALKO corner map (`mapCorners` corners): the
+  /// pipeline in the static_falko mode, no reflector in use.
+  std::vector<RelocTrial> relocCorners;
   /// Missions (docs/hil.md, "Missions"): the runs of every mode with the pallets rearranged, the
   /// mapping runs on the original layout, and the maps built from them.
   std::vector<RunResult> missionRuns;

@@ -343,6 +343,9 @@ bool runReflectorMode(const agv::sim::World& world, const ScenarioConfig& cfg, a
   return runMode(world, cfg, LocalizationMode::Reflectors, reflectorMap, {}, {}, cfg.runsPerPath, 0, s.runs);
 }
 
+void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& map,
+                            agv::LandmarkKind kind, std::vector<agv::hil::RelocTrial>& trials);
+
 /// Static FALKO map and natural navigation: one mapping run per path (other seeds) localizing on
 /// the surveyed reflectors while the FALKO corners and the scans are accumulated at the
 /// localizer's pose; the corners seen at least kMinMapHits times are then frozen and used alone
@@ -373,6 +376,7 @@ bool runStaticMapModes(const agv::sim::World& world, const ScenarioConfig& cfg, 
   if (!runMode(world, cfg, LocalizationMode::StaticFalko, *falkoMap, {}, {}, cfg.runsPerPath, 0, s.runs)) {
     return false;
   }
+  runRelocalizationStage(world, cfg, *falkoMap, agv::LandmarkKind::Corner, s.relocCorners);
   auto field = std::make_unique<HilField>();
   std::string error;
   if (surfaces.build(fieldParams, kFieldMinScans, *field, error) != agv::Status::Ok) {
@@ -405,17 +409,19 @@ bool runDynamicMode(const agv::sim::World& world, const ScenarioConfig& cfg, Ses
 }
 
 /// Relocalization: cold starts at random poses on the paths (random headings) and kidnappings, the
-/// pipeline finding its pose on the surveyed reflector map with no set-pose.
-void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& reflectorMap,
-                            SessionResults& s) {
-  std::printf("relocalization: %d cold starts and %d kidnappings at random poses on the paths, reflector map\n",
-              cfg.relocColdStarts, cfg.relocKidnaps);
-  s.reloc =
-      agv::hil::runRelocalization(world, cfg, reflectorMap, cfg.relocColdStarts, cfg.relocKidnaps, cfg.relocSeconds);
+/// pipeline finding its pose with no set-pose on `map`'s landmarks of `kind` (the surveyed
+/// reflectors, or the static FALKO corners); the trials into `trials`.
+void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& map,
+                            agv::LandmarkKind kind, std::vector<agv::hil::RelocTrial>& trials) {
+  const bool corners = kind == agv::LandmarkKind::Corner;
+  std::printf("relocalization%s: %d cold starts and %d kidnappings at random poses on the paths, %s\n",
+              corners ? " on corners" : "", cfg.relocColdStarts, cfg.relocKidnaps,
+              corners ? "the static FALKO corner map (no reflector in use)" : "reflector map");
+  trials = agv::hil::runRelocalization(world, cfg, map, cfg.relocColdStarts, cfg.relocKidnaps, cfg.relocSeconds, kind);
   int index = 0;
-  for (const agv::hil::RelocTrial& tr : s.reloc) {
+  for (const agv::hil::RelocTrial& tr : trials) {
     ++index;
-    std::printf("[%2d/%2zu] %-10s at (%5.2f, %5.2f, %7.2f deg): %s", index, s.reloc.size(),
+    std::printf("[%2d/%2zu] %-10s at (%5.2f, %5.2f, %7.2f deg): %s", index, trials.size(),
                 tr.kidnapped ? "kidnapped" : "cold start", tr.truth.x, tr.truth.y, agv::rad2deg(tr.truth.theta),
                 tr.found ? "found" : "not found");
     if (tr.found) {
@@ -435,45 +441,50 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
     if (!tr.found) {
       // Why: the last sweep searched again with the pipeline's parameters.
       std::printf("        not found: %" PRIu64 " searches, %" PRIu64 " candidates, %" PRIu64
-                  " unconfirmed; last sweep %zu reflectors, search %s with %zu inliers (%zu missed), runner-up %zu "
+                  " unconfirmed; last sweep %zu %s, search %s with %zu inliers (%zu missed), runner-up %zu "
                   "(%zu missed)\n",
-                  tr.searches, tr.candidates, tr.unconfirmed, tr.detected, agv::hil::relocOutcomeName(tr.lastOutcome),
-                  tr.lastInliers, tr.lastMissed, tr.lastSecondInliers, tr.lastSecondMissed);
+                  tr.searches, tr.candidates, tr.unconfirmed, tr.detected, corners ? "corners" : "reflectors",
+                  agv::hil::relocOutcomeName(tr.lastOutcome), tr.lastInliers, tr.lastMissed, tr.lastSecondInliers,
+                  tr.lastSecondMissed);
     }
   }
 }
 
-/// The relocalization stage's two summary lines; returns the wrong poses.
-std::size_t printRelocalizationSummary(const ScenarioConfig& cfg, const SessionResults& s) {
+/// A relocalization stage's summary lines (on the corner map each begins with "corners, "); returns
+/// the wrong poses.
+std::size_t printRelocalizationSummary(const ScenarioConfig& cfg, const std::vector<agv::hil::RelocTrial>& trials,
+                                       agv::LandmarkKind kind) {
+  const bool corners = kind == agv::LandmarkKind::Corner;
+  const char* prefix = corners ? "corners, " : "";
   std::size_t found = 0;
   std::size_t wrong = 0;
   std::size_t coldFound = 0;
   std::size_t cold = 0;
-  for (const agv::hil::RelocTrial& tr : s.reloc) {
+  for (const agv::hil::RelocTrial& tr : trials) {
     found += tr.found ? 1U : 0U;
     wrong += tr.wrong ? 1U : 0U;
     cold += tr.kidnapped ? 0U : 1U;
     coldFound += !tr.kidnapped && tr.found ? 1U : 0U;
   }
-  std::printf("relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
-              found, s.reloc.size(), coldFound, cold, wrong);
+  std::printf("%srelocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0)\n",
+              prefix, found, trials.size(), coldFound, cold, wrong);
   const std::size_t margin = cfg.relocAmbiguityMargin;
-  const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(s.reloc, margin);
+  const agv::hil::ColdStartSummary cs = agv::hil::coldStartSummary(trials, margin);
   std::printf(
-      "cold starts: found %zu of %zu where unique (within 3 sweeps: %zu), refused %zu of %zu ambiguous, wrong %zu\n",
-      cs.uniqueFound, cs.unique, cs.uniqueWithin3, cs.ambiguousRefused, cs.ambiguous, cs.wrong);
+      "%scold starts: found %zu of %zu where unique (within 3 sweeps: %zu), refused %zu of %zu ambiguous, wrong %zu\n",
+      prefix, cs.uniqueFound, cs.unique, cs.uniqueWithin3, cs.ambiguousRefused, cs.ambiguous, cs.wrong);
   std::printf(
-      "cold starts unique beyond the ambiguity margin (every distinct pose explains %zu fewer): found %zu of %zu\n",
-      margin + 1, cs.uniqueBeyondMarginFound, cs.uniqueBeyondMargin);
-  if (cfg.relocDecoys > 0) {
+      "%scold starts unique beyond the ambiguity margin (every distinct pose explains %zu fewer): found %zu of %zu\n",
+      prefix, margin + 1, cs.uniqueBeyondMarginFound, cs.uniqueBeyondMargin);
+  if (cfg.relocDecoys > 0 && !corners) {
     std::size_t placed = 0;
     std::size_t full = 0;
-    for (const agv::hil::RelocTrial& tr : s.reloc) {
+    for (const agv::hil::RelocTrial& tr : trials) {
       placed += tr.decoys;
       full += tr.decoys == static_cast<std::size_t>(cfg.relocDecoys) ? 1U : 0U;
     }
     std::printf("decoys: %zu placed (up to %d per trial; all %d in %zu of %zu trials)\n", placed, cfg.relocDecoys,
-                cfg.relocDecoys, full, s.reloc.size());
+                cfg.relocDecoys, full, trials.size());
   }
   return wrong;
 }
@@ -486,8 +497,8 @@ int runRelocalizationOnly(const agv::sim::World& world, const ScenarioConfig& cf
     std::fprintf(stderr, "agvnav-hil: the world's reflectors do not fit the landmark map\n");
     return 2;
   }
-  runRelocalizationStage(world, cfg, *reflectorMap, s);
-  return printRelocalizationSummary(cfg, s) == 0 ? 0 : 1;
+  runRelocalizationStage(world, cfg, *reflectorMap, agv::LandmarkKind::Reflector, s.reloc);
+  return printRelocalizationSummary(cfg, s.reloc, agv::LandmarkKind::Reflector) == 0 ? 0 : 1;
 }
 
 // ---- missions: several operation points over 50-100 m, pallets moved between runs -------------
@@ -613,7 +624,7 @@ bool runLocalizationStages(const agv::sim::World& world, const ScenarioConfig& c
   if (!runReflectorMode(world, cfg, *reflectorMap, s)) {
     return false;
   }
-  runRelocalizationStage(world, cfg, *reflectorMap, s);
+  runRelocalizationStage(world, cfg, *reflectorMap, agv::LandmarkKind::Reflector, s.reloc);
   if (!runStaticMapModes(world, cfg, *reflectorMap, s) || !runDynamicMode(world, cfg, s)) {
     return false;
   }
@@ -780,9 +791,11 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
       estimateMeetCount += agv::hil::meetsRequirement(r.finalWithEstimate, r.finalTruth) ? 1 : 0;
     }
   }
-  std::size_t relocWrong = 0;
-  for (const agv::hil::RelocTrial& tr : s.reloc) {
-    relocWrong += tr.wrong ? 1U : 0U;
+  std::size_t relocWrong = 0;  // on either map: a wrong relocalization is worse than none
+  for (const std::vector<agv::hil::RelocTrial>* trials : {&s.reloc, &s.relocCorners}) {
+    for (const agv::hil::RelocTrial& tr : *trials) {
+      relocWrong += tr.wrong ? 1U : 0U;
+    }
   }
   int missionRequiredRuns = 0;
   int missionRequiredMet = 0;
@@ -816,7 +829,8 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
               unsigned{cfg.can.bus.drive.nodeId}, unsigned{cfg.can.bus.steering.nodeId},
               cfg.can.bus.syncPeriod.ns > 0 ? ", SYNC" : "", can.framesDecoded(), can.drivePositions,
               can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
-  (void)printRelocalizationSummary(cfg, s);
+  (void)printRelocalizationSummary(cfg, s.reloc, agv::LandmarkKind::Reflector);
+  (void)printRelocalizationSummary(cfg, s.relocCorners, agv::LandmarkKind::Corner);
   std::printf("FALKO corners alone (static_falko; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
               falkoMeetCount, falkoRuns, kPositionRequirement * 100.0, kHeadingRequirementDeg);
   std::printf("dynamic map (%s; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
@@ -894,6 +908,7 @@ int main(int argc, char** argv) {
       {"static_falko_map", "EKF localization with a static FALKO map", true},
       {"natural", "EKF localization with the static FALKO map and scan matching (natural navigation)", true},
       {"relocalization", "relocalization: cold starts and kidnappings on the reflector map", true},
+      {"relocalization_corners", "relocalization: the same on the static FALKO corner map", true},
       {"dynamic_map", "EKF localization with the dynamic landmark map and the surface map", true},
   };
 

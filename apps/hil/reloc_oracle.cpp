@@ -173,4 +173,28 @@ std::vector<OraclePoint> visibleReflectors(const sim::RayCaster& caster, const s
   return out;
 }
 
+std::vector<OraclePoint> visibleMapPoints(const sim::RayCaster& caster, const sim::SimLaserParams& laser,
+                                          const Pose2d& laserPose, const std::vector<OraclePoint>& points,
+                                          double maxRange) {
+  constexpr double kOnSurface = 0.10;  // [m]
+  std::vector<OraclePoint> out;
+  for (const OraclePoint& p : points) {
+    const Pose2d::Vector2 v = laserPose.inverseTransformPoint(Pose2d::Vector2(p.x, p.y));
+    const double bearing = std::atan2(v.y(), v.x());
+    const double dist = v.norm();
+    if (std::fabs(bearing) > 0.5 * laser.fieldOfView || dist > maxRange || dist > laser.rangeMax ||
+        dist < laser.rangeMin) {
+      continue;
+    }
+    // Nothing in the way: no surface hit short of the point (a ray aimed exactly at a convex
+    // corner may graze past it, so the point itself need not be hit).
+    const sim::RayHit hit =
+        caster.cast(sim::Point2{laserPose.x, laserPose.y}, laserPose.theta + bearing, dist - kOnSurface);
+    if (!hit.hit) {
+      out.push_back(p);
+    }
+  }
+  return out;
+}
+
 }  // namespace agv::hil

@@ -52,5 +52,11 @@ Uniqueness judgeUniqueness(const std::vector<OraclePoint>& map, const std::vecto
 /// when standing still: the same field-of-view, range and line-of-sight rules as `SimLaser`.
 std::vector<OraclePoint> visibleReflectors(const sim::RayCaster& caster, const sim::SimLaserParams& laser,
                                            const Pose2d& laserPose);
+/// The map points (map frame, e.g. frozen FALKO corners) in clear view of the laser at `laserPose`:
+/// within its field of view, `maxRange` and range limits, and no surface on the beam towards it
+/// short of 0.10 m before it (a corner lies on the surfaces that form it).
+std::vector<OraclePoint> visibleMapPoints(const sim::RayCaster& caster, const sim::SimLaserParams& laser,
+                                          const Pose2d& laserPose, const std::vector<OraclePoint>& points,
+                                          double maxRange);
 
 }  // namespace agv::hil

@@ -531,23 +531,32 @@ std::vector<Pose2d::Vector2> relocDecoys(const sim::RayCaster& caster, const Sce
   return out;
 }
 
-/// One relocalization trial (see `RelocTrial`): standing vehicle, reflectors on the surveyed map.
-RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, LandmarkMap& map, const Pose2d& start,
-                      const Pose2d* kidnapFrom, double maxSeconds, std::uint64_t seed) {
+/// One relocalization trial (see `RelocTrial`): standing vehicle, the landmarks of `kind` on `map`
+/// (reflectors: the surveyed map, the pipeline in the reflector mode; corners: the frozen FALKO
+/// corners, the pipeline in the static_falko mode).
+RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, LandmarkMap& map, LandmarkKind kind,
+                      const Pose2d& start, const Pose2d* kidnapFrom, double maxSeconds, std::uint64_t seed) {
   RelocTrial trial;
   trial.kidnapped = kidnapFrom != nullptr;
   trial.truth = start;
   std::vector<Pose2d::Vector2> decoys;
+  const LocalizationMode mode =
+      kind == LandmarkKind::Corner ? LocalizationMode::StaticFalko : LocalizationMode::Reflectors;
+  nav::PipelineParams params = pipelineParams(cfg, mode);
   {
-    // The oracle: the reflectors visible from the truth, noise-free, in the vehicle frame, against
-    // the surveyed map's reflectors.
+    // The oracle: the landmarks of the kind visible from the truth, noise-free, in the vehicle
+    // frame, against the map's landmarks of that kind.
     std::vector<OraclePoint> landmarks;
     map.forEach([&](LandmarkIndex, const Landmark& l) {
-      if (l.kind == LandmarkKind::Reflector) {
+      if (l.kind == kind) {
         landmarks.push_back(OraclePoint{l.x, l.y});
       }
     });
-    std::vector<OraclePoint> seen = visibleReflectors(caster, cfg.laser, start.compose(cfg.vehicle.laserMount));
+    const Pose2d laserPose = start.compose(cfg.vehicle.laserMount);
+    std::vector<OraclePoint> seen =
+        kind == LandmarkKind::Reflector
+            ? visibleReflectors(caster, cfg.laser, laserPose)
+            : visibleMapPoints(caster, cfg.laser, laserPose, landmarks, params.falko.maxExtractionRange);
     for (OraclePoint& p : seen) {
       const Pose2d::Vector2 v = start.inverseTransformPoint(Pose2d::Vector2(p.x, p.y));
       p = OraclePoint{v.x(), v.y()};
@@ -556,7 +565,7 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
     trial.unique = u.unique;
     trial.visibleReflectors = u.visible;
     trial.otherSupport = u.otherSupport;
-    if (u.otherSupport > 0) {
+    if (u.otherSupport > 0 && kind == LandmarkKind::Reflector) {
       decoys = relocDecoys(caster, cfg, landmarks, seen, start, u.other, cfg.relocDecoys, UniquenessParams{}.tolerance);
     }
     trial.decoys = decoys.size();
@@ -577,7 +586,6 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
   }
   spurious.insert(spurious.end(), decoys.begin(), decoys.end());
   ClutteredLaser cluttered(laser, vehicle, std::move(spurious), cfg.relocMissProbability, seed ^ 0x2545F4914F6CDD1DULL);
-  nav::PipelineParams params = pipelineParams(cfg, LocalizationMode::Reflectors);
   params.relocalization.search.ambiguityMargin = cfg.relocAmbiguityMargin;
   params.relocalization.search.refutedMargin = cfg.relocRefutedMargin;
   nav::Pipeline pipeline(params, map, nav::PipelineDevices{canEncoders, cluttered, plc, clock});
@@ -634,9 +642,15 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
     // The last sweep searched again with the pipeline's parameters: why it was refused.
     const hal::LaserMeasurement& meas = pipeline.lastMeasurement();
     std::vector<PointObservation> obs;
-    for (std::size_t i = 0; i < meas.reflectors.size(); ++i) {
-      obs.push_back(PointObservation{static_cast<double>(meas.reflectors[i].x),
-                                     static_cast<double>(meas.reflectors[i].y), LandmarkKind::Reflector});
+    if (kind == LandmarkKind::Reflector) {
+      for (std::size_t i = 0; i < meas.reflectors.size(); ++i) {
+        obs.push_back(PointObservation{static_cast<double>(meas.reflectors[i].x),
+                                       static_cast<double>(meas.reflectors[i].y), LandmarkKind::Reflector});
+      }
+    } else {
+      for (const Pose2d::Vector2& c : pipeline.sweepCorners()) {
+        obs.push_back(PointObservation{c.x(), c.y(), LandmarkKind::Corner});
+      }
     }
     trial.detected = obs.size();
     GlobalLocalizerParams search = params.relocalization.search;
@@ -665,8 +679,8 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
 
 }  // namespace
 
-std::vector<RelocTrial> runRelocalization(const sim::World& world, const ScenarioConfig& config,
-                                          LandmarkMap& reflectorMap, int count, int kidnaps, double maxSeconds) {
+std::vector<RelocTrial> runRelocalization(const sim::World& world, const ScenarioConfig& config, LandmarkMap& map,
+                                          int count, int kidnaps, double maxSeconds, LandmarkKind kind) {
   std::vector<RelocTrial> trials;
   if (world.paths.empty()) {
     return trials;
@@ -688,7 +702,7 @@ std::vector<RelocTrial> runRelocalization(const sim::World& world, const Scenari
       from = draw();
     }
     const std::uint64_t seed = config.seed * 1000003U + 900000U + static_cast<std::uint64_t>(i);
-    trials.push_back(relocTrial(caster, config, reflectorMap, at, i >= count ? &from : nullptr, maxSeconds, seed));
+    trials.push_back(relocTrial(caster, config, map, kind, at, i >= count ? &from : nullptr, maxSeconds, seed));
   }
   return trials;
 }

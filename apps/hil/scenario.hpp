@@ -253,10 +253,13 @@ struct RelocTrial {
 };
 
 /// `count` cold starts and `kidnaps` kidnappings at poses drawn on the world's paths (free space)
-/// with random headings; each trial runs up to `maxSeconds` of simulated time. `reflectorMap` is a
-/// static map (only read).
-std::vector<RelocTrial> runRelocalization(const sim::World& world, const ScenarioConfig& config,
-                                          LandmarkMap& reflectorMap, int count, int kidnaps, double maxSeconds);
+/// with random headings; each trial runs up to `maxSeconds` of simulated time. `map` is a static
+/// map (only read) searched for landmarks of `kind`: `Reflector` (the surveyed map, the pipeline in
+/// the reflector mode) or `Corner` (frozen FALKO corners, the pipeline in the static_falko mode;
+/// the oracle then judges the map corners in clear view within FALKO's extraction range).
+std::vector<RelocTrial> runRelocalization(const sim::World& world, const ScenarioConfig& config, LandmarkMap& map,
+                                          int count, int kidnaps, double maxSeconds,
+                                          LandmarkKind kind = LandmarkKind::Reflector);
 
 /// The surveyed reflector map: every reflector pole centre of `world` with Gaussian survey noise
 /// `sigma` [m] per coordinate (seeded), as static surveyed landmarks with that sigma.

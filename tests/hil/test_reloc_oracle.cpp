@@ -111,3 +111,32 @@ TEST_CASE("oracle: visibility follows the laser's range and line of sight", "[hi
   CHECK(seen[0].x == Approx(5.0));
   CHECK(seen[1].y == Approx(5.0));
 }
+
+TEST_CASE("oracle: map corners are visible in clear view within range, hidden behind a box", "[hil][reloc_oracle]") {
+  agv::sim::World world;
+  agv::sim::WorldParseError err;
+  // A 20 m x 10 m hall, a pallet block between the laser at (2, 5) and the hall's far corners.
+  const char* text =
+      "hall 0 0 20 10\n"
+      "pallet 8 4 9 6\n";
+  REQUIRE(agv::sim::parseWorld(text, world, err) == agv::Status::Ok);
+  const agv::sim::RayCaster caster(world, 1.0);
+  const agv::sim::SimLaserParams laser{};
+  const std::vector<OraclePoint> corners = {{0, 0}, {0, 10}, {20, 0}, {20, 10}, {8, 4}, {9, 5}};
+  const Pose2d at{2.0, 5.0, 0.0};
+  // (9, 5) is the middle of the block's far side: hidden by its near side. (20, 0) and (20, 10) are
+  // in view past the block's corners; within 30 m all but the hidden one are seen.
+  std::vector<OraclePoint> seen = agv::hil::visibleMapPoints(caster, laser, at, corners, 30.0);
+  REQUIRE(seen.size() == 5);
+  for (const OraclePoint& p : seen) {
+    CHECK_FALSE((p.x == 9.0 && p.y == 5.0));
+  }
+  // Within 8 m: the two corners at the laser's end of the hall and the block's near corner.
+  seen = agv::hil::visibleMapPoints(caster, laser, at, corners, 8.0);
+  CHECK(seen.size() == 3);
+  // A laser looking the other way with a 180-deg field of view sees only that end.
+  agv::sim::SimLaserParams front = laser;
+  front.fieldOfView = 3.14159265358979323846;
+  seen = agv::hil::visibleMapPoints(caster, front, Pose2d{2.0, 5.0, 3.14159265358979323846}, corners, 30.0);
+  CHECK(seen.size() == 2);
+}
