@@ -781,19 +781,27 @@ TEST_CASE("a silent controller faults both drives through their heartbeat consum
   CHECK(emcy);
 }
 
+namespace {
+
+/// A filter for `Bench::toController`: the traction drive's (node 1) confirmation of a download to
+/// `index` becomes an SDO abort with `code`.
+std::function<bool(CanFrame&)> abortTractionDownload(std::uint16_t index, std::uint32_t code) {
+  return [index, code](CanFrame& f) {
+    if (f.id == 0x581 && f.data[0] == 0x60 && f.data[1] == (index & 0xFF) && f.data[2] == (index >> 8)) {
+      f.data[0] = 0x80;
+      for (int i = 0; i < 4; ++i)
+        f.data[4 + i] = static_cast<std::uint8_t>(code >> (8 * i));
+    }
+    return true;
+  };
+}
+
+}  // namespace
+
 TEST_CASE("bring-up failures: SDO abort named, SDO timeout, a mode not confirmed, a drive in Fault", "[drives]") {
   SECTION("abort on the mode write") {
     Bench b;
-    b.toController = [](CanFrame& f) {
-      if (f.id == 0x581 && f.data[1] == 0x60 && f.data[2] == 0x60 && f.data[0] == 0x60) {
-        f.data[0] = 0x80;  // the answer to 0x6060 becomes an abort: invalid value
-        f.data[4] = 0x30;
-        f.data[5] = 0x00;
-        f.data[6] = 0x09;
-        f.data[7] = 0x06;
-      }
-      return true;
-    };
+    b.toController = abortTractionDownload(0x6060, 0x06090030U);  // invalid value
     REQUIRE(b.ctl->start(b.now) == Status::Ok);
     b.run(Duration::fromMilliseconds(1000));
     CHECK(b.ctl->state() == DriveControllerState::Failed);
@@ -806,16 +814,7 @@ TEST_CASE("bring-up failures: SDO abort named, SDO timeout, a mode not confirmed
   }
   SECTION("a drive without the abort connection option code (0x6007) is not driven") {
     Bench b;
-    b.toController = [](CanFrame& f) {
-      if (f.id == 0x581 && f.data[1] == 0x07 && f.data[2] == 0x60 && f.data[0] == 0x60) {
-        f.data[0] = 0x80;  // the answer to 0x6007 becomes an abort: object does not exist
-        f.data[4] = 0x00;
-        f.data[5] = 0x00;
-        f.data[6] = 0x02;
-        f.data[7] = 0x06;
-      }
-      return true;
-    };
+    b.toController = abortTractionDownload(0x6007, 0x06020000U);  // object does not exist
     REQUIRE(b.ctl->start(b.now) == Status::Ok);
     b.run(Duration::fromMilliseconds(1000));
     CHECK(b.ctl->state() == DriveControllerState::Failed);
