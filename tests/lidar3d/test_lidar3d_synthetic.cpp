@@ -204,8 +204,12 @@ TEST_CASE("lidar3d: a box room gives histogram peaks at n.z = 0 and 1 in the pro
   CHECK(agv::normalBin(1.0F) == 100U);
   const double peakWall = sig.bins[50];
   const double peakFloor = sig.bins[100];
-  AGV_CHECK_NEAR(peakWall, wallShare, mixedShare + 1e-4);
-  AGV_CHECK_NEAR(peakFloor, floorShare, mixedShare + 1e-4);
+  // Every normal of a single plane is within 0.05 deg of its truth (noise-free), so it lands in
+  // its bin: each peak holds at least its plane's share, and at most that plus the mixed normals.
+  CHECK(peakWall >= wallShare - 1e-5);
+  CHECK(peakWall <= wallShare + mixedShare + 1e-5);
+  CHECK(peakFloor >= floorShare - 1e-5);
+  CHECK(peakFloor <= floorShare + mixedShare + 1e-5);
   for (std::size_t b = 0; b < agv::kNormalSignatureBins; ++b) {
     if (b != 50 && b != 100) {
       CHECK(sig.bins[b] <= mixedShare + 1e-4);
