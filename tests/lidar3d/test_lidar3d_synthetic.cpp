@@ -324,6 +324,10 @@ TEST_CASE("lidar3d: bad input is refused and counted", "[lidar3d]") {
   CHECK(g_image.buildFromRings(agv::Span<const agv::RingPoint>(pts, 64)) == agv::Status::NotEnoughData);
   CHECK(g_image.stats().noReturn == 64U);
   CHECK(g_image.validCount() == 0U);
+  CHECK(agv::computeNormalSignature(g_image, vlpSignature(), sig) == agv::Status::EmptyInput);
+  CHECK(sig.empty());
+  CHECK(agv::computeOrientationSignature(g_image, agv::OrientationParams{}, ori) == agv::Status::EmptyInput);
+  CHECK(ori.empty());
   // NaN points: refused and counted, the others kept.
   for (std::size_t i = 0; i < 64; ++i) {
     pts[i].point = Eigen::Vector3f(5.0F + static_cast<float>(i) * 0.01F, 1.0F, 0.0F);
