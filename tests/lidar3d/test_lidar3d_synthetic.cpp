@@ -248,7 +248,9 @@ TEST_CASE(
     const agv::Result<agv::YawEstimate> yaw = agv::relativeYaw(refOrientation, turnedOrientation);
     REQUIRE(yaw.ok());
     INFO("estimated " << rad2deg(yaw.value().yaw));
-    AGV_CHECK_NEAR(rad2deg(agv::angleDiff(static_cast<double>(yaw.value().yaw), deg2rad(yawDeg))), 0.0, 0.5);
+    // Sub-degree: 0.1 deg (measured at most 0.04); the best 1-deg shift alone is 0.3 deg off at
+    // 47.3 and 0.4 deg at -98.6.
+    AGV_CHECK_NEAR(rad2deg(agv::angleDiff(static_cast<double>(yaw.value().yaw), deg2rad(yawDeg))), 0.0, 0.1);
   }
   // The bound tells places apart: a room with a ramp is farther.
   REQUIRE(agv::test::castScene(rampRoom(), vlp16(sigma), Eigen::Vector3d::Zero(), 0.0, 0.0, rng, g_image) > 0U);
