@@ -22,6 +22,10 @@ constexpr std::size_t kFirings = 900;  // 0.4 deg: half the VLP-16's 10 Hz resol
 using TestImage = agv::RangeImage<kLasers, kFirings>;
 
 TestImage g_image;  // one image (230 KiB): the MCU image has ~650 KiB of RAM left
+// Scratch signatures for the test cases that need no second one: every static object is RAM of
+// the MCU image (which has room for a few hundred bytes more).
+agv::NormalSignature g_sig;
+agv::OrientationSignature g_ori;
 std::int8_t g_plane[kLasers * kFirings];
 
 /// VLP-16 normals: lasers one step (2 deg) above and below. Two steps (4 deg, the thesis' choice for
@@ -305,8 +309,8 @@ TEST_CASE("lidar3d: chi-square and Sorensen distances are symmetric, zero on ide
 }
 
 TEST_CASE("lidar3d: bad input is refused and counted", "[lidar3d]") {
-  static agv::NormalSignature sig;
-  static agv::OrientationSignature ori;
+  agv::NormalSignature& sig = g_sig;
+  agv::OrientationSignature& ori = g_ori;
   // Shape beyond the capacity: refused, counted, image left empty.
   CHECK(g_image.reset(kLasers + 1, kFirings) == agv::Status::CapacityExceeded);
   CHECK(g_image.reset(kLasers, kFirings + 1) == agv::Status::CapacityExceeded);
@@ -436,7 +440,7 @@ agv::NormalSkip seamCell(bool withSeam, float lift, Eigen::Vector3f& n) {
 TEST_CASE("lidar3d: the skip rule of the normals: range 3..50 m, missing and far neighbours, parallel differences",
           "[lidar3d]") {
   const agv::NormalSignatureParams params = smallNeighbourhood();
-  static agv::NormalSignature sig;
+  agv::NormalSignature& sig = g_sig;
   Eigen::Vector3f n;
   // A wall at 10 m seen by 7 lasers over 40 firings: 280 returns. Normals where all four neighbours
   // exist (rows 1..5, columns 12..47: 180); rows 0 and 6 lack a laser below / above (80) and
@@ -498,7 +502,7 @@ TEST_CASE("lidar3d: the skip rule of the normals: range 3..50 m, missing and far
   CHECK((row.value() == 2U || row.value() == 4U));
   agv::OrientationParams op;
   op.minFilledBins = 5;  // the wall spans 10 deg
-  static agv::OrientationSignature ori;
+  agv::OrientationSignature& ori = g_ori;
   REQUIRE(agv::computeOrientationSignature(g_image, op, ori) == agv::Status::Ok);
   CHECK(ori.row == row.value());
   CHECK(ori.filled >= 9U);
@@ -731,8 +735,8 @@ TEST_CASE("lidar3d: steady-state calls allocate nothing", "[lidar3d][alloc]") {
   agv::test::LoopRng rng{9};
   const agv::test::SimScene room = agv::test::boxRoom(-16.0, 24.0, -12.0, 18.0, -1.8, 5.0, false);
   REQUIRE(agv::test::castScene(room, vlp16(0.005), Eigen::Vector3d::Zero(), 0.0, 0.0, rng, g_image) > 0U);
-  static agv::NormalSignature sig;
-  static agv::OrientationSignature ori;
+  agv::NormalSignature& sig = g_sig;
+  agv::OrientationSignature& ori = g_ori;
   static agv::OrientationSignature ori2;
   static agv::RingPoint pts[256];
   for (std::size_t i = 0; i < 256; ++i) {
