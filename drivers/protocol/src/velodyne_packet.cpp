@@ -26,6 +26,56 @@ bool validReturnMode(std::uint8_t b) noexcept {
   return b == static_cast<std::uint8_t>(ReturnMode::Strongest) || b == static_cast<std::uint8_t>(ReturnMode::Last) ||
          b == static_cast<std::uint8_t>(ReturnMode::Dual);
 }
+
+// Writes the records of one block's 32 channels to `out` from `written` on, in channel order:
+// distance and intensity from the packet, the rest by `fill(channel, record)`. Records with
+// distance 0 are counted in noReturn and kept only with `keepNoReturn`. Returns true when `out`
+// ran full (the records that did not fit counted in outputFull). With room for the whole block the
+// loop is branch-free: every record is stored at the next free slot, which advances only for the
+// records kept (a skipped record's slot is overwritten by the next one or left past `written`).
+template <typename Fill>
+bool emitBlock(const std::uint8_t* blk, const Fill& fill, bool keepNoReturn, Span<FiringRecord> out,
+               std::size_t& written, VelodyneCounters& counters) noexcept {
+  const std::uint8_t* rec = blk + 4;
+  if (out.size() - written >= kChannelsPerBlock) {
+    FiringRecord* dst = out.data() + written;
+    std::size_t kept = 0;
+    std::uint32_t zeros = 0;
+    for (std::size_t c = 0; c < kChannelsPerBlock; ++c, rec += 3) {
+      FiringRecord r;
+      r.distance = le16(rec);
+      r.intensity = rec[2];
+      fill(c, r);
+      dst[kept] = r;
+      const bool zero = r.distance == 0U;
+      zeros += zero ? 1U : 0U;
+      kept += (keepNoReturn || !zero) ? 1U : 0U;
+    }
+    counters.noReturn += zeros;
+    written += kept;
+    return false;
+  }
+  bool full = false;
+  for (std::size_t c = 0; c < kChannelsPerBlock; ++c, rec += 3) {
+    FiringRecord r;
+    r.distance = le16(rec);
+    r.intensity = rec[2];
+    fill(c, r);
+    if (r.distance == 0U) {
+      ++counters.noReturn;
+      if (!keepNoReturn) {
+        continue;
+      }
+    }
+    if (written >= out.size()) {
+      ++counters.outputFull;
+      full = true;
+      continue;
+    }
+    out[written++] = r;
+  }
+  return full;
+}
 }  // namespace
 
 std::size_t laserCount(Model model) noexcept {
@@ -122,47 +172,57 @@ Status VelodyneDecoder::decode(Span<const std::uint8_t> packet, Span<FiringRecor
       }
     }
 
-    for (std::size_t c = 0; c < kChannelsPerBlock; ++c) {
-      const std::uint8_t* rec = blk + 4 + c * 3;
-      FiringRecord r;
-      r.distance = le16(rec);
-      r.intensity = rec[2];
-      r.block = static_cast<std::uint8_t>(b);
-      r.secondReturn = second ? 1U : 0U;
-      switch (config_.model) {
-        case Model::Vlp16: {
-          const std::uint32_t seq = static_cast<std::uint32_t>(c / 16U);
-          const std::uint32_t laser = static_cast<std::uint32_t>(c % 16U);
-          r.laser = static_cast<std::uint8_t>(laser);
-          const std::uint32_t tIn = laser * kVlp16LaserNs + seq * kVlp16SequenceNs;
-          r.timeNs = static_cast<std::uint32_t>(firing) * kVlp16BlockNs + tIn;
-          const float f = static_cast<float>(az) + step * static_cast<float>(tIn) / static_cast<float>(kVlp16BlockNs);
-          r.azimuth = static_cast<std::uint16_t>(static_cast<long>(std::lround(f)) % kAzimuthTurn);
-          break;
-        }
-        case Model::Hdl32e:
-          r.laser = static_cast<std::uint8_t>(c);
-          r.timeNs = static_cast<std::uint32_t>(firing) * kHdl32BlockNs + static_cast<std::uint32_t>(c) * kHdl32LaserNs;
-          r.azimuth = az;
-          break;
-        case Model::Hdl64e:
-          r.laser = static_cast<std::uint8_t>(lower ? c + kChannelsPerBlock : c);
-          r.timeNs = 0;
-          r.azimuth = az;
-          break;
+    // The model's switch is taken once per block; emitBlock writes the 32 records.
+    const std::uint8_t blockIndex = static_cast<std::uint8_t>(b);
+    const std::uint8_t secondFlag = second ? 1U : 0U;
+    switch (config_.model) {
+      case Model::Vlp16: {
+        const std::uint32_t firingNs = static_cast<std::uint32_t>(firing) * kVlp16BlockNs;
+        full |= emitBlock(
+            blk,
+            [&](std::size_t c, FiringRecord& r) noexcept {
+              const std::uint32_t seq = static_cast<std::uint32_t>(c / 16U);
+              const std::uint32_t laser = static_cast<std::uint32_t>(c % 16U);
+              r.laser = static_cast<std::uint8_t>(laser);
+              const std::uint32_t tIn = laser * kVlp16LaserNs + seq * kVlp16SequenceNs;
+              r.timeNs = firingNs + tIn;
+              const float f =
+                  static_cast<float>(az) + step * static_cast<float>(tIn) / static_cast<float>(kVlp16BlockNs);
+              r.azimuth = static_cast<std::uint16_t>(static_cast<long>(std::lround(f)) % kAzimuthTurn);
+              r.block = blockIndex;
+              r.secondReturn = secondFlag;
+            },
+            config_.keepNoReturn, out, written, counters_);
+        break;
       }
-      if (r.distance == 0) {
-        ++counters_.noReturn;
-        if (!config_.keepNoReturn) {
-          continue;
-        }
+      case Model::Hdl32e: {
+        const std::uint32_t firingNs = static_cast<std::uint32_t>(firing) * kHdl32BlockNs;
+        full |= emitBlock(
+            blk,
+            [&](std::size_t c, FiringRecord& r) noexcept {
+              r.laser = static_cast<std::uint8_t>(c);
+              r.timeNs = firingNs + static_cast<std::uint32_t>(c) * kHdl32LaserNs;
+              r.azimuth = az;
+              r.block = blockIndex;
+              r.secondReturn = secondFlag;
+            },
+            config_.keepNoReturn, out, written, counters_);
+        break;
       }
-      if (written >= out.size()) {
-        ++counters_.outputFull;
-        full = true;
-        continue;
+      case Model::Hdl64e: {
+        const std::size_t laserBase = lower ? kChannelsPerBlock : 0U;
+        full |= emitBlock(
+            blk,
+            [&](std::size_t c, FiringRecord& r) noexcept {
+              r.laser = static_cast<std::uint8_t>(c + laserBase);
+              r.timeNs = 0;
+              r.azimuth = az;
+              r.block = blockIndex;
+              r.secondReturn = secondFlag;
+            },
+            config_.keepNoReturn, out, written, counters_);
+        break;
       }
-      out[written++] = r;
     }
   }
   if (full) {
