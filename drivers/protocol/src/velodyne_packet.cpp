@@ -1,5 +1,6 @@
 #include "agv/drivers/protocol/velodyne/velodyne_packet.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace agv::drivers::velodyne {
@@ -292,40 +293,51 @@ bool RevolutionAssembler::add(Span<const FiringRecord> records) noexcept {
   if (done_) {  // the previous call completed a revolution: start the next from its pending tail
     startFromPending();
   }
-  bool wrapped = false;
-  for (std::size_t i = 0; i < records.size(); ++i) {
-    const FiringRecord& r = records[i];
-    const std::int32_t az = r.azimuth;
-    if (!wrapped) {
-      // A wrap: the azimuth falls by more than half a turn after the head passed half a turn
-      // (the hysteresis keeps a record interpolated just past the cut from cutting twice).
-      if (armed_ && lastAzimuth_ >= 0 && az + kHalfTurn < lastAzimuth_) {
-        wrapped = true;
-        armed_ = false;
-      } else {
-        store(r);
-      }
+  const std::size_t n = records.size();
+  const FiringRecord* const rec = records.data();
+  // Up to the wrap: a wrap is where the azimuth falls by more than half a turn after the head
+  // passed half a turn (the hysteresis keeps a record interpolated just past the cut from cutting
+  // twice), i.e. below `limit` = the previous azimuth - half a turn while armed (-1 = no wrap
+  // possible: not armed, or no previous record). The records before it are stored in one copy.
+  bool armed = armed_;
+  std::int32_t limit = armed && lastAzimuth_ >= 0 ? lastAzimuth_ - kHalfTurn : -1;
+  std::size_t cut = 0;
+  for (; cut < n; ++cut) {
+    const std::int32_t az = rec[cut].azimuth;
+    if (az < limit) {
+      break;
     }
-    if (wrapped) {
-      // After the wrap, records of the packet's second half-turn still belong to the old revolution
-      // (a dual-return pair or an interpolated firing that straddles the cut).
-      if (az >= kHalfTurn) {
-        store(r);
-      } else if (pendingCount_ < kMaxRecordsPerPacket) {
-        pending_[pendingCount_++] = r;
-      } else {
-        ++pendingRefused_;
-      }
-    }
-    if (az >= kHalfTurn && !wrapped) {
-      armed_ = true;
-    }
-    lastAzimuth_ = az;
+    armed = armed || az >= kHalfTurn;
+    limit = armed ? az - kHalfTurn : -1;
   }
+  const bool wrapped = cut < n;
+  const std::size_t room = storage_.size() - count_;
+  const std::size_t stored = cut < room ? cut : room;
+  std::copy(rec, rec + stored, storage_.data() + count_);
+  count_ += stored;
+  refused_ += static_cast<std::uint32_t>(cut - stored);
   ++packets_;
+  if (n > 0) {
+    lastAzimuth_ = rec[n - 1].azimuth;
+  }
   if (!wrapped) {
+    armed_ = armed;
     return false;
   }
+  // From the wrap on, records of the packet's second half-turn still belong to the old revolution
+  // (a dual-return pair or an interpolated firing that straddles the cut); the others start the
+  // next one.
+  for (std::size_t i = cut; i < n; ++i) {
+    const FiringRecord& r = rec[i];
+    if (r.azimuth >= kHalfTurn) {
+      store(r);
+    } else if (pendingCount_ < kMaxRecordsPerPacket) {
+      pending_[pendingCount_++] = r;
+    } else {
+      ++pendingRefused_;
+    }
+  }
+  armed_ = false;
   close(started_);
   started_ = true;
   return true;
