@@ -350,31 +350,39 @@ Status toFiringReturns(Span<const FiringRecord> records, const LaserIntrinsics& 
     return Status::InvalidArgument;
   }
   Status st = Status::Ok;
-  int cachedAz = -1;  // sin / cos of the head angle, computed once per firing
+  const std::size_t lasers = intrinsics.size();
+  int cachedAz = -1;  // per firing (head azimuth): sin / cos of the head angle and the column
   float sinPhi = 0.0F;
   float cosPhi = 1.0F;
+  std::uint32_t column = 0;
+  FiringReturn* const dst = out.data();
+  const std::size_t capacity = out.size();
+  std::size_t count = 0;  // written once at the end: no store through the reference per point
   for (const FiringRecord& r : records) {
     if (r.secondReturn != 0U || r.distance == 0U) {
       continue;
     }
-    if (r.laser >= intrinsics.size()) {
+    if (r.laser >= lasers) {
       st = Status::OutOfRange;
       continue;
     }
-    if (written >= out.size()) {
+    if (count >= capacity) {
+      written = count;
       return Status::CapacityExceeded;
     }
-    FiringReturn& f = out[written++];
     if (r.azimuth != cachedAz) {
       cachedAz = r.azimuth;
       const float phi = static_cast<float>(r.azimuth) * (3.14159265358979323846F / 18000.0F);
       sinPhi = std::sin(phi);
       cosPhi = std::cos(phi);
+      column = static_cast<std::uint32_t>(static_cast<std::size_t>(r.azimuth) * columns / kAzimuthTurn);
     }
+    FiringReturn& f = dst[count++];
     f.point = intrinsics.laserPoint(r.laser, r.distance, sinPhi, cosPhi);
     f.laser = r.laser;
-    f.firing = static_cast<std::uint32_t>(static_cast<std::size_t>(r.azimuth) * columns / kAzimuthTurn);
+    f.firing = column;
   }
+  written = count;
   return st;
 }
 
