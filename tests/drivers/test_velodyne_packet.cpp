@@ -186,6 +186,63 @@ TEST_CASE("Bad packets are counted and skipped, never decoded as data", "[driver
   CHECK(dec.counters().outputFull == 383U - 10U);
 }
 
+TEST_CASE("Output room ending mid-packet: the records that fit, in order, the rest counted", "[drivers][velodyne]") {
+  // The decoder stores a block branch-free while the output has room for all 32 of its records
+  // and record by record after that; toFiringReturns stops at a full output. Both against the
+  // same packet decoded into a full output (HDL-64E, no-return records in blocks 0, 2 and 3).
+  VelodyneConfig cfg;
+  cfg.model = Model::Hdl64e;
+  Packet p = makePacket(12000, 17, 0x37, 0, true);
+  put16(p.data() + 0 * 100 + 4 + 5 * 3, 0U);
+  put16(p.data() + 2 * 100 + 4 + 31 * 3, 0U);
+  put16(p.data() + 3 * 100 + 4 + 0 * 3, 0U);
+  put16(p.data() + 3 * 100 + 4 + 9 * 3, 0U);
+  VelodyneDecoder whole(cfg);
+  static FiringRecord all[kMaxRecordsPerPacket];
+  std::size_t n = 0;
+  REQUIRE(whole.decode(bytes(p), Span<FiringRecord>(all), n) == Status::Ok);
+  REQUIRE(n == kMaxRecordsPerPacket - 4U);
+  CHECK(whole.counters().noReturn == 4U);
+  VelodyneDecoder part(cfg);
+  static FiringRecord some[100];  // three blocks (94 records kept) fit whole, then 6 of block 3
+  std::size_t m = 0;
+  CHECK(part.decode(bytes(p), Span<FiringRecord>(some), m) == Status::CapacityExceeded);
+  REQUIRE(m == 100U);
+  for (std::size_t i = 0; i < m; ++i) {
+    CHECK(std::memcmp(&some[i], &all[i], sizeof(FiringRecord)) == 0);
+  }
+  CHECK(part.counters().noReturn == 4U);
+  CHECK(part.counters().outputFull == static_cast<std::uint32_t>(n - 100U));
+  // Keeping the no-return records: every one stored where it lies.
+  cfg.keepNoReturn = true;
+  VelodyneDecoder keep(cfg);
+  CHECK(keep.decode(bytes(p), Span<FiringRecord>(all), n) == Status::Ok);
+  CHECK(n == kMaxRecordsPerPacket);
+  CHECK(all[5].distance == 0U);
+  CHECK(all[6].distance == 1006U);
+  CHECK(keep.counters().noReturn == 4U);
+  // Points: a full output ends the conversion with the returns that fit written.
+  static agv::LaserIntrinsics cal;
+  REQUIRE(cal.reset(64) == Status::Ok);
+  for (std::size_t i = 0; i < 64; ++i)
+    REQUIRE(cal.set(i, agv::LaserParams{0.01, 0.02, -0.03, (static_cast<double>(i) - 31.5) * 0.01,
+                                        0.001 * static_cast<double>(i)}) == Status::Ok);
+  static agv::FiringReturn full[kMaxRecordsPerPacket];
+  static agv::FiringReturn few[50];
+  REQUIRE(whole.decode(bytes(p), Span<FiringRecord>(all), n) == Status::Ok);
+  std::size_t k = 0;
+  REQUIRE(toFiringReturns(Span<const FiringRecord>(all, n), cal, 2000, Span<agv::FiringReturn>(full), k) == Status::Ok);
+  REQUIRE(k == n);
+  CHECK(toFiringReturns(Span<const FiringRecord>(all, n), cal, 2000, Span<agv::FiringReturn>(few), k) ==
+        Status::CapacityExceeded);
+  REQUIRE(k == 50U);
+  for (std::size_t i = 0; i < k; ++i) {
+    CHECK(few[i].point == full[i].point);
+    CHECK(few[i].laser == full[i].laser);
+    CHECK(few[i].firing == full[i].firing);
+  }
+}
+
 TEST_CASE("Revolution assembler cuts at the azimuth wrap", "[drivers][velodyne]") {
   VelodyneDecoder dec(VelodyneConfig{});
   static FiringRecord storage[3000];

@@ -65,17 +65,4 @@ Eigen::Vector3f LaserIntrinsics::laserPoint(std::size_t laser, std::uint16_t raw
   return laserPoint(laser, raw, std::sin(phi), std::cos(phi));
 }
 
-Eigen::Vector3f LaserIntrinsics::laserPoint(std::size_t laser, std::uint16_t raw, float sinPhi,
-                                            float cosPhi) const noexcept {
-  const Laser& l = lasers_[laser];
-  const float d = static_cast<float>(raw) * resolutionF_ + l.distCorrection;  // D = D_ret + D_corr
-  const float pz = d * l.sinTheta + l.vertOffset * l.cosTheta;
-  const float dxy = d * l.cosTheta - l.vertOffset * l.sinTheta;
-  const float sb = sinPhi * l.cosAlpha - cosPhi * l.sinAlpha;  // sin(beta), beta = phi - alpha
-  const float cb = cosPhi * l.cosAlpha + sinPhi * l.sinAlpha;  // cos(beta)
-  const float px = dxy * sb - l.horizOffset * cb;
-  const float py = dxy * cb + l.horizOffset * sb;
-  return {py, -px, pz};  // Velodyne frame (x right, y forward) -> REP-103 (x forward, y left)
-}
-
 }  // namespace agv

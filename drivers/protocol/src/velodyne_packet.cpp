@@ -1,5 +1,6 @@
 #include "agv/drivers/protocol/velodyne/velodyne_packet.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace agv::drivers::velodyne {
@@ -25,6 +26,56 @@ std::uint16_t le16(const std::uint8_t* p) noexcept {
 bool validReturnMode(std::uint8_t b) noexcept {
   return b == static_cast<std::uint8_t>(ReturnMode::Strongest) || b == static_cast<std::uint8_t>(ReturnMode::Last) ||
          b == static_cast<std::uint8_t>(ReturnMode::Dual);
+}
+
+// Writes the records of one block's 32 channels to `out` from `written` on, in channel order:
+// distance and intensity from the packet, the rest by `fill(channel, record)`. Records with
+// distance 0 are counted in noReturn and kept only with `keepNoReturn`. Returns true when `out`
+// ran full (the records that did not fit counted in outputFull). With room for the whole block the
+// loop is branch-free: every record is stored at the next free slot, which advances only for the
+// records kept (a skipped record's slot is overwritten by the next one or left past `written`).
+template <typename Fill>
+bool emitBlock(const std::uint8_t* blk, const Fill& fill, bool keepNoReturn, Span<FiringRecord> out,
+               std::size_t& written, VelodyneCounters& counters) noexcept {
+  const std::uint8_t* rec = blk + 4;
+  if (out.size() - written >= kChannelsPerBlock) {
+    FiringRecord* dst = out.data() + written;
+    std::size_t kept = 0;
+    std::uint32_t zeros = 0;
+    for (std::size_t c = 0; c < kChannelsPerBlock; ++c, rec += 3) {
+      FiringRecord r;
+      r.distance = le16(rec);
+      r.intensity = rec[2];
+      fill(c, r);
+      dst[kept] = r;
+      const bool zero = r.distance == 0U;
+      zeros += zero ? 1U : 0U;
+      kept += (keepNoReturn || !zero) ? 1U : 0U;
+    }
+    counters.noReturn += zeros;
+    written += kept;
+    return false;
+  }
+  bool full = false;
+  for (std::size_t c = 0; c < kChannelsPerBlock; ++c, rec += 3) {
+    FiringRecord r;
+    r.distance = le16(rec);
+    r.intensity = rec[2];
+    fill(c, r);
+    if (r.distance == 0U) {
+      ++counters.noReturn;
+      if (!keepNoReturn) {
+        continue;
+      }
+    }
+    if (written >= out.size()) {
+      ++counters.outputFull;
+      full = true;
+      continue;
+    }
+    out[written++] = r;
+  }
+  return full;
 }
 }  // namespace
 
@@ -122,47 +173,57 @@ Status VelodyneDecoder::decode(Span<const std::uint8_t> packet, Span<FiringRecor
       }
     }
 
-    for (std::size_t c = 0; c < kChannelsPerBlock; ++c) {
-      const std::uint8_t* rec = blk + 4 + c * 3;
-      FiringRecord r;
-      r.distance = le16(rec);
-      r.intensity = rec[2];
-      r.block = static_cast<std::uint8_t>(b);
-      r.secondReturn = second ? 1U : 0U;
-      switch (config_.model) {
-        case Model::Vlp16: {
-          const std::uint32_t seq = static_cast<std::uint32_t>(c / 16U);
-          const std::uint32_t laser = static_cast<std::uint32_t>(c % 16U);
-          r.laser = static_cast<std::uint8_t>(laser);
-          const std::uint32_t tIn = laser * kVlp16LaserNs + seq * kVlp16SequenceNs;
-          r.timeNs = static_cast<std::uint32_t>(firing) * kVlp16BlockNs + tIn;
-          const float f = static_cast<float>(az) + step * static_cast<float>(tIn) / static_cast<float>(kVlp16BlockNs);
-          r.azimuth = static_cast<std::uint16_t>(static_cast<long>(std::lround(f)) % kAzimuthTurn);
-          break;
-        }
-        case Model::Hdl32e:
-          r.laser = static_cast<std::uint8_t>(c);
-          r.timeNs = static_cast<std::uint32_t>(firing) * kHdl32BlockNs + static_cast<std::uint32_t>(c) * kHdl32LaserNs;
-          r.azimuth = az;
-          break;
-        case Model::Hdl64e:
-          r.laser = static_cast<std::uint8_t>(lower ? c + kChannelsPerBlock : c);
-          r.timeNs = 0;
-          r.azimuth = az;
-          break;
+    // The model's switch is taken once per block; emitBlock writes the 32 records.
+    const std::uint8_t blockIndex = static_cast<std::uint8_t>(b);
+    const std::uint8_t secondFlag = second ? 1U : 0U;
+    switch (config_.model) {
+      case Model::Vlp16: {
+        const std::uint32_t firingNs = static_cast<std::uint32_t>(firing) * kVlp16BlockNs;
+        full |= emitBlock(
+            blk,
+            [&](std::size_t c, FiringRecord& r) noexcept {
+              const std::uint32_t seq = static_cast<std::uint32_t>(c / 16U);
+              const std::uint32_t laser = static_cast<std::uint32_t>(c % 16U);
+              r.laser = static_cast<std::uint8_t>(laser);
+              const std::uint32_t tIn = laser * kVlp16LaserNs + seq * kVlp16SequenceNs;
+              r.timeNs = firingNs + tIn;
+              const float f =
+                  static_cast<float>(az) + step * static_cast<float>(tIn) / static_cast<float>(kVlp16BlockNs);
+              r.azimuth = static_cast<std::uint16_t>(static_cast<long>(std::lround(f)) % kAzimuthTurn);
+              r.block = blockIndex;
+              r.secondReturn = secondFlag;
+            },
+            config_.keepNoReturn, out, written, counters_);
+        break;
       }
-      if (r.distance == 0) {
-        ++counters_.noReturn;
-        if (!config_.keepNoReturn) {
-          continue;
-        }
+      case Model::Hdl32e: {
+        const std::uint32_t firingNs = static_cast<std::uint32_t>(firing) * kHdl32BlockNs;
+        full |= emitBlock(
+            blk,
+            [&](std::size_t c, FiringRecord& r) noexcept {
+              r.laser = static_cast<std::uint8_t>(c);
+              r.timeNs = firingNs + static_cast<std::uint32_t>(c) * kHdl32LaserNs;
+              r.azimuth = az;
+              r.block = blockIndex;
+              r.secondReturn = secondFlag;
+            },
+            config_.keepNoReturn, out, written, counters_);
+        break;
       }
-      if (written >= out.size()) {
-        ++counters_.outputFull;
-        full = true;
-        continue;
+      case Model::Hdl64e: {
+        const std::size_t laserBase = lower ? kChannelsPerBlock : 0U;
+        full |= emitBlock(
+            blk,
+            [&](std::size_t c, FiringRecord& r) noexcept {
+              r.laser = static_cast<std::uint8_t>(c + laserBase);
+              r.timeNs = 0;
+              r.azimuth = az;
+              r.block = blockIndex;
+              r.secondReturn = secondFlag;
+            },
+            config_.keepNoReturn, out, written, counters_);
+        break;
       }
-      out[written++] = r;
     }
   }
   if (full) {
@@ -232,40 +293,51 @@ bool RevolutionAssembler::add(Span<const FiringRecord> records) noexcept {
   if (done_) {  // the previous call completed a revolution: start the next from its pending tail
     startFromPending();
   }
-  bool wrapped = false;
-  for (std::size_t i = 0; i < records.size(); ++i) {
-    const FiringRecord& r = records[i];
-    const std::int32_t az = r.azimuth;
-    if (!wrapped) {
-      // A wrap: the azimuth falls by more than half a turn after the head passed half a turn
-      // (the hysteresis keeps a record interpolated just past the cut from cutting twice).
-      if (armed_ && lastAzimuth_ >= 0 && az + kHalfTurn < lastAzimuth_) {
-        wrapped = true;
-        armed_ = false;
-      } else {
-        store(r);
-      }
+  const std::size_t n = records.size();
+  const FiringRecord* const rec = records.data();
+  // Up to the wrap: a wrap is where the azimuth falls by more than half a turn after the head
+  // passed half a turn (the hysteresis keeps a record interpolated just past the cut from cutting
+  // twice), i.e. below `limit` = the previous azimuth - half a turn while armed (-1 = no wrap
+  // possible: not armed, or no previous record). The records before it are stored in one copy.
+  bool armed = armed_;
+  std::int32_t limit = armed && lastAzimuth_ >= 0 ? lastAzimuth_ - kHalfTurn : -1;
+  std::size_t cut = 0;
+  for (; cut < n; ++cut) {
+    const std::int32_t az = rec[cut].azimuth;
+    if (az < limit) {
+      break;
     }
-    if (wrapped) {
-      // After the wrap, records of the packet's second half-turn still belong to the old revolution
-      // (a dual-return pair or an interpolated firing that straddles the cut).
-      if (az >= kHalfTurn) {
-        store(r);
-      } else if (pendingCount_ < kMaxRecordsPerPacket) {
-        pending_[pendingCount_++] = r;
-      } else {
-        ++pendingRefused_;
-      }
-    }
-    if (az >= kHalfTurn && !wrapped) {
-      armed_ = true;
-    }
-    lastAzimuth_ = az;
+    armed = armed || az >= kHalfTurn;
+    limit = armed ? az - kHalfTurn : -1;
   }
+  const bool wrapped = cut < n;
+  const std::size_t room = storage_.size() - count_;
+  const std::size_t stored = cut < room ? cut : room;
+  std::copy(rec, rec + stored, storage_.data() + count_);
+  count_ += stored;
+  refused_ += static_cast<std::uint32_t>(cut - stored);
   ++packets_;
+  if (n > 0) {
+    lastAzimuth_ = rec[n - 1].azimuth;
+  }
   if (!wrapped) {
+    armed_ = armed;
     return false;
   }
+  // From the wrap on, records of the packet's second half-turn still belong to the old revolution
+  // (a dual-return pair or an interpolated firing that straddles the cut); the others start the
+  // next one.
+  for (std::size_t i = cut; i < n; ++i) {
+    const FiringRecord& r = rec[i];
+    if (r.azimuth >= kHalfTurn) {
+      store(r);
+    } else if (pendingCount_ < kMaxRecordsPerPacket) {
+      pending_[pendingCount_++] = r;
+    } else {
+      ++pendingRefused_;
+    }
+  }
+  armed_ = false;
   close(started_);
   started_ = true;
   return true;
@@ -278,31 +350,39 @@ Status toFiringReturns(Span<const FiringRecord> records, const LaserIntrinsics& 
     return Status::InvalidArgument;
   }
   Status st = Status::Ok;
-  int cachedAz = -1;  // sin / cos of the head angle, computed once per firing
+  const std::size_t lasers = intrinsics.size();
+  int cachedAz = -1;  // per firing (head azimuth): sin / cos of the head angle and the column
   float sinPhi = 0.0F;
   float cosPhi = 1.0F;
+  std::uint32_t column = 0;
+  FiringReturn* const dst = out.data();
+  const std::size_t capacity = out.size();
+  std::size_t count = 0;  // written once at the end: no store through the reference per point
   for (const FiringRecord& r : records) {
     if (r.secondReturn != 0U || r.distance == 0U) {
       continue;
     }
-    if (r.laser >= intrinsics.size()) {
+    if (r.laser >= lasers) {
       st = Status::OutOfRange;
       continue;
     }
-    if (written >= out.size()) {
+    if (count >= capacity) {
+      written = count;
       return Status::CapacityExceeded;
     }
-    FiringReturn& f = out[written++];
     if (r.azimuth != cachedAz) {
       cachedAz = r.azimuth;
       const float phi = static_cast<float>(r.azimuth) * (3.14159265358979323846F / 18000.0F);
       sinPhi = std::sin(phi);
       cosPhi = std::cos(phi);
+      column = static_cast<std::uint32_t>(static_cast<std::size_t>(r.azimuth) * columns / kAzimuthTurn);
     }
+    FiringReturn& f = dst[count++];
     f.point = intrinsics.laserPoint(r.laser, r.distance, sinPhi, cosPhi);
     f.laser = r.laser;
-    f.firing = static_cast<std::uint32_t>(static_cast<std::size_t>(r.azimuth) * columns / kAzimuthTurn);
+    f.firing = column;
   }
+  written = count;
   return st;
 }
 

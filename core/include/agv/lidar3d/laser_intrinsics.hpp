@@ -71,6 +71,7 @@ class LaserIntrinsics {
   Eigen::Vector3f laserPoint(std::size_t laser, std::uint16_t raw, float azimuthCentiDeg) const noexcept;
   /// The same with sin(phi) and cos(phi) given (one pair per firing serves every laser of it:
   /// beta = phi - alpha by the angle-difference identity, as velodyne_pointcloud's tables do).
+  /// Defined inline below: the per-return inner loops (`toFiringReturns`) inline it.
   Eigen::Vector3f laserPoint(std::size_t laser, std::uint16_t raw, float sinPhi, float cosPhi) const noexcept;
 
  private:
@@ -89,5 +90,18 @@ class LaserIntrinsics {
   double resolution_ = 0.002;
   float resolutionF_ = 0.002F;
 };
+
+inline Eigen::Vector3f LaserIntrinsics::laserPoint(std::size_t laser, std::uint16_t raw, float sinPhi,
+                                                   float cosPhi) const noexcept {
+  const Laser& l = lasers_[laser];
+  const float d = static_cast<float>(raw) * resolutionF_ + l.distCorrection;  // D = D_ret + D_corr
+  const float pz = d * l.sinTheta + l.vertOffset * l.cosTheta;
+  const float dxy = d * l.cosTheta - l.vertOffset * l.sinTheta;
+  const float sb = sinPhi * l.cosAlpha - cosPhi * l.sinAlpha;  // sin(beta), beta = phi - alpha
+  const float cb = cosPhi * l.cosAlpha + sinPhi * l.sinAlpha;  // cos(beta)
+  const float px = dxy * sb - l.horizOffset * cb;
+  const float py = dxy * cb + l.horizOffset * sb;
+  return {py, -px, pz};  // Velodyne frame (x right, y forward) -> REP-103 (x forward, y left)
+}
 
 }  // namespace agv

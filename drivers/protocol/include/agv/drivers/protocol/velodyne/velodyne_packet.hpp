@@ -108,7 +108,8 @@ class VelodyneDecoder {
   /// how many records were written in `written`. Ok; Truncated / Malformed (oversized) /
   /// Unsupported (another product or an unknown return mode) with nothing written; Malformed
   /// when at least one block was skipped (the others are written); CapacityExceeded when `out`
-  /// was too small (the first records are written, the rest counted).
+  /// was too small (the first records are written, the rest counted). Slots of `out` past
+  /// `written` are scratch: the decoder may overwrite them (a skipped no-return record).
   Status decode(Span<const std::uint8_t> packet, Span<FiringRecord> out, std::size_t& written,
                 PacketInfo* info = nullptr) noexcept;
 
