@@ -1087,19 +1087,9 @@ struct LoneDrive {
 TEST_CASE("the simulated drive meets a silent controller with the reaction of 0x6007", "[drives]") {
   LoneDrive d(LoneDrive::params());
   CHECK(d.node.read(0x6007, 0) == 0);  // as it leaves the factory: no reaction
-  int option = 0;
-  SECTION("0: no action, only the EMCY") {
-    option = 0;
-  }
-  SECTION("1: fault signal") {
-    option = 1;
-  }
-  SECTION("2: disable voltage") {
-    option = 2;
-  }
-  SECTION("3: quick stop") {
-    option = 3;
-  }
+  // 0: no action (only the EMCY), 1: fault signal, 2: disable voltage, 3: quick stop.
+  const int option = GENERATE(0, 1, 2, 3);
+  INFO("0x6007 = " << option);
   REQUIRE(d.write(0x6007, 0, static_cast<std::uint32_t>(option), 2) == 0);
   d.driveAt(1000);
   d.controllerAlive = false;
@@ -1140,13 +1130,8 @@ TEST_CASE("the simulated drive's quick stop and fault reaction follow 0x605A and
   SECTION("2: the quick-stop ramp, then Switch on disabled; 1: the slow-down ramp") {
     LoneDrive d(LoneDrive::params());
     CHECK(d.node.read(0x605A, 0) == 2);
-    int option = 2;
-    SECTION("2") {
-      option = 2;
-    }
-    SECTION("1") {
-      option = 1;
-    }
+    const int option = GENERATE(2, 1);
+    INFO("0x605A = " << option);
     REQUIRE(d.write(0x605A, 0, static_cast<std::uint32_t>(option), 2) == 0);
     d.driveAt(1000);
     REQUIRE(d.write(0x6040, 0, 0x0002, 2) == 0);  // quick stop (11)
@@ -1164,13 +1149,8 @@ TEST_CASE("the simulated drive's quick stop and fault reaction follow 0x605A and
   SECTION("6 (as this drive's factory set it): stays in Quick stop active, may re-enable; 2 written: may not") {
     LoneDrive d(LoneDrive::params(true));
     CHECK(d.node.read(0x605A, 0) == 6);
-    bool configured = false;
-    SECTION("factory") {
-      configured = false;
-    }
-    SECTION("configured to 2") {
-      configured = true;
-    }
+    const bool configured = GENERATE(false, true);  // the factory's 6, or 2 written
+    INFO("0x605A written: " << configured);
     if (configured)
       REQUIRE(d.write(0x605A, 0, 2, 2) == 0);
     d.driveAt(1000);
