@@ -906,6 +906,25 @@ TEST_CASE("garbage and truncated frames are counted and ignored", "[drives]") {
   CHECK(b.traction.state() == PowerState::OperationEnabled);
 }
 
+namespace {
+
+/// An SDO request to `node` written byte by byte from CiA 301 (not with the encoder under test):
+/// command specifier `cmd`, object `index`/`sub`, `value` little-endian in bytes 4..7.
+CanFrame sdoRequest(std::uint8_t node, std::uint8_t cmd, std::uint16_t index, std::uint8_t sub, std::uint32_t value) {
+  CanFrame f;
+  f.id = 0x600U + node;
+  f.dlc = 8;
+  f.data[0] = cmd;
+  f.data[1] = static_cast<std::uint8_t>(index & 0xFF);
+  f.data[2] = static_cast<std::uint8_t>(index >> 8);
+  f.data[3] = sub;
+  for (int i = 0; i < 4; ++i)
+    f.data[4 + i] = static_cast<std::uint8_t>(value >> (8 * i));
+  return f;
+}
+
+}  // namespace
+
 TEST_CASE("the simulated drive's SDO server aborts with the CiA 301 codes", "[drives]") {
   SimCia402NodeParams p;
   p.nodeId = 4;
@@ -914,16 +933,7 @@ TEST_CASE("the simulated drive's SDO server aborts with the CiA 301 codes", "[dr
   CanFrame buf[8];
   (void)node.step(t, Span<CanFrame>(buf));  // boot-up: pre-operational
   auto ask = [&](std::uint8_t cmd, std::uint16_t index, std::uint8_t sub, std::uint32_t value) {
-    CanFrame f;
-    f.id = 0x604;
-    f.dlc = 8;
-    f.data[0] = cmd;
-    f.data[1] = static_cast<std::uint8_t>(index & 0xFF);
-    f.data[2] = static_cast<std::uint8_t>(index >> 8);
-    f.data[3] = sub;
-    for (int i = 0; i < 4; ++i)
-      f.data[4 + i] = static_cast<std::uint8_t>(value >> (8 * i));
-    node.receive(f, t);
+    node.receive(sdoRequest(4, cmd, index, sub, value), t);
     t = t + kCycle;
     const std::size_t n = node.step(t, Span<CanFrame>(buf));
     for (std::size_t i = 0; i < n; ++i) {
@@ -1040,16 +1050,7 @@ struct LoneDrive {
   }
   /// Expedited SDO download of `size` bytes; returns the abort code, 0 when confirmed.
   std::uint32_t write(std::uint16_t index, std::uint8_t sub, std::uint32_t value, int size) {
-    CanFrame f;
-    f.id = 0x600U + kNode;
-    f.dlc = 8;
-    f.data[0] = static_cast<std::uint8_t>(0x23 | ((4 - size) << 2));
-    f.data[1] = static_cast<std::uint8_t>(index & 0xFF);
-    f.data[2] = static_cast<std::uint8_t>(index >> 8);
-    f.data[3] = sub;
-    for (int i = 0; i < 4; ++i)
-      f.data[4 + i] = static_cast<std::uint8_t>(value >> (8 * i));
-    node.receive(f, t);
+    node.receive(sdoRequest(kNode, static_cast<std::uint8_t>(0x23 | ((4 - size) << 2)), index, sub, value), t);
     const std::size_t before = sent.size();
     step();
     for (std::size_t i = before; i < sent.size(); ++i) {
