@@ -71,6 +71,7 @@ struct Options {
   int relocDecoys = 0;
   std::size_t relocRefutedMargin = agv::nav::relocalizationSearchDefaults().refutedMargin;
   std::size_t relocMargin = agv::nav::relocalizationSearchDefaults().ambiguityMargin;
+  int jobs = ScenarioConfig{}.jobs;
 };
 
 /// False with `exitCode` set when the program ends here (help, or a refused command line).
@@ -125,6 +126,10 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
   app.add_option("--reloc-margin", o.relocMargin,
                  "relocalization: the search's ambiguity margin in inliers (default 2)")
       ->check(CLI::Range(0, 16));
+  app.add_option("--jobs", o.jobs,
+                 "threads running the runs of a mode side by side (default 0: one per core, at most 8); the results "
+                 "do not depend on it")
+      ->check(CLI::Range(0, 64));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -150,6 +155,7 @@ ScenarioConfig scenarioConfig(const Options& o) {
   cfg.dynamicSurfaceMap = o.dynamicSurfaceMap;
   cfg.adaptiveBand = o.adaptiveBand;
   cfg.mapChanges = o.mapChanges;
+  cfg.jobs = o.jobs;
   if (o.canSync) {
     cfg.can.bus.syncPeriod = cfg.vehicle.encoderPeriod;
   }

@@ -1,11 +1,15 @@
 #include "scenario.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <mutex>
 #include <random>
+#include <thread>
 #include <utility>
 
 #include "agv/hal/plc_messages.hpp"
@@ -735,6 +739,72 @@ bool checkRunInputs(const ScenarioConfig& config, LocalizationMode mode, const R
 
 }  // namespace
 
+namespace {
+
+/// How many threads run the runs of one call: `config.jobs` (0: the machine's cores, at most
+/// 8), one for mapping runs (their sightings and scans are accumulated in run order) and never
+/// more than the runs.
+int workerCount(const ScenarioConfig& config, const RunMaps& maps, std::size_t runs) {
+  if (maps.corners != nullptr || maps.surfaces != nullptr) {
+    return 1;
+  }
+  int workers = config.jobs;
+  if (workers <= 0) {
+    workers = std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 8);
+  }
+  return static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(workers), std::max<std::size_t>(runs, 1U)));
+}
+
+/// Runs `job(i, map)` for i = 0..count-1 on `workers` threads and hands each result to
+/// `deliver(result, i)` on the calling thread, in index order, as soon as it and those before it
+/// are done. With one worker the jobs run here, in order, on `map` itself (a Dynamic run clears
+/// it and leaves its own map there); with more, each worker localizes on its own copy of `map`
+/// (the localizer writes to the map it is given), so a run's result does not depend on which
+/// thread ran it or on the runs before it on that thread (every run is seeded by its index).
+void runJobs(std::size_t count, int workers, LandmarkMap& map,
+             const std::function<RunResult(std::size_t, LandmarkMap&)>& job,
+             const std::function<void(RunResult&, std::size_t)>& deliver) {
+  if (workers <= 1 || count <= 1) {
+    for (std::size_t i = 0; i < count; ++i) {
+      RunResult r = job(i, map);
+      deliver(r, i);
+    }
+    return;
+  }
+  std::vector<std::unique_ptr<RunResult>> done(count);
+  std::mutex mutex;
+  std::condition_variable ready;
+  std::atomic<std::size_t> next{0};
+  std::vector<std::thread> threads;
+  threads.reserve(static_cast<std::size_t>(workers));
+  for (int w = 0; w < workers; ++w) {
+    threads.emplace_back([&]() {
+      auto own = std::make_unique<LandmarkMap>();
+      own->copyFrom(map);
+      for (std::size_t i = next++; i < count; i = next++) {
+        auto r = std::make_unique<RunResult>(job(i, *own));
+        const std::lock_guard<std::mutex> lock(mutex);
+        done[i] = std::move(r);
+        ready.notify_all();
+      }
+    });
+  }
+  for (std::size_t i = 0; i < count; ++i) {
+    std::unique_ptr<RunResult> r;
+    {
+      std::unique_lock<std::mutex> lock(mutex);
+      ready.wait(lock, [&]() { return done[i] != nullptr; });
+      r = std::move(done[i]);
+    }
+    deliver(*r, i);
+  }
+  for (std::thread& t : threads) {
+    t.join();
+  }
+}
+
+}  // namespace
+
 bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
                  const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,
                  std::uint64_t seedSalt, const std::function<void(const RunResult&, int index, int total)>& progress,
@@ -753,23 +823,29 @@ bool runScenario(const sim::World& world, const ScenarioConfig& config, Localiza
       paths.push_back(p);
     }
   }
-  const int total = static_cast<int>(paths.size()) * runsPerPath;
-  int index = 0;
   for (const std::size_t p : paths) {
     if (p >= world.paths.size()) {
       *error = "path index out of range";
       return false;
     }
-    for (int run = 1; run <= runsPerPath; ++run) {
-      const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
-      const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + p * 1000U + runIndex;
-      results->push_back(runOne(caster, world.paths[p].name, {&world.paths[p]}, run, config, mode, map, maps, seed));
-      ++index;
-      if (progress) {
-        progress(results->back(), index, total);
-      }
-    }
   }
+  const std::size_t perPath = static_cast<std::size_t>(runsPerPath);
+  const std::size_t total = paths.size() * perPath;
+  runJobs(
+      total, workerCount(config, maps, total), map,
+      [&](std::size_t i, LandmarkMap& runMap) {
+        const std::size_t p = paths[i / perPath];
+        const int run = static_cast<int>(i % perPath) + 1;
+        const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
+        const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + p * 1000U + runIndex;
+        return runOne(caster, world.paths[p].name, {&world.paths[p]}, run, config, mode, runMap, maps, seed);
+      },
+      [&](RunResult& r, std::size_t i) {
+        results->push_back(std::move(r));
+        if (progress) {
+          progress(results->back(), static_cast<int>(i) + 1, static_cast<int>(total));
+        }
+      });
   return true;
 }
 
@@ -799,38 +875,42 @@ bool runMissions(const sim::World& world, const ScenarioConfig& config, Localiza
     return false;
   }
   const std::vector<sim::Point2> keepClear = movePallets ? missionKeepClear(world) : std::vector<sim::Point2>{};
-  const int total = static_cast<int>(world.missions.size()) * runsPerMission;
-  int index = 0;
-  for (std::size_t m = 0; m < world.missions.size(); ++m) {
-    const sim::Mission& mission = world.missions[m];
-    std::vector<const sim::Path*> legs;
-    for (const sim::Path& leg : mission.legs) {
-      legs.push_back(&leg);
-    }
-    for (int run = 1; run <= runsPerMission; ++run) {
-      const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
-      // Vehicle seeds apart from the paths' (path index * 1000 + run, paths < 500).
-      const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + (500U + m) * 1000U + runIndex;
-      sim::World moved;
-      sim::PalletChanges changes;
-      if (movePallets) {
-        // The layout depends on the session, the mission and the run only: every mode meets it.
-        const std::uint64_t layoutSeed = config.seed * 2654435761U + m * 7919U + runIndex * 104729U + 0x9A11E7U;
-        sim::rearrangePallets(world, config.palletMoves, layoutSeed, keepClear, moved, changes);
-      }
-      const sim::World& runWorld = movePallets ? moved : world;
-      const sim::RayCaster caster(runWorld, 1.0);
-      results->push_back(runOne(caster, mission.name, legs, run, config, mode, map, maps, seed));
-      RunResult& r = results->back();
-      r.mission = true;
-      r.pallets = changes;
-      r.palletFingerprint = sim::palletFingerprint(runWorld);
-      ++index;
-      if (progress) {
-        progress(r, index, total);
-      }
-    }
-  }
+  const std::size_t perMission = static_cast<std::size_t>(runsPerMission);
+  const std::size_t total = world.missions.size() * perMission;
+  runJobs(
+      total, workerCount(config, maps, total), map,
+      [&](std::size_t i, LandmarkMap& runMap) {
+        const std::size_t m = i / perMission;
+        const sim::Mission& mission = world.missions[m];
+        std::vector<const sim::Path*> legs;
+        for (const sim::Path& leg : mission.legs) {
+          legs.push_back(&leg);
+        }
+        const int run = static_cast<int>(i % perMission) + 1;
+        const std::uint64_t runIndex = static_cast<std::uint64_t>(static_cast<unsigned>(run));
+        // Vehicle seeds apart from the paths' (path index * 1000 + run, paths < 500).
+        const std::uint64_t seed = (config.seed + seedSalt) * 1000003U + (500U + m) * 1000U + runIndex;
+        sim::World moved;
+        sim::PalletChanges changes;
+        if (movePallets) {
+          // The layout depends on the session, the mission and the run only: every mode meets it.
+          const std::uint64_t layoutSeed = config.seed * 2654435761U + m * 7919U + runIndex * 104729U + 0x9A11E7U;
+          sim::rearrangePallets(world, config.palletMoves, layoutSeed, keepClear, moved, changes);
+        }
+        const sim::World& runWorld = movePallets ? moved : world;
+        const sim::RayCaster caster(runWorld, 1.0);
+        RunResult r = runOne(caster, mission.name, legs, run, config, mode, runMap, maps, seed);
+        r.mission = true;
+        r.pallets = changes;
+        r.palletFingerprint = sim::palletFingerprint(runWorld);
+        return r;
+      },
+      [&](RunResult& r, std::size_t i) {
+        results->push_back(std::move(r));
+        if (progress) {
+          progress(results->back(), static_cast<int>(i) + 1, static_cast<int>(total));
+        }
+      });
   return true;
 }
 

@@ -139,6 +139,10 @@ struct ScenarioConfig {
   /// Natural mode: the surfaces the mapping run did not see are kept and their points left out of
   /// the match (`ObservationParams::mapChanges`).
   bool mapChanges = true;
+  /// Threads running the localizing runs of a mode side by side (0: the machine's cores, at most 8;
+  /// mapping runs always run one after the other). Every run is seeded by its index and localizes
+  /// on its own copy of the map, so the results do not depend on this.
+  int jobs = 0;
 };
 
 /// One sample of a run's history (every control period).
@@ -197,7 +201,9 @@ struct RunResult {
 /// empty), the localizer using `map` (Dynamic mode clears it before each run and runs the
 /// lifecycle on it); in Mapping mode the FALKO corners and the scans are accumulated into `maps`;
 /// in Natural mode the scans are matched against `maps.field`; `seedSalt` separates the
-/// random streams of sessions that must not repeat each other (mapping runs). `progress` is called after each run.
+/// random streams of sessions that must not repeat each other (mapping runs). The runs go on
+/// `config.jobs` threads (see there), each on its own copy of `map`; `progress` is called on the
+/// calling thread after each run, in run order.
 /// Returns false (with `error`) on a setup problem (no path, invalid laser parameters, Natural without a field).
 bool runScenario(const sim::World& world, const ScenarioConfig& config, LocalizationMode mode, LandmarkMap& map,
                  const RunMaps& maps, const std::vector<std::size_t>& pathIndices, int runsPerPath,

@@ -1,4 +1,4 @@
-# Runs agvnav-hil --short --json and checks the summary (parsed with string(JSON), every field typed):
+# Runs agvnav-hil --short --jobs 3 --json and checks the summary (parsed with string(JSON), every field typed):
 #   {"calibration": {"truth": {...}, "estimate": {...}}, "runs": [{"mode", "path", "run",
 #    "final_position_error_m", "final_heading_error_deg"}], "requirement_met": bool}
 # plus: every localizer mode ran (reflectors, static_falko and natural on every path of the built-in
@@ -9,13 +9,15 @@
 # nominal parameters; the calibration (when it ran) is closer to the truth than the nominal
 # values in every parameter; the encoder samples came through the CAN path (can_encoders: every
 # measurement decoded from its TPDOs, none differing from what the simulated nodes sent, the drive's
-# 32-bit position value wrapped on the bus).
+# 32-bit position value wrapped on the bus). Last, the same session with --jobs 1 must write the
+# same JSON byte for byte: the runs of a mode on 3 threads, each on its own copy of the map, give
+# what one thread running them in order gives.
 # Usage: cmake -DHIL=<agvnav-hil> -DWORK_DIR=<dir> -P check_hil_json.cmake
 cmake_minimum_required(VERSION 3.25)
 file(REMOVE_RECURSE "${WORK_DIR}")
 file(MAKE_DIRECTORY "${WORK_DIR}")
 set(json_file "${WORK_DIR}/hil.json")
-execute_process(COMMAND "${HIL}" --short --json "${json_file}" --svg "${WORK_DIR}/svg"
+execute_process(COMMAND "${HIL}" --short --jobs 3 --json "${json_file}" --svg "${WORK_DIR}/svg"
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
 message("${out}")
 # 0: requirement met; 1: the scenario ran but the requirement is not met (the JSON says which
@@ -323,3 +325,15 @@ foreach(i RANGE ${last_corner_reloc})
     message(FATAL_ERROR "JSON: relocalization_corners trial ${i}: wrong pose, ${pos} m / ${head} deg")
   endif()
 endforeach()
+
+# Threads do not change the results: the same session on one thread writes the same summary.
+set(json_one "${WORK_DIR}/hil-jobs1.json")
+execute_process(COMMAND "${HIL}" --short --jobs 1 --json "${json_one}" RESULT_VARIABLE rc_one OUTPUT_QUIET
+                ERROR_VARIABLE err_one)
+if(NOT rc_one EQUAL rc)
+  message(FATAL_ERROR "agvnav-hil --jobs 1 exited with ${rc_one}, --jobs 3 with ${rc}: ${err_one}")
+endif()
+file(READ "${json_one}" j_one)
+if(NOT j_one STREQUAL j)
+  message(FATAL_ERROR "the summary with --jobs 1 differs from the one with --jobs 3")
+endif()

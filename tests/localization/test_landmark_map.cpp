@@ -1,7 +1,9 @@
 // LandmarkMap lifecycle, capacity, spatial queries; map text format. Portable subset: also runs
 // in the Cortex-M7 image (the map is static: ~280 KB).
 #include <cstring>
+#include <memory>
 #include <new>
+#include <vector>
 
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/landmark_map_io.hpp"
@@ -163,6 +165,75 @@ TEST_CASE("landmark map: grid queries find exactly the landmarks a brute-force s
     CHECK(visits < total / 4);
   }
 }
+
+#ifndef AGV_TEST_MCU  // two maps do not fit the Cortex-M7 image's RAM
+TEST_CASE("landmark map: copyFrom gives an independent copy that behaves exactly like the original",
+          "[localization][map]") {
+  LandmarkMapParams p;
+  p.cellSize = 1.5;
+  p.updateRate = 0.25;
+  LandmarkMap& original = sharedMap(p);
+  Lcg rng{777U};
+  for (int i = 0; i < 400; ++i) {
+    REQUIRE(original.insert(LandmarkKind::Corner, -30.0 + 60.0 * rng.next(), -30.0 + 60.0 * rng.next(), 1e-4).ok());
+  }
+  REQUIRE(original.addSurveyed(LandmarkKind::Reflector, 3.0, 4.0, 0.002, 9001U).ok());
+  for (LandmarkIndex i = 0; i < 100; ++i) {
+    REQUIRE(original.reinforce(i, 10.0, -10.0, 4e-4, 7U) == Status::Ok);  // moves across cells
+  }
+  for (LandmarkIndex i = 100; i < 200; i += 3) {
+    REQUIRE(original.remove(i) == Status::Ok);  // free slots in the middle
+  }
+  const std::size_t size = original.size();
+
+  auto copy = std::make_unique<LandmarkMap>();  // other parameters: copyFrom replaces them
+  REQUIRE(copy->insert(LandmarkKind::Reflector, 0.5, 0.5, 1e-4).ok());
+  copy->copyFrom(original);
+  CHECK(copy->size() == size);
+  CHECK(copy->params().cellSize == p.cellSize);
+  CHECK(copy->params().updateRate == p.updateRate);
+  CHECK(copy->counters().inserted == original.counters().inserted);
+  CHECK(copy->counters().deleted == original.counters().deleted);
+  CHECK(copy->findById(9001U) == original.findById(9001U));
+  // the same landmarks in the same slots
+  for (LandmarkIndex i = 0; i < LandmarkMap::capacity(); ++i) {
+    const Landmark* a = original.at(i);
+    const Landmark* b = copy->at(i);
+    REQUIRE((a == nullptr) == (b == nullptr));
+    if (a != nullptr) {
+      CHECK(std::memcmp(a, b, sizeof(Landmark)) == 0);
+    }
+  }
+  // the grid: the same visits in the same order
+  for (int q = 0; q < 30; ++q) {
+    const double cx = -32.0 + 64.0 * rng.next();
+    const double cy = -32.0 + 64.0 * rng.next();
+    const double r = 0.5 + 5.0 * rng.next();
+    std::vector<LandmarkIndex> va;
+    std::vector<LandmarkIndex> vb;
+    original.forEachNear(cx, cy, r, [&](LandmarkIndex i, const Landmark&) { va.push_back(i); });
+    copy->forEachNear(cx, cy, r, [&](LandmarkIndex i, const Landmark&) { vb.push_back(i); });
+    CHECK(va == vb);
+  }
+  // the free slots: the next inserts land in the same slots
+  for (int k = 0; k < 40; ++k) {
+    const double x = -20.0 + 40.0 * rng.next();
+    const auto a = original.insert(LandmarkKind::Corner, x, 1.0, 1e-4);
+    const auto b = copy->insert(LandmarkKind::Corner, x, 1.0, 1e-4);
+    REQUIRE(a.ok());
+    REQUIRE(b.ok());
+    CHECK(a.value() == b.value());
+    CHECK(original.at(a.value())->id == copy->at(b.value())->id);
+  }
+  // independent: changing one leaves the other
+  REQUIRE(copy->remove(0) == Status::Ok);
+  CHECK(original.at(0) != nullptr);
+  original.clear();
+  CHECK(copy->size() == size + 40 - 1);
+  copy->copyFrom(*copy);  // self-copy is a no-op
+  CHECK(copy->size() == size + 40 - 1);
+}
+#endif
 
 TEST_CASE("landmark map text: round trip, comments, CRLF", "[localization][map][io]") {
   LandmarkMap& map = sharedMap();

@@ -1,6 +1,8 @@
 #include "agv/localization/landmark_map.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 
 namespace agv {
 
@@ -136,6 +138,22 @@ Result<LandmarkIndex> LandmarkMap::insert(LandmarkKind kind, double x, double y,
   }
   ++counters_.inserted;
   return r;
+}
+
+void LandmarkMap::copyFrom(const LandmarkMap& other) noexcept {
+  if (&other == this) {
+    return;
+  }
+  params_ = other.params_;
+  paramsValid_ = other.paramsValid_;
+  std::copy(std::begin(other.slots_), std::end(other.slots_), std::begin(slots_));
+  std::copy(std::begin(other.nodes_), std::end(other.nodes_), std::begin(nodes_));
+  std::copy(std::begin(other.buckets_), std::end(other.buckets_), std::begin(buckets_));
+  std::copy(std::begin(other.freeList_), std::end(other.freeList_), std::begin(freeList_));
+  freeCount_ = other.freeCount_;
+  size_ = other.size_;
+  nextId_ = other.nextId_;
+  counters_ = other.counters_;
 }
 
 Status LandmarkMap::reinforce(LandmarkIndex index, double x, double y, double observationVariance,

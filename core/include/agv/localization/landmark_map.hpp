@@ -85,6 +85,12 @@ class LandmarkMap {
   LandmarkMap(const LandmarkMap&) = delete;
   LandmarkMap& operator=(const LandmarkMap&) = delete;
 
+  /// Makes this map an exact copy of `other`: parameters, mode, landmarks in the same slots,
+  /// grid, free slots and counters (O(capacity), no allocation). Copies are explicit because a
+  /// map is large (see Storage above); one use is giving each of several concurrent localizers
+  /// its own copy of a frozen map.
+  void copyFrom(const LandmarkMap& other) noexcept;
+
   /// Removes every landmark and resets the counters (O(capacity)).
   void clear() noexcept;
 
