@@ -352,16 +352,33 @@ bool runReflectorMode(const agv::sim::World& world, const ScenarioConfig& cfg, a
 void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& map,
                             agv::LandmarkKind kind, std::vector<agv::hil::RelocTrial>& trials);
 
+/// Which corner clusters of the mapping runs are frozen into the static FALKO map (paths and
+/// missions): seen at least 5 times in one place (scatter at most 15 mm per coordinate), each
+/// with its scatter as sigma.
+agv::mapping::CornerFreezeParams cornerFreeze() {
+  agv::mapping::CornerFreezeParams p;
+  p.minSightings = 5;
+  p.maxScatter = 0.015;
+  return p;
+}
+
+/// The corner map's line of the printout.
+void printCornerFreeze(const char* what, const agv::mapping::CornerFreezeStats& st) {
+  const agv::mapping::CornerFreezeParams p = cornerFreeze();
+  std::printf(
+      "%s: %zu of %zu corner clusters frozen (seen >= %zu times, scatter <= %.0f mm; refused: %zu too few, %zu "
+      "scattered), static, corners only\n",
+      what, st.frozen, st.clusters, p.minSightings, 1000.0 * p.maxScatter, st.tooFew, st.scattered + st.viewDependent);
+}
+
 /// Static FALKO map and natural navigation: one mapping run per path (other seeds) localizing on
 /// the surveyed reflectors while the FALKO corners and the scans are accumulated at the
-/// localizer's pose; the corners seen at least kMinMapHits times are then frozen and used alone
+/// localizer's pose; the corner clusters that pass `cornerFreeze()` are then frozen and used alone
 /// (static_falko), then with scan matching on the likelihood field of the scans (natural).
 bool runStaticMapModes(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& reflectorMap,
                        SessionResults& s) {
-  constexpr int kMinMapHits = 5;
-  constexpr double kMaxCornerScatter = 0.015;  // [m] per coordinate
   constexpr std::size_t kFieldMinScans = 2;
-  agv::hil::CornerMapper mapper;
+  agv::mapping::CornerMapper mapper;
   const agv::LikelihoodFieldParams fieldParams{};
   agv::mapping::SurfaceMapper surfaces(fieldParams.resolution);
   std::printf(
@@ -374,11 +391,9 @@ bool runStaticMapModes(const agv::sim::World& world, const ScenarioConfig& cfg, 
     return false;
   }
   auto falkoMap = std::make_unique<agv::LandmarkMap>();
-  s.mapCorners = mapper.freeze(kMinMapHits, kMaxCornerScatter, *falkoMap);
-  std::printf(
-      "mode static_falko: %zu of %zu corner clusters frozen (seen >= %d times, scatter <= %.0f mm), static, corners "
-      "only\n",
-      s.mapCorners, mapper.clusters(), kMinMapHits, 1000.0 * kMaxCornerScatter);
+  const agv::mapping::CornerFreezeStats frozen = mapper.freeze(cornerFreeze(), *falkoMap);
+  s.mapCorners = frozen.frozen;
+  printCornerFreeze("mode static_falko", frozen);
   if (!runMode(world, cfg, LocalizationMode::StaticFalko, *falkoMap, {}, {}, cfg.runsPerPath, 0, s.runs)) {
     return false;
   }
@@ -578,10 +593,8 @@ bool runMissionStages(const agv::sim::World& world, const ScenarioConfig& cfg, a
                       s.missionRuns)) {
     return false;
   }
-  constexpr int kMinMapHits = 5;
-  constexpr double kMaxCornerScatter = 0.015;  // [m] per coordinate, as for the paths
   constexpr std::size_t kFieldMinScans = 2;
-  agv::hil::CornerMapper mapper;
+  agv::mapping::CornerMapper mapper;
   const agv::LikelihoodFieldParams fieldParams{};
   agv::mapping::SurfaceMapper surfaces(fieldParams.resolution);
   agv::hil::RunMaps mapping;
@@ -593,8 +606,9 @@ bool runMissionStages(const agv::sim::World& world, const ScenarioConfig& cfg, a
     return false;
   }
   auto falkoMap = std::make_unique<agv::LandmarkMap>();
-  s.missionMapCorners = mapper.freeze(kMinMapHits, kMaxCornerScatter, *falkoMap);
-  std::printf("missions static_falko: %zu of %zu corner clusters frozen\n", s.missionMapCorners, mapper.clusters());
+  const agv::mapping::CornerFreezeStats frozen = mapper.freeze(cornerFreeze(), *falkoMap);
+  s.missionMapCorners = frozen.frozen;
+  printCornerFreeze("missions static_falko", frozen);
   if (!runMissionMode(world, cfg, LocalizationMode::StaticFalko, *falkoMap, {}, cfg.runsPerMission, 0, true,
                       s.missionRuns)) {
     return false;

@@ -76,56 +76,6 @@ Status buildSurveyedReflectorMap(const sim::World& world, double sigma, std::uin
   return Status::Ok;
 }
 
-void CornerMapper::add(double x, double y) {
-  Cluster* best = nullptr;
-  double bestD2 = kMergeRadius * kMergeRadius;
-  for (Cluster& c : clusters_) {
-    const double n = static_cast<double>(c.n);
-    const double dx = c.sx / n - x;
-    const double dy = c.sy / n - y;
-    if (dx * dx + dy * dy < bestD2) {
-      bestD2 = dx * dx + dy * dy;
-      best = &c;
-    }
-  }
-  if (best == nullptr) {
-    clusters_.push_back(Cluster{});
-    best = &clusters_.back();
-  }
-  best->sx += x;
-  best->sy += y;
-  best->sxx += x * x;
-  best->syy += y * y;
-  ++best->n;
-}
-
-std::size_t CornerMapper::freeze(int minSightings, double maxScatter, LandmarkMap& frozen) const {
-  frozen.clear();
-  std::size_t count = 0;
-  std::uint32_t id = 1;
-  for (const Cluster& c : clusters_) {
-    if (c.n < minSightings) {
-      continue;
-    }
-    const double n = static_cast<double>(c.n);
-    const double mx = c.sx / n;
-    const double my = c.sy / n;
-    // Scatter of the sightings: a true corner's apex is seen at one place from everywhere; a
-    // pillar's or a pole's "corner" moves with the viewpoint.
-    const double var = std::max(0.0, (c.sxx / n - mx * mx) + (c.syy / n - my * my)) / 2.0;
-    if (std::sqrt(var) > maxScatter) {
-      continue;
-    }
-    // The landmark's sigma: the scatter of one sighting (not of the mean: sightings from one
-    // run share the pose error of the mapping localizer).
-    if (frozen.addSurveyed(LandmarkKind::Corner, mx, my, std::sqrt(var), id++).ok()) {
-      ++count;
-    }
-  }
-  frozen.setMode(MapMode::Static);
-  return count;
-}
-
 namespace {
 
 /// The encoder source the pipeline reads, tapped: every sample it hands out is also kept for the
@@ -214,14 +164,13 @@ Result<Pose2d> correctedLaserPose(const nav::Pipeline& pipeline) {
 
 /// Mapping runs: the corners of the sweep just corrected with, in the world frame at the corrected
 /// pose (at the end of the sweep), into `cornerMap`.
-void collectCorners(const nav::Pipeline& pipeline, CornerMapper& cornerMap) {
+void collectCorners(const nav::Pipeline& pipeline, mapping::CornerMapper& cornerMap) {
   const Result<Pose2d> laserWorld = correctedLaserPose(pipeline);
   if (!laserWorld.ok()) {
     return;
   }
   for (const Pose2d::Vector2& p : pipeline.sweepCorners()) {
-    const Pose2d::Vector2 w = laserWorld.value().transformPoint(p);
-    cornerMap.add(w.x(), w.y());
+    cornerMap.add(laserWorld.value().transformPoint(p));
   }
 }
 

@@ -14,6 +14,7 @@
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/likelihood_field.hpp"
 #include "agv/loop/global_localizer.hpp"
+#include "agv/mapping/corner_mapper.hpp"
 #include "agv/mapping/surface_mapper.hpp"
 #include "agv/nav/pipeline.hpp"
 #include "agv/sim/can_encoder_source.hpp"
@@ -43,30 +44,9 @@ enum class LocalizationMode {
 /// JSON / printout name of a mode.
 const char* modeName(LocalizationMode mode) noexcept;
 
-/// The mapping side of the static FALKO mode: FALKO corners (world frame, at the localizer's
-/// pose) clustered by proximity, frozen into a static map when seen often and in one place.
-class CornerMapper {
- public:
-  static constexpr double kMergeRadius = 0.2;  ///< [m] sightings closer than this to a cluster join it
-  /// One sighting at (x, y) [m], world frame.
-  void add(double x, double y);
-  /// Copies into `frozen` (cleared, then Static) every cluster of at least `minSightings`
-  /// sightings whose scatter (std per coordinate) is at most `maxScatter` [m], as a surveyed
-  /// corner at the mean with that scatter as sigma. Returns the number frozen.
-  std::size_t freeze(int minSightings, double maxScatter, LandmarkMap& frozen) const;
-  std::size_t clusters() const noexcept { return clusters_.size(); }
-
- private:
-  struct Cluster {
-    double sx = 0.0, sy = 0.0, sxx = 0.0, syy = 0.0;
-    int n = 0;
-  };
-  std::vector<Cluster> clusters_;
-};
-
 /// What a run reads or fills besides the landmark map.
 struct RunMaps {
-  CornerMapper* corners = nullptr;             ///< Mapping: the FALKO corners are accumulated here
+  mapping::CornerMapper* corners = nullptr;    ///< Mapping: the FALKO corners are accumulated here
   mapping::SurfaceMapper* surfaces = nullptr;  ///< Mapping: every sweep's points, at the localizer's pose
   const LikelihoodFieldBase* field = nullptr;  ///< Natural: the scans are matched against it
 };

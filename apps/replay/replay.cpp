@@ -7,12 +7,12 @@
 #include <limits>
 #include <memory>
 #include <sstream>
-#include <unordered_map>
 
 #include <Eigen/QR>
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "agv/mapping/corner_mapper.hpp"
 #include "agv/mapping/surface_mapper.hpp"
 #include "agv/report/svg.hpp"
 #include "agv/scan/laser_scan.hpp"
@@ -38,66 +38,12 @@ report::Json statsJson(const ErrorStats& s, double scale) {
                       {"max", s.max * scale}};
 }
 
-/// Corners of the static map being clustered: sums of the world positions and their count.
-struct Cluster {
-  double sx = 0.0;
-  double sy = 0.0;
-  std::size_t count = 0;
-};
-
-/// Clusters in a grid of cells as wide as the clustering radius: cell key -> cluster indices.
-class ClusterGrid {
- public:
-  explicit ClusterGrid(double cell) : cell_(cell) {}
-
-  /// The cluster whose mean is nearest `w` and closer than a cell, or `clusters.size()` when none.
-  std::size_t nearest(const std::vector<Cluster>& clusters, const Eigen::Vector2d& w) const {
-    std::size_t best = clusters.size();
-    double bestD = cell_;
-    const long long cx = static_cast<long long>(std::floor(w.x() / cell_));
-    const long long cy = static_cast<long long>(std::floor(w.y() / cell_));
-    for (long long dx = -1; dx <= 1; ++dx) {
-      for (long long dy = -1; dy <= 1; ++dy) {
-        const auto it =
-            grid_.find(key((static_cast<double>(cx + dx) + 0.5) * cell_, (static_cast<double>(cy + dy) + 0.5) * cell_));
-        if (it == grid_.end()) {
-          continue;
-        }
-        for (std::size_t c : it->second) {
-          const double mx = clusters[c].sx / static_cast<double>(clusters[c].count);
-          const double my = clusters[c].sy / static_cast<double>(clusters[c].count);
-          const double d = std::hypot(mx - w.x(), my - w.y());
-          if (d < bestD) {
-            bestD = d;
-            best = c;
-          }
-        }
-      }
-    }
-    return best;
-  }
-
-  void add(const Eigen::Vector2d& w, std::size_t cluster) { grid_[key(w.x(), w.y())].push_back(cluster); }
-
- private:
-  // Cell indices may be negative: shifted as unsigned (a left shift of a negative signed value is
-  // undefined).
-  unsigned long long key(double x, double y) const {
-    const auto cx = static_cast<unsigned long long>(static_cast<long long>(std::floor(x / cell_)));
-    const auto cy = static_cast<unsigned long long>(static_cast<long long>(std::floor(y / cell_)));
-    return (cx << 32U) ^ (cy & 0xffffffffULL);
-  }
-
-  double cell_;
-  std::unordered_map<unsigned long long, std::vector<std::size_t>> grid_;
-};
-
-// Clusters the keypoints of every scan, placed in the world with the corrected poses, and adds
-// the clusters seen often enough to `map` as surveyed corners.
+// Clusters the keypoints of every scan, placed in the world with the corrected poses
+// (`mapping::CornerMapper`), and freezes the clusters seen often enough into `map` as surveyed
+// corners.
 std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const ReplayOptions& options,
                            LandmarkMap& map) {
-  std::vector<Cluster> clusters;
-  ClusterGrid grid(options.staticClusterRadius);
+  mapping::CornerMapper mapper(options.staticClusterRadius);
   FalkoDetector detector(options.falko);
   auto scan = std::make_unique<LaserScan>();
   auto kps = std::make_unique<FalkoKeypoints>();
@@ -111,29 +57,13 @@ std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const 
       if (std::hypot(k.x, k.y) > static_cast<float>(options.localizer.laser.rangeMax)) {
         continue;
       }
-      const auto w = laser.transformPoint(Eigen::Vector2d(static_cast<double>(k.x), static_cast<double>(k.y)));
-      const std::size_t best = grid.nearest(clusters, w);
-      if (best == clusters.size()) {
-        clusters.push_back(Cluster{});
-        grid.add(w, best);
-      }
-      clusters[best].sx += w.x();
-      clusters[best].sy += w.y();
-      ++clusters[best].count;
+      mapper.add(laser.transformPoint(Eigen::Vector2d(static_cast<double>(k.x), static_cast<double>(k.y))));
     }
   }
-  std::uint32_t id = 1;
-  for (const Cluster& c : clusters) {
-    if (c.count >= options.staticMinCount) {
-      if (map.addSurveyed(LandmarkKind::Corner, c.sx / static_cast<double>(c.count),
-                          c.sy / static_cast<double>(c.count), options.staticSigma, id)
-              .ok()) {
-        ++id;
-      }
-    }
-  }
-  map.setMode(MapMode::Static);
-  return id - 1U;
+  mapping::CornerFreezeParams freeze;
+  freeze.minSightings = options.staticMinCount;
+  freeze.sigma = options.staticSigma;
+  return mapper.freeze(freeze, map).frozen;
 }
 
 /// Scan points of the mapping run (scans [0, n)) placed with the corrected poses, as the surfaces
