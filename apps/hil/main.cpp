@@ -353,12 +353,16 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
                             agv::LandmarkKind kind, std::vector<agv::hil::RelocTrial>& trials);
 
 /// Which corner clusters of the mapping runs are frozen into the static FALKO map (paths and
-/// missions): seen at least 5 times in one place (scatter at most 15 mm per coordinate), each
-/// with its scatter as sigma.
+/// missions): at least 5 sightings within 30 mm (per coordinate) of the cluster's median, those
+/// being at least half of its sightings (a pillar's apex or a grazing edge moves with the
+/// viewpoint: no majority agrees on a place), their scatter at most 15 mm per coordinate; each
+/// frozen at the mean of those sightings with their scatter as sigma.
 agv::mapping::CornerFreezeParams cornerFreeze() {
   agv::mapping::CornerFreezeParams p;
   p.minSightings = 5;
   p.maxScatter = 0.015;
+  p.inlierRadius = 2.0 * p.maxScatter;
+  p.minInlierFraction = 0.5;
   return p;
 }
 
@@ -366,9 +370,11 @@ agv::mapping::CornerFreezeParams cornerFreeze() {
 void printCornerFreeze(const char* what, const agv::mapping::CornerFreezeStats& st) {
   const agv::mapping::CornerFreezeParams p = cornerFreeze();
   std::printf(
-      "%s: %zu of %zu corner clusters frozen (seen >= %zu times, scatter <= %.0f mm; refused: %zu too few, %zu "
-      "scattered), static, corners only\n",
-      what, st.frozen, st.clusters, p.minSightings, 1000.0 * p.maxScatter, st.tooFew, st.scattered + st.viewDependent);
+      "%s: %zu of %zu corner clusters frozen (>= %zu sightings within %.0f mm of the median, at least %.0f %% of "
+      "the cluster's, scatter <= %.0f mm; refused: %zu too few, %zu view-dependent, %zu scattered), static, corners "
+      "only\n",
+      what, st.frozen, st.clusters, p.minSightings, 1000.0 * p.inlierRadius, 100.0 * p.minInlierFraction,
+      1000.0 * p.maxScatter, st.tooFew, st.viewDependent, st.scattered);
 }
 
 /// Static FALKO map and natural navigation: one mapping run per path (other seeds) localizing on

@@ -127,6 +127,13 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
                  "scan-match covariance inflation");
   app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");
   app.add_option("--static-min-count", options.staticMinCount, "detections a static corner needs");
+  app.add_option("--static-inlier-radius", options.staticInlierRadius,
+                 "[m] static corners: sightings farther from the cluster's median are outliers (default 0: none)");
+  app.add_option("--static-min-inlier-fraction", options.staticMinInlierFraction,
+                 "static corners: share of a cluster's sightings that must be inliers (default 0)")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--static-max-scatter", options.staticMaxScatter,
+                 "[m] static corners: largest scatter of the inliers per coordinate (default: no limit)");
   app.add_option("--trace", options.tracePath, "write one CSV line per scan (health, errors)");
   app.add_flag("--truth-odometry", options.truthOdometry,
                "diagnostic: predict with the ground-truth increments instead of the raw odometry");

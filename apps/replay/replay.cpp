@@ -63,6 +63,9 @@ std::size_t buildStaticMap(const datasets::CarmenLog& log, std::size_t n, const 
   mapping::CornerFreezeParams freeze;
   freeze.minSightings = options.staticMinCount;
   freeze.sigma = options.staticSigma;
+  freeze.inlierRadius = options.staticInlierRadius;
+  freeze.minInlierFraction = options.staticMinInlierFraction;
+  freeze.maxScatter = options.staticMaxScatter;
   return mapper.freeze(freeze, map).frozen;
 }
 

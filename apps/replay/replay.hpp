@@ -5,6 +5,7 @@
 // Host tool code (heap, files); not core.
 
 #include <cstddef>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -64,6 +65,13 @@ struct ReplayOptions {
   double staticClusterRadius = 0.10;  ///< [m]
   std::size_t staticMinCount = 5;
   double staticSigma = 0.02;  ///< [m] declared sigma of the static corners
+  /// Outlier rejection of the static corners (`mapping::CornerFreezeParams`): sightings farther
+  /// than `staticInlierRadius` [m] from the cluster's median are left out (0: none), a cluster
+  /// whose inliers are fewer than `staticMinInlierFraction` of its sightings is refused, and one
+  /// whose inliers scatter more than `staticMaxScatter` [m] per coordinate.
+  double staticInlierRadius = 0.0;
+  double staticMinInlierFraction = 0.0;
+  double staticMaxScatter = std::numeric_limits<double>::infinity();
   /// Localization on the product's own maps, the honest case: when in (0, 1), the first
   /// `mapFraction` of the scans is the *mapping run*: its corners (clustered as above) become a
   /// static corner map and its scan points a likelihood field (`field`), both placed with the
