@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <random>
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_detector.hpp"
@@ -49,6 +50,25 @@ std::size_t onlineSkipCount(const std::vector<Pose2d>& truth, std::size_t i, con
 }
 
 }  // namespace
+
+void addSubmapPoints(const std::vector<Eigen::Vector2f>& points, const Pose2d& toThis, float mergeRadius,
+                     std::size_t limit, std::vector<Eigen::Vector2f>& submap) {
+  limit = std::min(limit, kMaxLoopPoints);
+  const double c = std::cos(toThis.theta);
+  const double sn = std::sin(toThis.theta);
+  for (const Eigen::Vector2f& q : points) {
+    const Eigen::Vector2f p(
+        static_cast<float>(toThis.x + c * static_cast<double>(q.x()) - sn * static_cast<double>(q.y())),
+        static_cast<float>(toThis.y + sn * static_cast<double>(q.x()) + c * static_cast<double>(q.y())));
+    bool near = false;
+    for (const Eigen::Vector2f& e : submap) {
+      near = near || (e - p).norm() < mergeRadius;
+    }
+    if (!near && submap.size() < limit) {
+      submap.push_back(p);
+    }
+  }
+}
 
 bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& selection, ScanFeatures& out,
                      std::string& error) {
@@ -126,6 +146,32 @@ bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& select
   if (out.points.empty()) {
     error = withTruth == 0 ? "no scan with a ground-truth pose (VERTEX2) in the log" : "no scan selected";
     return false;
+  }
+  if (selection.submapScans > 1) {
+    // The simulated odometry of the selected scans (see ScanSelection): noisy ground-truth steps.
+    std::mt19937_64 rng(selection.submapNoiseSeed);
+    std::normal_distribution<double> unit(0.0, 1.0);
+    std::vector<Pose2d> odometry{out.truth.front()};
+    for (std::size_t i = 1; i < out.truth.size(); ++i) {
+      const Pose2d step = between(out.truth[i - 1], out.truth[i]);
+      const double d = std::hypot(step.x, step.y);
+      const double sp = std::sqrt(selection.submapPositionVariancePerMetre * d);
+      const double sh = std::sqrt(selection.submapHeadingVariancePerMetre * d);
+      const double nx = sp * unit(rng);
+      const double ny = sp * unit(rng);
+      const double nt = sh * unit(rng);
+      odometry.push_back(odometry.back().compose(Pose2d{step.x + nx, step.y + ny, step.theta + nt}));
+    }
+    // Each scan's association set: its keypoints and, while it holds fewer than submapPoints, the
+    // previous submapScans - 1 selected scans', placed by that odometry, newest first.
+    std::vector<std::vector<Eigen::Vector2f>> submaps(out.points.size());
+    for (std::size_t i = 0; i < out.points.size(); ++i) {
+      for (std::size_t k = 0; k < selection.submapScans && k <= i; ++k) {
+        addSubmapPoints(out.points[i - k], between(odometry[i], odometry[i - k]), selection.falko.nmsRadius,
+                        k == 0 ? kMaxLoopPoints : selection.submapPoints, submaps[i]);
+      }
+    }
+    out.points = std::move(submaps);
   }
   const double n = static_cast<double>(out.points.size());
   out.meanKeypoints = keypointSum / n;

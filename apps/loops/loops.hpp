@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -51,7 +52,28 @@ struct ScanSelection {
   /// 0: the GLAROT signature of the FALKO keypoints (thesis). n > 0: of n beam endpoints spread
   /// evenly over the scan's valid readings instead (the association stays on the keypoints).
   std::size_t glarotScanPoints = 0;
+  /// Submaps: a scan's association set is its own keypoints plus, newest first, those of up to
+  /// `submapScans` - 1 earlier selected scans (placed in its frame by odometry, see below), taken only while the set
+  /// holds fewer than `submapPoints` points (a scan rich in corners stays alone; one with few borrows from its
+  /// predecessors). 1: the scan's own keypoints (the thesis). The signature and the verification stay the scan's own.
+  std::size_t submapScans = 1;
+  std::size_t submapPoints = kMaxLoopPoints;
+  /// The FLIRTLib logs carry no odometry (their pose fields repeat the VERTEX2 ground truth, data
+  /// README): the submaps are placed by a simulated odometry instead, the ground-truth increments
+  /// between selected scans with zero-mean Gaussian noise of these variances per metre travelled
+  /// (the defaults: about intel's raw odometry, the worst of the shared logs, 0.12 m and 5.6 deg
+  /// of drift per metre), seeded.
+  double submapPositionVariancePerMetre = 0.01;  ///< [m^2/m]
+  double submapHeadingVariancePerMetre = 0.015;  ///< [rad^2/m]
+  std::uint64_t submapNoiseSeed = 17;
 };
+
+/// Adds `points` (keypoints in another scan's sensor frame) to `submap` (this scan's frame),
+/// each moved by `toThis` (that frame's pose in this one) and left out when within `mergeRadius`
+/// of a point already there, until `submap` holds `limit` points (at most kMaxLoopPoints): call it
+/// for the scan's own points first, then for the earlier scans', newest first.
+void addSubmapPoints(const std::vector<Eigen::Vector2f>& points, const Pose2d& toThis, float mergeRadius,
+                     std::size_t limit, std::vector<Eigen::Vector2f>& submap);
 
 /// Detects the features of the selected scans that carry ground truth (`LogScan::groundTruth`).
 /// False with `error` when no scan is usable.

@@ -135,6 +135,20 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(0.01, 1.0));
   app.add_option("--dump-associations", eval.dumpPath,
                  "write every Ok association (and one line per scan) as CSV to this file (diagnosis)");
+  app.add_option("--submap-scans", selection.submapScans,
+                 "associate each scan's keypoints together with those of the previous n-1 scans, placed by odometry "
+                 "(default 1: the scan's own)")
+      ->check(CLI::Range(1, 50));
+  app.add_option("--submap-points", selection.submapPoints,
+                 "submaps: earlier scans' keypoints are added only while the set holds fewer than this many "
+                 "(default 64, the capacity)")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--submap-position-noise", selection.submapPositionVariancePerMetre,
+                 "submaps: [m^2/m] position variance per metre of the simulated odometry placing them (default 0.01)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--submap-heading-noise", selection.submapHeadingVariancePerMetre,
+                 "submaps: [rad^2/m] heading variance per metre of the simulated odometry (default 0.015)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--glarot-scan-points", selection.glarotScanPoints,
                  "GLAROT signature of this many beam endpoints spread over the scan (default 128); 0: of the "
                  "keypoints (thesis)")

@@ -216,21 +216,8 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
   for (std::size_t i = 0; i < n; ++i) {
     const Pose2d laserI = r.odometry[i].compose(mount);
     for (std::size_t k = 0; k < o.submapScans && k <= i; ++k) {
-      const Pose2d t = between(laserI, r.odometry[i - k].compose(mount));
-      const double c = std::cos(t.theta);
-      const double sn = std::sin(t.theta);
-      for (const Eigen::Vector2f& q : features.points[i - k]) {
-        const Eigen::Vector2f p(
-            static_cast<float>(t.x + c * static_cast<double>(q.x()) - sn * static_cast<double>(q.y())),
-            static_cast<float>(t.y + sn * static_cast<double>(q.x()) + c * static_cast<double>(q.y())));
-        bool near = false;
-        for (const Eigen::Vector2f& e : points[i]) {
-          near = near || (e - p).norm() < selection.falko.nmsRadius;
-        }
-        if (!near && points[i].size() < kMaxLoopPoints) {
-          points[i].push_back(p);
-        }
-      }
+      addSubmapPoints(features.points[i - k], between(laserI, r.odometry[i - k].compose(mount)),
+                      selection.falko.nmsRadius, kMaxLoopPoints, points[i]);
     }
     (void)computeGlarot(Span<const Eigen::Vector2f>(points[i].data(), points[i].size()), GlarotParams{}, signatures[i]);
   }
