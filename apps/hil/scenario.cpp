@@ -686,10 +686,6 @@ bool checkRunInputs(const ScenarioConfig& config, LocalizationMode mode, const R
   return true;
 }
 
-}  // namespace
-
-namespace {
-
 /// How many threads run the runs of one call: `config.jobs` (0: the machine's cores, at most
 /// 8), one for mapping runs (their sightings and scans are accumulated in run order) and never
 /// more than the runs.
