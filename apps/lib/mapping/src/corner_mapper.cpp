@@ -7,23 +7,24 @@ namespace agv::mapping {
 
 CornerMapper::CornerMapper(double mergeRadius) : radius_(mergeRadius > 0.0 ? mergeRadius : 0.2) {}
 
-std::uint64_t CornerMapper::cellKey(double x, double y) const noexcept {
+std::int64_t CornerMapper::cellOf(double v) const noexcept {
+  return static_cast<std::int64_t>(std::floor(v / radius_));
+}
+
+std::uint64_t CornerMapper::cellKey(std::int64_t cx, std::int64_t cy) noexcept {
   // Cell indices may be negative: shifted as unsigned (a left shift of a negative signed value is
   // undefined).
-  const auto cx = static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(x / radius_)));
-  const auto cy = static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(y / radius_)));
-  return (cx << 32U) ^ (cy & 0xffffffffULL);
+  return (static_cast<std::uint64_t>(cx) << 32U) ^ (static_cast<std::uint64_t>(cy) & 0xffffffffULL);
 }
 
 std::size_t CornerMapper::nearest(const Eigen::Vector2d& w) const {
   std::size_t best = clusters_.size();
   double bestD = radius_;
-  const double cx = std::floor(w.x() / radius_);
-  const double cy = std::floor(w.y() / radius_);
-  for (int dx = -1; dx <= 1; ++dx) {
-    for (int dy = -1; dy <= 1; ++dy) {
-      // The centre of the neighbouring cell, so that its key is computed as the sightings' are.
-      const auto it = grid_.find(cellKey((cx + dx + 0.5) * radius_, (cy + dy + 0.5) * radius_));
+  const std::int64_t cx = cellOf(w.x());
+  const std::int64_t cy = cellOf(w.y());
+  for (std::int64_t dx = -1; dx <= 1; ++dx) {
+    for (std::int64_t dy = -1; dy <= 1; ++dy) {
+      const auto it = grid_.find(cellKey(cx + dx, cy + dy));
       if (it == grid_.end()) {
         continue;
       }
@@ -47,7 +48,7 @@ void CornerMapper::add(const Eigen::Vector2d& world) {
   std::size_t best = nearest(world);
   if (best == clusters_.size()) {
     clusters_.emplace_back();
-    grid_[cellKey(world.x(), world.y())].push_back(best);
+    grid_[cellKey(cellOf(world.x()), cellOf(world.y()))].push_back(best);
   }
   Cluster& c = clusters_[best];
   c.sx += world.x();

@@ -70,7 +70,8 @@ class CornerMapper {
     double sy = 0.0;
     std::vector<Eigen::Vector2d> sightings;
   };
-  std::uint64_t cellKey(double x, double y) const noexcept;
+  std::int64_t cellOf(double v) const noexcept;  ///< grid cell index of a coordinate
+  static std::uint64_t cellKey(std::int64_t cx, std::int64_t cy) noexcept;
   std::size_t nearest(const Eigen::Vector2d& w) const;
 
   double radius_;
