@@ -1,16 +1,18 @@
 // agvnav-lidar-calibrate: per-laser intrinsic calibration (D_corr, theta, alpha; V_o, H_o on
 // request) of a multi-beam lidar from scans of a planar target, the thesis' cost (mean squared
-// distance of each target scan to its PCA plane) solved with Ceres. The scans come from the
+// distance of each target scan to its PCA plane) solved with Ceres. The scans come either from
+// recordings of the sensor's data packets, one per placement (--recording), or from the
 // simulator's calibration hall (9 distances x 5 tilts by default) with a factory file perturbed
-// by known amounts as the truth; the program reports the errors against that truth, the plane
-// residuals before / after / at the noise floor, the conditioning and the wall time, and writes
-// the calibrated intrinsics as velodyne_pointcloud YAML.
+// by known amounts as the truth; the program reports the plane residuals before / after (and, in
+// the simulation, the errors against the truth and the noise floor), the conditioning and the wall
+// time, and writes the calibrated intrinsics as velodyne_pointcloud YAML.
 #include <CLI/CLI.hpp>
 
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <map>
 #include <random>
 #include <string>
@@ -20,6 +22,7 @@
 #include "agv/datasets/velodyne_calibration.hpp"
 #include "agv/lidar_calibration/hall_scans.hpp"
 #include "agv/lidar_calibration/intrinsic_calibration.hpp"
+#include "agv/lidar_calibration/recording_scans.hpp"
 #include "agv/report/json.hpp"
 #include "agv/report/text_file.hpp"
 
@@ -170,11 +173,30 @@ int main(int argc, char** argv) {
   std::uint64_t seed = 1;
   lc::HallScansConfig sim;
   lc::IntrinsicCalibrationConfig config;
+  std::vector<std::string> recordings;
+  lc::RecordingScanOptions recordingOptions;
+  std::string writeRecordingsDir;
 
   CLI::App app{"agvnav-lidar-calibrate: per-laser intrinsics of a multi-beam lidar from planar-target scans (Ceres)"};
   app.add_option("--factory", factoryPath,
                  "factory / start intrinsics (db.xml or YAML; default: the shared HDL-64E S2.1 SZTAKI file)")
       ->check(CLI::ExistingFile);
+  app.add_option("--recording", recordings,
+                 "recorded data packets of one placement of the sensor in front of the target (pcap, ROS 2 bag of "
+                 "VelodyneScan, or bare 1206-byte payloads); repeat per placement. Calibrates from these instead of "
+                 "the simulated hall")
+      ->check(CLI::ExistingFile);
+  app.add_option("--port", recordingOptions.port, "pcap recordings: UDP port of the data packets");
+  app.add_option("--revolutions", recordingOptions.maxRevolutions,
+                 "recordings: whole revolutions used per recording, each one scan (0: all)");
+  app.add_option("--target-width", config.segmentation.targetWidth, "[m] the planar target's larger side")
+      ->check(CLI::Range(0.2, 50.0));
+  app.add_option("--target-height", config.segmentation.targetHeight, "[m] the planar target's smaller side")
+      ->check(CLI::Range(0.2, 50.0));
+  app.add_option(
+      "--write-recordings", writeRecordingsDir,
+      "simulation: also write each simulated placement as a recording of data packets (DIR/placement-NN.bin; "
+      "HDL-32E / HDL-64E tables)");
   app.add_option("--truth", truthPath, "simulated unit's intrinsics (default: the factory file perturbed)")
       ->check(CLI::ExistingFile);
   app.add_option("--perturb-dist", perturbDist, "[m] truth = factory D_corr + uniform(+-this)")
@@ -227,6 +249,18 @@ int main(int argc, char** argv) {
   if (factoryPath.empty()) {
     factoryPath = std::string(AGVNAV_DEFAULT_DATA_DIR) + "/lidar3d/calibration/hdl64e_s2.1_sztaki.yaml";
   }
+  const bool simulated = recordings.empty();
+  if (!simulated && (!truthPath.empty() || !writeRecordingsDir.empty() || monteCarlo > 0)) {
+    std::fprintf(stderr,
+                 "agvnav-lidar-calibrate: --truth, --write-recordings and --monte-carlo need the simulation "
+                 "(no --recording)\n");
+    return 2;
+  }
+  if (config.segmentation.targetHeight > config.segmentation.targetWidth) {
+    std::fprintf(stderr,
+                 "agvnav-lidar-calibrate: --target-height above --target-width (the width is the larger side)\n");
+    return 2;
+  }
   if (farthest < nearest) {
     std::fprintf(stderr, "agvnav-lidar-calibrate: --farthest below --nearest\n");
     return 2;
@@ -266,20 +300,92 @@ int main(int argc, char** argv) {
   if (!quiet) {
     config.progress = [](const std::string& line) { std::printf("  %s\n", line.c_str()); };
   }
-  std::printf(
-      "agvnav-lidar-calibrate: %zu lasers (%s), %zu placements (%d distances %.1f..%.1f m x %d tilts %.0f..%.0f deg), "
-      "noise %.3f m, truth = factory + D_corr +-%.3f m, theta +-%.2f deg, alpha +-%.2f deg, V_o/H_o +-%.3f m\n",
-      factory.size(), factoryPath.c_str(), sim.placements.size(), distances, nearest, farthest, tilts, minTiltDeg,
-      maxTiltDeg, sim.sensor.rangeNoise, perturbDist, perturbThetaDeg, perturbAlphaDeg, perturbOffsets);
-
   const auto t0 = std::chrono::steady_clock::now();
-  const std::vector<lc::CalibrationScan> scans = lc::simulateHallScans(sim, truth);
+  std::vector<lc::CalibrationScan> scans;
+  Json recordingJson = Json::array();
+  if (simulated) {
+    std::printf(
+        "agvnav-lidar-calibrate: %zu lasers (%s), %zu placements (%d distances %.1f..%.1f m x %d tilts %.0f..%.0f "
+        "deg), noise %.3f m, truth = factory + D_corr +-%.3f m, theta +-%.2f deg, alpha +-%.2f deg, V_o/H_o +-%.3f m\n",
+        factory.size(), factoryPath.c_str(), sim.placements.size(), distances, nearest, farthest, tilts, minTiltDeg,
+        maxTiltDeg, sim.sensor.rangeNoise, perturbDist, perturbThetaDeg, perturbAlphaDeg, perturbOffsets);
+    scans = lc::simulateHallScans(sim, truth);
+  } else {
+    std::printf("agvnav-lidar-calibrate: %zu lasers (%s), %zu recordings, target %.2f x %.2f m\n", factory.size(),
+                factoryPath.c_str(), recordings.size(), config.segmentation.targetWidth,
+                config.segmentation.targetHeight);
+    for (const std::string& path : recordings) {
+      lc::RecordingStats rs;
+      if (!lc::readRecordingScans(path, factory, recordingOptions, scans, rs, error)) {
+        std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
+        return 2;
+      }
+      std::printf(
+          "%s: %s, %zu packets (%zu refused, %zu blocks skipped), %zu revolutions (%zu partial), %zu used, "
+          "%zu returns\n",
+          path.c_str(), rs.container.c_str(), rs.packets, rs.refusedPackets, rs.skippedBlocks, rs.revolutions,
+          rs.partial, rs.used, rs.returns);
+      recordingJson.push_back(Json{{"path", path},
+                                   {"container", rs.container},
+                                   {"packets", rs.packets},
+                                   {"refused_packets", rs.refusedPackets},
+                                   {"skipped_blocks", rs.skippedBlocks},
+                                   {"revolutions", rs.revolutions},
+                                   {"partial_revolutions", rs.partial},
+                                   {"scans", rs.used},
+                                   {"returns", rs.returns}});
+    }
+  }
   const double simSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::size_t returns = 0;
   for (const lc::CalibrationScan& s : scans) {
     returns += s.returns.size();
   }
-  std::printf("simulated %zu scans, %zu returns in %.2f s\n", scans.size(), returns, simSeconds);
+  std::printf("%s %zu scans, %zu returns in %.2f s\n", simulated ? "simulated" : "read", scans.size(), returns,
+              simSeconds);
+  // --write-recordings: each simulated placement as HDL packets, read back through the recording
+  // path and compared with the simulated returns (what a later --recording run will calibrate on).
+  Json written;
+  if (!writeRecordingsDir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(writeRecordingsDir, ec);
+    double rounding = 0.0;
+    std::size_t differ = 0;
+    Json files = Json::array();
+    for (std::size_t s = 0; s < scans.size(); ++s) {
+      char name[48];
+      std::snprintf(name, sizeof name, "placement-%02zu.bin", s);
+      const std::string path = writeRecordingsDir + "/" + name;
+      double r = 0.0;
+      std::vector<lc::CalibrationScan> back;
+      lc::RecordingStats rs;
+      if (!lc::writeRecording(path, scans[s], truth, r, error) ||
+          !lc::readRecordingScans(path, truth, lc::RecordingScanOptions{}, back, rs, error)) {
+        std::fprintf(stderr, "agvnav-lidar-calibrate: %s\n", error.c_str());
+        return 2;
+      }
+      rounding = std::max(rounding, r);
+      const std::vector<agv::RawReturn>& a = scans[s].returns;
+      const std::vector<agv::RawReturn>& b = back.front().returns;
+      differ += a.size() > b.size() ? a.size() - b.size() : b.size() - a.size();
+      for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) {
+        differ += a[i].laser != b[i].laser || a[i].range != b[i].range || std::fabs(a[i].phi - b[i].phi) > r + 1e-12
+                      ? 1U
+                      : 0U;
+      }
+      files.push_back(path);
+    }
+    std::printf(
+        "wrote %zu recordings to %s (head angle rounded to the packets' 0.01 deg: at most %.4f deg); read back: %s\n",
+        scans.size(), writeRecordingsDir.c_str(), agv::rad2deg(rounding),
+        differ == 0 ? "the same returns" : "DIFFERENT returns");
+    written = Json{{"files", files}, {"max_azimuth_rounding_rad", rounding}, {"read_back_equal", differ == 0}};
+    if (differ != 0) {
+      std::fprintf(stderr, "agvnav-lidar-calibrate: %zu returns of the written recordings read back differently\n",
+                   differ);
+      return 2;
+    }
+  }
 
   lc::IntrinsicCalibrationResult result;
   const auto t1 = std::chrono::steady_clock::now();
@@ -289,8 +395,18 @@ int main(int argc, char** argv) {
   doc["program"] = "agvnav-lidar-calibrate";
   doc["factory"] = factoryPath;
   doc["lasers"] = factory.size();
-  doc["placements"] = sim.placements.size();
-  doc["noise_m"] = sim.sensor.rangeNoise;
+  doc["input"] = simulated ? "simulation" : "recordings";
+  if (simulated) {
+    doc["placements"] = sim.placements.size();
+    doc["noise_m"] = sim.sensor.rangeNoise;
+  } else {
+    doc["recordings"] = recordingJson;
+    doc["target_m"] = Json{config.segmentation.targetWidth, config.segmentation.targetHeight};
+  }
+  doc["scan_count"] = scans.size();
+  if (!written.is_null()) {
+    doc["written_recordings"] = written;
+  }
   doc["residual"] = config.residual == lc::PlaneResidual::AlongBeam ? "beam" : "orthogonal";
   doc["returns"] = returns;
   doc["ok"] = ok;
@@ -308,8 +424,38 @@ int main(int argc, char** argv) {
     }
   }
   if (!ok) {
+    // The plane residual of each scan's target with the start values (the scans segmented before the refusal).
+    std::vector<std::vector<std::size_t>> found;
+    for (const lc::ScanReport& r : result.scans) {
+      found.push_back(r.targets);
+    }
+    const std::vector<double> rmsStart = result.scans.size() == scans.size()
+                                             ? lc::planeResiduals(scans, found, factory)
+                                             : std::vector<double>(result.scans.size(), 0.0);
+    Json scanJson = Json::array();
+    if (!result.scans.empty()) {
+      std::printf("\n%-40s %8s %10s %16s\n", "scan", "points", "rms start", "target extent");
+    }
+    for (std::size_t s = 0; s < result.scans.size(); ++s) {
+      const lc::ScanReport& r = result.scans[s];
+      std::printf("%-40s %8zu %10.5f %7.2f x %-7.2f\n", r.name.c_str(), r.targetPoints, rmsStart[s], r.extent.x(),
+                  r.extent.y());
+      scanJson.push_back(Json{{"name", r.name},
+                              {"returns", r.returns},
+                              {"target_points", r.targetPoints},
+                              {"rms_start_m", rmsStart[s]},
+                              {"extent_m", Json{r.extent.x(), r.extent.y()}}});
+    }
+    doc["scans"] = scanJson;
+    doc["conditioning_start"] = conditioningJson(result.startConditioning);
     for (const lc::LaserReport& l : result.lasers) {
-      lasers.push_back(Json{{"laser", l.laser}, {"estimated", l.estimated}, {"reason", l.reason}});
+      lasers.push_back(Json{{"laser", l.laser},
+                            {"estimated", l.estimated},
+                            {"reason", l.reason},
+                            {"points", l.points},
+                            {"scans", l.scans},
+                            {"max_correlation", l.maxCorrelation},
+                            {"max_correlation_pair", l.maxCorrelationPair}});
     }
     doc["laser_reports"] = lasers;
     if (!jsonPath.empty() && !agv::report::writeJsonFile(jsonPath, doc, error)) {
@@ -317,16 +463,27 @@ int main(int argc, char** argv) {
     }
     return 3;
   }
-  // Noise floor: the truth's own plane residual on the same target points.
+  // Noise floor: the truth's own plane residual on the same target points (simulation only; for a
+  // recording the table's "err" columns are the change from the start values).
   std::vector<std::vector<std::size_t>> targets;
   for (const lc::ScanReport& s : result.scans) {
     targets.push_back(s.targets);
   }
-  const std::vector<double> floor = lc::planeResiduals(scans, targets, truth);
-  const lc::TruthComparison cmp = lc::compareWithTruth(result, truth, config);
+  std::vector<double> floor(result.scans.size(), 0.0);
+  lc::TruthComparison cmp;
+  if (simulated) {
+    floor = lc::planeResiduals(scans, targets, truth);
+    cmp = lc::compareWithTruth(result, truth, config);
+  } else {
+    for (const lc::LaserReport& l : result.lasers) {
+      cmp.error.resize(std::max(cmp.error.size(), l.laser + 1),
+                       Eigen::Matrix<double, agv::kLaserParamCount, 1>::Zero());
+      cmp.error[l.laser] = agv::toVector(l.estimate) - agv::toVector(l.start);
+    }
+  }
 
-  std::printf("\n%-22s %8s %10s %10s %10s %8s\n", "scan", "points", "rms start", "rms final", "rms truth",
-              "final/truth");
+  std::printf("\n%-22s %8s %10s %10s %10s %8s\n", "scan", "points", "rms start", "rms final",
+              simulated ? "rms truth" : "", simulated ? "final/truth" : "");
   Json scanJson = Json::array();
   double worstRatio = 0.0;
   for (std::size_t s = 0; s < result.scans.size(); ++s) {
@@ -335,15 +492,20 @@ int main(int argc, char** argv) {
     worstRatio = std::max(worstRatio, ratio);
     std::printf("%-22s %8zu %10.5f %10.5f %10.5f %8.4f\n", r.name.c_str(), r.targetPoints, r.rmsStart, r.rmsFinal,
                 floor[s], ratio);
-    scanJson.push_back(Json{{"name", r.name},
-                            {"returns", r.returns},
-                            {"target_points", r.targetPoints},
-                            {"rms_start_m", r.rmsStart},
-                            {"rms_final_m", r.rmsFinal},
-                            {"rms_truth_m", floor[s]}});
+    Json sj{{"name", r.name},
+            {"returns", r.returns},
+            {"target_points", r.targetPoints},
+            {"rms_start_m", r.rmsStart},
+            {"rms_final_m", r.rmsFinal},
+            {"extent_m", Json{r.extent.x(), r.extent.y()}}};
+    if (simulated) {
+      sj["rms_truth_m"] = floor[s];
+    }
+    scanJson.push_back(sj);
   }
-  std::printf("\n%5s %7s %10s %10s %10s %10s %10s %10s %6s\n", "laser", "points", "D_corr", "err [mm]", "theta[deg]",
-              "err [mdeg]", "alpha[deg]", "err [mdeg]", "corr");
+  const char* errHead = simulated ? "err" : "chg";  // against the truth / from the start values
+  std::printf("\n%5s %7s %10s %6s [mm] %10s %5s [mdeg] %10s %5s [mdeg] %6s\n", "laser", "points", "D_corr", errHead,
+              "theta[deg]", errHead, "alpha[deg]", errHead, "corr");
   for (const lc::LaserReport& l : result.lasers) {
     const auto& e = cmp.error[l.laser];
     std::printf("%5zu %7zu %10.5f %5.2f+-%-4.2f %10.4f %5.1f+-%-4.1f %10.4f %5.1f+-%-4.1f %6.3f%s\n", l.laser, l.points,
@@ -369,28 +531,32 @@ int main(int argc, char** argv) {
     }
     lj["estimate"] = est;
     lj["sigma"] = sig;
-    lj["error_vs_truth"] = err;
+    lj[simulated ? "error_vs_truth" : "change_from_start"] = err;
     lasers.push_back(lj);
   }
   printConditioning("\nconditioning at the solution", result.conditioning);
-  std::printf(
-      "\nerrors against the truth (%zu lasers estimated, %zu held; held common offsets removed: alpha %.4f deg, "
-      "theta %.4f deg):\n",
-      result.lasersEstimated, held, agv::rad2deg(cmp.commonAlpha), agv::rad2deg(cmp.commonTheta));
   Json errJson;
-  for (int k = 0; k < agv::kLaserParamCount; ++k) {
-    if (!config.estimate[k]) {
-      continue;
+  if (simulated) {
+    std::printf(
+        "\nerrors against the truth (%zu lasers estimated, %zu held; held common offsets removed: alpha %.4f deg, "
+        "theta %.4f deg):\n",
+        result.lasersEstimated, held, agv::rad2deg(cmp.commonAlpha), agv::rad2deg(cmp.commonTheta));
+    for (int k = 0; k < agv::kLaserParamCount; ++k) {
+      if (!config.estimate[k]) {
+        continue;
+      }
+      const bool angle = k == agv::kTheta || k == agv::kAlpha;
+      const double f = angle ? agv::rad2deg(1.0) * 1e3 : 1e3;
+      std::printf("  %-7s start max %8.3f, final max %8.4f rms %8.4f %s\n", lc::laserParamName(k),
+                  cmp.maxAbsStart[k] * f, cmp.maxAbs[k] * f, cmp.rms[k] * f, angle ? "mdeg" : "mm");
+      errJson[lc::laserParamName(k)] =
+          Json{{"start_max", cmp.maxAbsStart[k]}, {"final_max", cmp.maxAbs[k]}, {"final_rms", cmp.rms[k]}};
     }
-    const bool angle = k == agv::kTheta || k == agv::kAlpha;
-    const double f = angle ? agv::rad2deg(1.0) * 1e3 : 1e3;
-    std::printf("  %-7s start max %8.3f, final max %8.4f rms %8.4f %s\n", lc::laserParamName(k), cmp.maxAbsStart[k] * f,
-                cmp.maxAbs[k] * f, cmp.rms[k] * f, angle ? "mdeg" : "mm");
-    errJson[lc::laserParamName(k)] =
-        Json{{"start_max", cmp.maxAbsStart[k]}, {"final_max", cmp.maxAbs[k]}, {"final_rms", cmp.rms[k]}};
+    std::printf("  |error| / sigma: max %.2f, %zu of %zu beyond 3 sigma\n", cmp.maxSigmaRatio, cmp.beyondThreeSigma,
+                cmp.compared);
+  } else {
+    std::printf("\n%zu lasers estimated, %zu held\n", result.lasersEstimated, held);
   }
-  std::printf("  |error| / sigma: max %.2f, %zu of %zu beyond 3 sigma\n", cmp.maxSigmaRatio, cmp.beyondThreeSigma,
-              cmp.compared);
   if (result.noiseBias.applied) {
     std::printf(
         "noise-bias correction of the thesis' minimum (range sigma %.5f m, %d Gauss-Newton steps): largest change "
@@ -401,8 +567,12 @@ int main(int argc, char** argv) {
   }
   std::printf(
       "cost (sum over scans of the mean squared plane distance): start %.6e, final %.6e m^2 (PCA planes), "
-      "%.6e m^2 (Ceres' planes), planes within %.2e rad; worst scan rms final / truth %.4f\n",
-      result.costStart, result.costFinal, result.costFinalJoint, result.maxPlaneAngle, worstRatio);
+      "%.6e m^2 (Ceres' planes), planes within %.2e rad",
+      result.costStart, result.costFinal, result.costFinalJoint, result.maxPlaneAngle);
+  if (simulated) {
+    std::printf("; worst scan rms final / truth %.4f", worstRatio);
+  }
+  std::printf("\n");
   std::printf("residual sigma %.5f m; %d iterations; wall time %.2f s (segmentation %.2f, solve %.2f, analysis %.2f)\n",
               result.noiseSigma, result.iterations, wall, result.secondsSegmentation, result.secondsSolve,
               result.secondsAnalysis);
@@ -410,7 +580,9 @@ int main(int argc, char** argv) {
   doc["cost_final_m2"] = result.costFinal;
   doc["cost_final_joint_m2"] = result.costFinalJoint;
   doc["max_plane_angle_rad"] = result.maxPlaneAngle;
-  doc["worst_rms_final_over_truth"] = worstRatio;
+  if (simulated) {
+    doc["worst_rms_final_over_truth"] = worstRatio;
+  }
   doc["noise_sigma_m"] = result.noiseSigma;
   doc["range_sigma_m"] = result.rangeSigma;
   doc["cost_calibrated_m2"] = result.costCalibrated;
@@ -426,17 +598,19 @@ int main(int argc, char** argv) {
   }
   doc["iterations"] = result.iterations;
   doc["wall_time_s"] = wall;
-  doc["seconds"] = Json{{"simulation", simSeconds},
+  doc["seconds"] = Json{{simulated ? "simulation" : "reading", simSeconds},
                         {"segmentation", result.secondsSegmentation},
                         {"solve", result.secondsSolve},
                         {"analysis", result.secondsAnalysis}};
   doc["lasers_estimated"] = result.lasersEstimated;
   doc["lasers_held"] = held;
-  doc["errors_vs_truth"] = errJson;
-  doc["common_alpha_offset_rad"] = cmp.commonAlpha;
-  doc["common_theta_offset_rad"] = cmp.commonTheta;
-  doc["max_error_over_sigma"] = cmp.maxSigmaRatio;
-  doc["beyond_three_sigma"] = cmp.beyondThreeSigma;
+  if (simulated) {
+    doc["errors_vs_truth"] = errJson;
+    doc["common_alpha_offset_rad"] = cmp.commonAlpha;
+    doc["common_theta_offset_rad"] = cmp.commonTheta;
+    doc["max_error_over_sigma"] = cmp.maxSigmaRatio;
+    doc["beyond_three_sigma"] = cmp.beyondThreeSigma;
+  }
   doc["conditioning_start"] = conditioningJson(result.startConditioning);
   doc["conditioning"] = conditioningJson(result.conditioning);
   doc["scans"] = scanJson;

@@ -6,11 +6,6 @@
 namespace agv::drivers::velodyne {
 
 namespace {
-constexpr std::size_t kBlockBytes = 100;
-constexpr std::uint16_t kUpperBlock = 0xEEFF;
-constexpr std::uint16_t kLowerBlock = 0xDDFF;
-constexpr std::uint8_t kProductHdl32e = 0x21;
-constexpr std::uint8_t kProductVlp16 = 0x22;
 // Firing timing [ns] (VLP-16 and HDL-32E user manuals; velodyne_pointcloud's constants).
 constexpr std::uint32_t kVlp16LaserNs = 2304;
 constexpr std::uint32_t kVlp16SequenceNs = 55296;
@@ -131,8 +126,8 @@ Status VelodyneDecoder::decode(Span<const std::uint8_t> packet, Span<FiringRecor
     const std::uint8_t* blk = p + b * kBlockBytes;
     const std::uint16_t id = le16(blk);
     const std::uint16_t az = le16(blk + 2);
-    const bool lower = id == kLowerBlock && config_.model == Model::Hdl64e;
-    if (id != kUpperBlock && !lower) {
+    const bool lower = id == kLowerBlockId && config_.model == Model::Hdl64e;
+    if (id != kUpperBlockId && !lower) {
       ++counters_.badBlockId;
       skipped = true;
       continue;
@@ -152,7 +147,7 @@ Status VelodyneDecoder::decode(Span<const std::uint8_t> packet, Span<FiringRecor
     if (config_.model == Model::Vlp16) {
       const std::size_t next = (firing + 1U) * stride;
       const std::uint8_t* nb = p + next * kBlockBytes;
-      const bool nextOk = next < kBlocksPerPacket && le16(nb) == kUpperBlock && le16(nb + 2) < kAzimuthTurn;
+      const bool nextOk = next < kBlocksPerPacket && le16(nb) == kUpperBlockId && le16(nb + 2) < kAzimuthTurn;
       if (nextOk) {
         const int raw = static_cast<int>(le16(nb + 2)) - static_cast<int>(az);
         step = static_cast<float>((raw + kAzimuthTurn) % kAzimuthTurn);
@@ -163,7 +158,7 @@ Status VelodyneDecoder::decode(Span<const std::uint8_t> packet, Span<FiringRecor
         step = lastStep;
       } else if (firing > 0) {
         const std::uint8_t* pb = p + (firing - 1U) * stride * kBlockBytes;
-        if (le16(pb) == kUpperBlock && le16(pb + 2) < kAzimuthTurn) {
+        if (le16(pb) == kUpperBlockId && le16(pb + 2) < kAzimuthTurn) {
           step =
               static_cast<float>((static_cast<int>(az) - static_cast<int>(le16(pb + 2)) + kAzimuthTurn) % kAzimuthTurn);
         }

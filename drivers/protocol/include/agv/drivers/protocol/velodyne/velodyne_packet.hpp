@@ -48,6 +48,13 @@ inline constexpr std::size_t kChannelsPerBlock = 32;
 inline constexpr std::size_t kMaxRecordsPerPacket = kBlocksPerPacket * kChannelsPerBlock;
 /// One turn in the packets' azimuth unit (0.01 deg).
 inline constexpr std::uint16_t kAzimuthTurn = 36000;
+/// Bytes of one block, and the block ids (upper: every model; lower: HDL-64E lasers 32-63).
+inline constexpr std::size_t kBlockBytes = 100;
+inline constexpr std::uint16_t kUpperBlockId = 0xEEFF;
+inline constexpr std::uint16_t kLowerBlockId = 0xDDFF;
+/// Product ids of factory byte 1205.
+inline constexpr std::uint8_t kProductHdl32e = 0x21;
+inline constexpr std::uint8_t kProductVlp16 = 0x22;
 
 enum class Model : std::uint8_t { Vlp16, Hdl32e, Hdl64e };
 

@@ -1,0 +1,48 @@
+# agvnav-lidar-calibrate's recording path end to end: the simulated hall (3 x 3 placements, firings
+# on the packets' 0.01 deg grid) written as HDL-64E packet recordings (--write-recordings, which
+# reads them back and compares the returns), then the program run again on those recordings
+# (--recording): all 64 lasers estimated, no laser held. (That the estimates equal the
+# simulation's is lidar3d.calibration_recording's check, in double.)
+#   cmake -DPROGRAM=<agvnav-lidar-calibrate> -DWORK=<dir> -P calibrate_recordings_roundtrip.cmake
+cmake_minimum_required(VERSION 3.25)
+file(REMOVE_RECURSE "${WORK}")
+file(MAKE_DIRECTORY "${WORK}")
+execute_process(COMMAND "${PROGRAM}" --quiet --distances 3 --tilts 3 --azimuth-window 50 --firings 2000
+                        --write-recordings "${WORK}/rec" --json "${WORK}/sim.json"
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+message("${out}${err}")
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "simulation run exited with ${rc}")
+endif()
+file(READ "${WORK}/sim.json" a)
+string(JSON same GET "${a}" written_recordings read_back_equal)
+if(NOT same STREQUAL "ON" AND NOT same STREQUAL "true")
+  message(FATAL_ERROR "the written recordings did not read back as the simulated returns (${same})")
+endif()
+file(GLOB recordings "${WORK}/rec/placement-*.bin")
+list(SORT recordings)
+list(LENGTH recordings n)
+if(NOT n EQUAL 9)
+  message(FATAL_ERROR "${n} recordings written, expected 9")
+endif()
+set(args)
+foreach(r IN LISTS recordings)
+  list(APPEND args --recording "${r}")
+endforeach()
+execute_process(COMMAND "${PROGRAM}" --quiet ${args} --json "${WORK}/rec.json"
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+message("${out}${err}")
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "recording run exited with ${rc}")
+endif()
+file(READ "${WORK}/rec.json" b)
+string(JSON input GET "${b}" input)
+string(JSON scans GET "${b}" scan_count)
+string(JSON estimated GET "${b}" lasers_estimated)
+string(JSON held GET "${b}" lasers_held)
+string(JSON ca GET "${a}" cost_final_m2)
+string(JSON cb GET "${b}" cost_final_m2)
+message(STATUS "input ${input}, ${scans} scans, ${estimated} lasers estimated, ${held} held; final cost ${ca} (simulation) ${cb} (recordings)")
+if(NOT input STREQUAL "recordings" OR NOT scans EQUAL 9 OR NOT estimated EQUAL 64 OR NOT held EQUAL 0)
+  message(FATAL_ERROR "the recordings were not calibrated as the simulation was")
+endif()
