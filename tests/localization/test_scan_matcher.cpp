@@ -655,6 +655,77 @@ TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with
   CHECK(found >= tried * 3 / 4);  // the hall's column and rack make most poses unique
 }
 
+TEST_CASE("field relocalizer: spread over calls with a pose budget, the same answer as in one call",
+          "[localization][scanmatch][reloc]") {
+  auto field = std::make_unique<HallField>();
+  const std::vector<Segment> segs = hall();
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  auto scan = std::make_unique<LaserScan>();
+  auto points = std::make_unique<MatchPoints>();
+  auto once = std::make_unique<FieldRelocalizer>();
+  auto sliced = std::make_unique<FieldRelocalizer>();
+  std::mt19937_64 rng(7);
+  const Pose2d laser{0.6, 0.0, 0.0};
+  int compared = 0;
+  for (const Pose2d& truth : {Pose2d{3.1, 2.2, 0.7}, Pose2d{8.4, 5.9, -2.5}, Pose2d{6.0, 1.4, 3.0}}) {
+    REQUIRE(inFreeSpace(truth.compose(laser).translation()));
+    castScan(segs, truth.compose(laser), 0.01, rng, *scan);
+    scanToMatchPoints(*scan, *points);
+    const FieldRelocResult a = once->localize(*points, laser, *field);
+    constexpr std::uint32_t kBudget = 4999;  // slices end at varied grid positions
+    std::uint32_t calls = 0;
+    Status st = Status::NotInitialized;
+    bool ended = false;
+    AGV_CHECK_NO_ALLOCATIONS({
+      st = sliced->start(*points, laser, *field);
+      while (!ended && calls < 100000U) {
+        CHECK(sliced->searching());
+        ended = sliced->advance(kBudget);
+        ++calls;
+      }
+    });
+    REQUIRE(st == Status::Ok);
+    REQUIRE(ended);
+    CHECK_FALSE(sliced->searching());
+    const FieldRelocResult& b = sliced->result();
+    INFO("truth " << truth.x << " " << truth.y << " " << truth.theta << ", " << calls << " calls");
+    CHECK(b.outcome == a.outcome);
+    CHECK(b.status == a.status);
+    CHECK(b.scored == a.scored);
+    CHECK(b.pose.x == a.pose.x);
+    CHECK(b.pose.y == a.pose.y);
+    CHECK(b.pose.theta == a.pose.theta);
+    CHECK(b.close == a.close);
+    CHECK(b.runnerUp == a.runnerUp);
+    // The coarse stage takes ceil(visited / budget) calls (each visits at most the budget), then one
+    // call per refined candidate and the deciding call.
+    CHECK(b.visited == a.visited);
+    CHECK(a.visited >= a.scored);
+    const auto coarseCalls = static_cast<std::uint32_t>((a.visited + kBudget - 1U) / kBudget);
+    CHECK(calls >= coarseCalls + 1U);
+    CHECK(calls <= coarseCalls + 1U + static_cast<std::uint32_t>(FieldRelocalizerParams{}.candidates) + 1U);
+    compared += a.outcome == FieldRelocOutcome::Found ? 1 : 0;
+  }
+  CHECK(compared >= 2);
+  // A search abandoned part-way ends with no answer; the next one starts afresh.
+  castScan(segs, Pose2d{3.1, 2.2, 0.7}.compose(laser), 0.01, rng, *scan);
+  scanToMatchPoints(*scan, *points);
+  REQUIRE(sliced->start(*points, laser, *field) == Status::Ok);
+  CHECK_FALSE(sliced->advance(100));
+  sliced->cancel();
+  CHECK_FALSE(sliced->searching());
+  CHECK(sliced->result().outcome == FieldRelocOutcome::NoCandidate);
+  CHECK(sliced->advance(100));  // nothing under way: ended
+  // Input refused at start ends the search at once, with the outcome localize gives.
+  MatchPoints none;
+  CHECK(sliced->start(none, laser, *field) == Status::EmptyInput);
+  CHECK_FALSE(sliced->searching());
+  CHECK(sliced->result().outcome == FieldRelocOutcome::NoPoints);
+  // A budget of 0 still makes progress (one pose).
+  REQUIRE(sliced->start(*points, laser, *field) == Status::Ok);
+  CHECK_FALSE(sliced->advance(0));
+}
+
 TEST_CASE("field relocalizer: a symmetric room is ambiguous, a region bounds the search, bad input is refused",
           "[localization][scanmatch][reloc]") {
   // An empty 10 m x 6 m room: every pose has a twin turned by 180 deg about the centre.

@@ -1,6 +1,7 @@
 #include "agv/localization/field_relocalizer.hpp"
 
 #include <cmath>
+#include <limits>
 
 #include "agv/core/angle.hpp"
 
@@ -24,16 +25,6 @@ Status FieldRelocalizerParams::validate() const noexcept {
   }
   return match.validate();
 }
-
-namespace {
-
-FieldRelocResult finish(FieldRelocResult r, Status status, FieldRelocOutcome outcome) noexcept {
-  r.status = status;
-  r.outcome = outcome;
-  return r;
-}
-
-}  // namespace
 
 void FieldRelocalizer::offer(const Candidate& c) noexcept {
   const std::size_t cap = params_.candidates;
@@ -82,27 +73,89 @@ std::uint16_t FieldRelocalizer::closePoints(const MatchPoints& points, const Pos
   return static_cast<std::uint16_t>(n > 65535U ? 65535U : n);
 }
 
-FieldRelocResult FieldRelocalizer::localize(const MatchPoints& points, const Pose2d& laser,
-                                            const LikelihoodFieldBase& field, const RelocRegion& region) noexcept {
-  FieldRelocResult r;
+bool FieldRelocalizer::cellDistance(double x, double y, double& d) const noexcept {
+  const LikelihoodFieldBase& field = *field_;
+  const double res = field.params().resolution;
+  const double fx = (x - field.originX()) / res;
+  const double fy = (y - field.originY()) / res;
+  if (!(fx >= 0.0 && fy >= 0.0 && fx < static_cast<double>(field.width()) &&
+        fy < static_cast<double>(field.height()))) {
+    return false;
+  }
+  d = field.cellDistance(static_cast<std::size_t>(fx), static_cast<std::size_t>(fy));
+  return true;
+}
+
+bool FieldRelocalizer::candidatePosition(double x, double y) const noexcept {
+  if (region_.radius > 0.0 && std::hypot(x - region_.x, y - region_.y) > region_.radius) {
+    return false;
+  }
+  double d = 0.0;
+  return cellDistance(x, y, d) && d >= params_.minClearance;
+}
+
+void FieldRelocalizer::rotate() noexcept {
+  theta_ = normalizeAngle(static_cast<double>(it_) * params_.rotationStep);
+  const double c = std::cos(theta_);
+  const double s = std::sin(theta_);
+  for (std::size_t k = 0; k < coarse_.size(); ++k) {
+    const double px = static_cast<double>(coarse_[k].x);
+    const double py = static_cast<double>(coarse_[k].y);
+    rotated_[k] = MatchPoint{static_cast<float>(c * px - s * py), static_cast<float>(s * px + c * py)};
+  }
+}
+
+void FieldRelocalizer::end(Status status, FieldRelocOutcome outcome) noexcept {
+  result_.status = status;
+  result_.outcome = outcome;
+  stage_ = Stage::Done;
+  field_ = nullptr;
+}
+
+void FieldRelocalizer::cancel() noexcept {
+  if (searching()) {
+    result_ = FieldRelocResult{};
+    result_.scored = scored_;
+    result_.visited = visited_;
+    end(Status::NotFound, FieldRelocOutcome::NoCandidate);
+  }
+}
+
+Status FieldRelocalizer::start(const MatchPoints& points, const Pose2d& laser, const LikelihoodFieldBase& field,
+                               const RelocRegion& region) noexcept {
+  result_ = FieldRelocResult{};
+  scored_ = 0;
+  visited_ = 0;
+  kept_ = 0;
+  refinedCount_ = 0;
+  field_ = &field;
   const Status valid = params_.validate();
   if (valid != Status::Ok) {
-    return finish(r, valid, FieldRelocOutcome::InvalidInput);
+    end(valid, FieldRelocOutcome::InvalidInput);
+    return result_.status;
   }
   if (!laser.isFinite() || !std::isfinite(region.x) || !std::isfinite(region.y) || !std::isfinite(region.radius) ||
       region.radius < 0.0) {
-    return finish(r, Status::NonFiniteInput, FieldRelocOutcome::InvalidInput);
+    end(Status::NonFiniteInput, FieldRelocOutcome::InvalidInput);
+    return result_.status;
   }
   if (!field.built()) {
-    return finish(r, Status::NotInitialized, FieldRelocOutcome::InvalidInput);
+    end(Status::NotInitialized, FieldRelocOutcome::InvalidInput);
+    return result_.status;
   }
-  // The coarse points, vehicle frame, spread evenly over the scan's finite points.
+  laser_ = laser;
+  region_ = region;
+  // The scan (laser frame, for the refinement) and the coarse points (vehicle frame), spread evenly
+  // over the scan's finite points.
   std::size_t finite = 0;
+  scan_.clear();
   for (const MatchPoint& p : points) {
+    (void)scan_.push_back(p);  // same capacity: cannot overflow
     finite += std::isfinite(p.x) && std::isfinite(p.y) ? 1U : 0U;
   }
   if (finite == 0) {
-    return finish(r, Status::EmptyInput, FieldRelocOutcome::NoPoints);
+    end(Status::EmptyInput, FieldRelocOutcome::NoPoints);
+    return result_.status;
   }
   coarse_.clear();
   const std::size_t stride = (finite + params_.maxPoints - 1U) / params_.maxPoints;
@@ -117,90 +170,68 @@ FieldRelocResult FieldRelocalizer::localize(const MatchPoints& points, const Pos
       (void)coarse_.push_back(MatchPoint{static_cast<float>(v.x()), static_cast<float>(v.y())});
     }
   }
-  // The grid and its size.
-  const double res = field.params().resolution;
-  const double band = field.params().maxDistance;
-  const double width = static_cast<double>(field.width()) * res;
-  const double height = static_cast<double>(field.height()) * res;
-  const auto cellOf = [&](double x, double y, double& d) noexcept {
-    const double fx = (x - field.originX()) / res;
-    const double fy = (y - field.originY()) / res;
-    if (!(fx >= 0.0 && fy >= 0.0 && fx < static_cast<double>(field.width()) &&
-          fy < static_cast<double>(field.height()))) {
-      return false;
-    }
-    d = field.cellDistance(static_cast<std::size_t>(fx), static_cast<std::size_t>(fy));
-    return true;
-  };
   // The grid: the field's area, or the part of it around the region's disc.
-  double x0 = field.originX();
-  double y0 = field.originY();
-  double x1 = x0 + width;
-  double y1 = y0 + height;
+  const double res = field.params().resolution;
+  x0_ = field.originX();
+  y0_ = field.originY();
+  double x1 = x0_ + static_cast<double>(field.width()) * res;
+  double y1 = y0_ + static_cast<double>(field.height()) * res;
   if (region.radius > 0.0) {
-    x0 = region.x - region.radius > x0 ? region.x - region.radius : x0;
-    y0 = region.y - region.radius > y0 ? region.y - region.radius : y0;
+    x0_ = region.x - region.radius > x0_ ? region.x - region.radius : x0_;
+    y0_ = region.y - region.radius > y0_ ? region.y - region.radius : y0_;
     x1 = region.x + region.radius < x1 ? region.x + region.radius : x1;
     y1 = region.y + region.radius < y1 ? region.y + region.radius : y1;
   }
-  const double spanX = x1 - x0;
-  const double spanY = y1 - y0;
-  const auto nx = static_cast<std::uint64_t>(spanX > 0.0 ? std::floor(spanX / params_.positionStep) : 0.0);
-  const auto ny = static_cast<std::uint64_t>(spanY > 0.0 ? std::floor(spanY / params_.positionStep) : 0.0);
-  const auto gridX = [&](std::uint64_t ix) noexcept {
-    return x0 + (static_cast<double>(ix) + 0.5) * params_.positionStep;
-  };
-  const auto gridY = [&](std::uint64_t iy) noexcept {
-    return y0 + (static_cast<double>(iy) + 0.5) * params_.positionStep;
-  };
-  const auto candidatePosition = [&](double x, double y, double& d) noexcept {
-    if (region.radius > 0.0 && std::hypot(x - region.x, y - region.y) > region.radius) {
-      return false;
-    }
-    return cellOf(x, y, d) && d >= params_.minClearance;
-  };
-  const auto nt = static_cast<std::uint64_t>(std::ceil(kTwoPi<double> / params_.rotationStep));
-  if (nx == 0U || ny == 0U) {
-    return finish(r, Status::NotFound, FieldRelocOutcome::NoCandidate);
+  const double spanX = x1 - x0_;
+  const double spanY = y1 - y0_;
+  nx_ = static_cast<std::uint64_t>(spanX > 0.0 ? std::floor(spanX / params_.positionStep) : 0.0);
+  ny_ = static_cast<std::uint64_t>(spanY > 0.0 ? std::floor(spanY / params_.positionStep) : 0.0);
+  nt_ = static_cast<std::uint64_t>(std::ceil(kTwoPi<double> / params_.rotationStep));
+  if (nx_ == 0U || ny_ == 0U) {
+    end(Status::NotFound, FieldRelocOutcome::NoCandidate);
+    return result_.status;
   }
   // Free positions first (their count bounds the work).
   std::uint64_t free = 0;
-  for (std::uint64_t ix = 0; ix < nx; ++ix) {
-    for (std::uint64_t iy = 0; iy < ny; ++iy) {
-      double d = 0.0;
-      free += candidatePosition(gridX(ix), gridY(iy), d) ? 1U : 0U;
+  for (std::uint64_t ix = 0; ix < nx_; ++ix) {
+    for (std::uint64_t iy = 0; iy < ny_; ++iy) {
+      free += candidatePosition(x0_ + (static_cast<double>(ix) + 0.5) * params_.positionStep,
+                                y0_ + (static_cast<double>(iy) + 0.5) * params_.positionStep)
+                  ? 1U
+                  : 0U;
     }
   }
   if (free == 0U) {
-    return finish(r, Status::NotFound, FieldRelocOutcome::NoCandidate);
+    end(Status::NotFound, FieldRelocOutcome::NoCandidate);
+    return result_.status;
   }
-  if (free * nt > params_.maxPoses) {
-    r.scored = 0;
-    return finish(r, Status::NotConverged, FieldRelocOutcome::WorkBoundHit);
+  if (free * nt_ > params_.maxPoses) {
+    end(Status::NotConverged, FieldRelocOutcome::WorkBoundHit);
+    return result_.status;
   }
-  // Coarse scoring, heading by heading (the points are rotated once per heading).
-  kept_ = 0;
-  const std::size_t np = coarse_.size();
-  MatchPoint* rotated = rotated_;
-  std::uint32_t scored = 0;
-  for (std::uint64_t it = 0; it < nt; ++it) {
-    const double theta = normalizeAngle(static_cast<double>(it) * params_.rotationStep);
-    const double c = std::cos(theta);
-    const double s = std::sin(theta);
-    for (std::size_t k = 0; k < np; ++k) {
-      const double px = static_cast<double>(coarse_[k].x);
-      const double py = static_cast<double>(coarse_[k].y);
-      rotated[k] = MatchPoint{static_cast<float>(c * px - s * py), static_cast<float>(s * px + c * py)};
-    }
-    for (std::uint64_t ix = 0; ix < nx; ++ix) {
-      for (std::uint64_t iy = 0; iy < ny; ++iy) {
-        const double x = gridX(ix);
-        const double y = gridY(iy);
-        double d0 = 0.0;
-        if (!candidatePosition(x, y, d0)) {
-          continue;
-        }
-        ++scored;
+  it_ = 0;
+  ix_ = 0;
+  iy_ = 0;
+  rotate();
+  stage_ = Stage::Coarse;
+  return Status::Ok;
+}
+
+bool FieldRelocalizer::advance(std::uint32_t budget) noexcept {
+  if (stage_ == Stage::Coarse) {
+    // Coarse scoring, heading by heading (the points are rotated once per heading), resumed where
+    // the previous call stopped.
+    const double band = field_->params().maxDistance;
+    const std::size_t np = coarse_.size();
+    std::uint32_t done = 0;
+    const std::uint32_t limit = budget > 0U ? budget : 1U;
+    while (it_ < nt_ && done < limit) {
+      const double x = x0_ + (static_cast<double>(ix_) + 0.5) * params_.positionStep;
+      const double y = y0_ + (static_cast<double>(iy_) + 0.5) * params_.positionStep;
+      ++done;  // every grid pose visited counts: a call is bounded also where few positions are free
+      ++visited_;
+      if (candidatePosition(x, y)) {
+        ++scored_;
         // The bar to beat: the worst kept score once the list is full.
         double bar = 0.0;
         if (kept_ == params_.candidates) {
@@ -213,7 +244,7 @@ FieldRelocResult FieldRelocalizer::localize(const MatchPoints& points, const Pos
         bool abandoned = false;
         for (std::size_t k = 0; k < np; ++k) {
           double d = band;
-          if (cellOf(x + static_cast<double>(rotated[k].x), y + static_cast<double>(rotated[k].y), d)) {
+          if (cellDistance(x + static_cast<double>(rotated_[k].x), y + static_cast<double>(rotated_[k].y), d)) {
             const double a = std::fabs(d);
             score += a < band ? 1.0 - a / band : 0.0;
           }
@@ -223,54 +254,95 @@ FieldRelocResult FieldRelocalizer::localize(const MatchPoints& points, const Pos
           }
         }
         if (!abandoned && score > 0.0) {
-          offer(Candidate{Pose2d(x, y, theta), score});
+          offer(Candidate{Pose2d(x, y, theta_), score});
+        }
+      }
+      // Next position; next heading after the last one.
+      if (++iy_ == ny_) {
+        iy_ = 0;
+        if (++ix_ == nx_) {
+          ix_ = 0;
+          if (++it_ < nt_) {
+            rotate();
+          }
         }
       }
     }
+    if (it_ < nt_) {
+      return false;
+    }
+    result_.scored = scored_;
+    result_.visited = visited_;
+    if (kept_ == 0) {
+      end(Status::NotFound, FieldRelocOutcome::NoCandidate);
+      return true;
+    }
+    matcher_.setParams(params_.match);
+    refinedCount_ = 0;
+    stage_ = Stage::Refine;
+    return false;
   }
-  r.scored = scored;
-  if (kept_ == 0) {
-    return finish(r, Status::NotFound, FieldRelocOutcome::NoCandidate);
+  if (stage_ == Stage::Refine) {
+    if (refinedCount_ < kept_) {
+      // Refinement of one kept candidate in a window of one grid step.
+      const SearchWindow window{params_.positionStep, params_.positionStep, params_.rotationStep};
+      const std::size_t k = refinedCount_++;
+      refined_[k] = matcher_.match(scan_, laser_, best_[k].pose, window, *field_);
+      close_[k] =
+          refined_[k].status == Status::Ok ? closePoints(scan_, laser_, refined_[k].pose, *field_) : std::uint16_t{0};
+      return false;
+    }
+    decide();
+    return true;
   }
-  // Refinement of each kept candidate in a window of one grid step.
-  ScanMatchParams mp = params_.match;
-  matcher_.setParams(mp);
-  const SearchWindow window{params_.positionStep, params_.positionStep, params_.rotationStep};
-  ScanMatchResult refined[kMaxCandidates];
-  std::uint16_t close[kMaxCandidates] = {};
+  return true;
+}
+
+void FieldRelocalizer::decide() noexcept {
   std::size_t best = kMaxCandidates;
   for (std::size_t k = 0; k < kept_; ++k) {
-    refined[k] = matcher_.match(points, laser, best_[k].pose, window, field);
-    close[k] = refined[k].status == Status::Ok ? closePoints(points, laser, refined[k].pose, field) : std::uint16_t{0};
-    if (fits(refined[k]) && (best == kMaxCandidates || close[k] > close[best])) {
+    if (fits(refined_[k]) && (best == kMaxCandidates || close_[k] > close_[best])) {
       best = k;
     }
   }
   if (best == kMaxCandidates) {
-    return finish(r, Status::NotEnoughData, FieldRelocOutcome::WeakSupport);
+    end(Status::NotEnoughData, FieldRelocOutcome::WeakSupport);
+    return;
   }
-  const ScanMatchResult& b = refined[best];
-  r.pose = b.pose;
-  r.covariance = b.covariance;
-  r.inliers = b.inliers;
-  r.points = b.points;
-  r.rmsResidual = b.rmsResidual;
-  r.close = close[best];
+  const ScanMatchResult& b = refined_[best];
+  result_.pose = b.pose;
+  result_.covariance = b.covariance;
+  result_.inliers = b.inliers;
+  result_.points = b.points;
+  result_.rmsResidual = b.rmsResidual;
+  result_.close = close_[best];
   for (std::size_t k = 0; k < kept_; ++k) {
-    const ScanMatchResult& o = refined[k];
+    const ScanMatchResult& o = refined_[k];
     if (k == best || o.status != Status::Ok) {
       continue;
     }
     const bool distinct = std::hypot(o.pose.x - b.pose.x, o.pose.y - b.pose.y) > params_.ambiguityDistance ||
                           std::fabs(normalizeAngle(o.pose.theta - b.pose.theta)) > params_.ambiguityAngle;
-    if (distinct && close[k] > r.runnerUp) {
-      r.runnerUp = close[k];
+    if (distinct && close_[k] > result_.runnerUp) {
+      result_.runnerUp = close_[k];
     }
   }
-  if (static_cast<double>(r.runnerUp) >= params_.ambiguityRatio * static_cast<double>(r.close)) {
-    return finish(r, Status::Rejected, FieldRelocOutcome::Ambiguous);
+  if (static_cast<double>(result_.runnerUp) >= params_.ambiguityRatio * static_cast<double>(result_.close)) {
+    end(Status::Rejected, FieldRelocOutcome::Ambiguous);
+    return;
   }
-  return finish(r, Status::Ok, FieldRelocOutcome::Found);
+  end(Status::Ok, FieldRelocOutcome::Found);
+}
+
+FieldRelocResult FieldRelocalizer::localize(const MatchPoints& points, const Pose2d& laser,
+                                            const LikelihoodFieldBase& field, const RelocRegion& region) noexcept {
+  if (start(points, laser, field, region) == Status::Ok) {
+    // Bounded: one call visits the whole grid (its free poses are at most maxPoses, checked by
+    // start), then kept_ + 1 calls.
+    while (!advance(std::numeric_limits<std::uint32_t>::max())) {
+    }
+  }
+  return result_;
 }
 
 bool FieldRelocalizer::confirm(const MatchPoints& points, const Pose2d& laser, const Pose2d& carried,

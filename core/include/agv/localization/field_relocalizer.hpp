@@ -25,7 +25,13 @@
 /// One answer is one scan's evidence: `confirm` checks the candidate on the next scans, carried by
 /// the odometry, before a caller trusts it (a wrong relocalization is worse than none).
 ///
-/// Heap-free: the matcher's scratch, the points and the candidate list live inside the object (about 50 KB).
+/// The search runs in one call (`localize`) or spread over calls with a work budget each
+/// (`start`, then `advance` until it returns true): a vehicle's cycle cannot wait the 0.3-4 s a
+/// whole-field search takes, so the pipeline advances it a slice per cycle. Both forms score the
+/// same poses in the same order and give the same result.
+///
+/// Heap-free: the matcher's scratch, a copy of the scan, the candidate list and the refined
+/// matches live inside the object (about 90 KB with 2048-beam scans).
 
 #include <Eigen/Core>
 #include <cstddef>
@@ -94,6 +100,7 @@ struct FieldRelocResult {
   Pose2d pose{};  ///< the vehicle pose
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   std::uint32_t scored = 0;    ///< coarse poses scored (including those abandoned part-way)
+  std::uint64_t visited = 0;   ///< grid poses visited (free or not): the coarse stage's work units
   std::uint16_t inliers = 0;   ///< of the best refined match
   std::uint16_t points = 0;    ///< of the best refined match
   double rmsResidual = 0.0;    ///< [m] of the best refined match
@@ -118,6 +125,29 @@ class FieldRelocalizer {
   FieldRelocResult localize(const MatchPoints& points, const Pose2d& laser, const LikelihoodFieldBase& field,
                             const RelocRegion& region = RelocRegion{}) noexcept;
 
+  /// Begins the search of `localize` without running it: checks the input, copies the scan and
+  /// lays out the grid (O(grid positions)). Ok: the search is under way (`advance` it). Any other
+  /// status: it ended at once and `result()` says why (the outcomes of `localize`). `field` must
+  /// stay alive and unchanged until the search ends or `cancel()`.
+  Status start(const MatchPoints& points, const Pose2d& laser, const LikelihoodFieldBase& field,
+               const RelocRegion& region = RelocRegion{}) noexcept;
+
+  /// Advances the search begun by `start`: visits at most `budget` grid poses (at least one),
+  /// scoring those at a free position;
+  /// once all are scored, each call refines one candidate (one scan match), and the call after the
+  /// last one decides. True when the search has ended (also when none is under way): `result()`
+  /// then holds the answer. Bounded: O(budget x maxPoints), or one scan match.
+  bool advance(std::uint32_t budget) noexcept;
+
+  /// True between a successful `start` and the end of that search.
+  bool searching() const noexcept { return stage_ == Stage::Coarse || stage_ == Stage::Refine; }
+
+  /// The last search's answer (meaningful once it has ended).
+  const FieldRelocResult& result() const noexcept { return result_; }
+
+  /// Abandons the search under way (the result then says NoCandidate, NotFound).
+  void cancel() noexcept;
+
   /// Whether the scan `points` taken at `carried` (a candidate carried to this scan by the
   /// odometry) matches the field within confirmDistance / confirmAngle of it, with the fit
   /// `localize` demands. True with `refined` set to the match.
@@ -139,12 +169,43 @@ class FieldRelocalizer {
   std::uint16_t closePoints(const MatchPoints& points, const Pose2d& laser, const Pose2d& x,
                             const LikelihoodFieldBase& field) const noexcept;
 
+  enum class Stage : std::uint8_t { Idle, Coarse, Refine, Done };
+  /// Whether (x, y) is a candidate position; `d` its field distance.
+  bool candidatePosition(double x, double y) const noexcept;
+  /// The field's stored distance at (x, y); false outside the field.
+  bool cellDistance(double x, double y, double& d) const noexcept;
+  /// Rotates the coarse points to heading index it_.
+  void rotate() noexcept;
+  void end(Status status, FieldRelocOutcome outcome) noexcept;
+  void decide() noexcept;
+
   FieldRelocalizerParams params_{};
   ScanMatcher matcher_{};
   MatchPoints coarse_;                      // vehicle frame, at most maxPoints
   MatchPoint rotated_[kMaxScanBeams] = {};  // coarse_ rotated to the heading being scored
   Candidate best_[kMaxCandidates] = {};
   std::size_t kept_ = 0;
+  // The search under way (start / advance).
+  Stage stage_ = Stage::Idle;
+  const LikelihoodFieldBase* field_ = nullptr;
+  Pose2d laser_{};
+  RelocRegion region_{};
+  MatchPoints scan_;  // laser frame: the refinement matches the whole scan
+  double x0_ = 0.0;
+  double y0_ = 0.0;
+  std::uint64_t nx_ = 0;
+  std::uint64_t ny_ = 0;
+  std::uint64_t nt_ = 0;
+  std::uint64_t it_ = 0;  // next pose: heading it_, position (ix_, iy_)
+  std::uint64_t ix_ = 0;
+  std::uint64_t iy_ = 0;
+  double theta_ = 0.0;  // heading it_ [rad]
+  std::uint32_t scored_ = 0;
+  std::uint64_t visited_ = 0;
+  std::size_t refinedCount_ = 0;
+  ScanMatchResult refined_[kMaxCandidates] = {};
+  std::uint16_t close_[kMaxCandidates] = {};
+  FieldRelocResult result_{};
 };
 
 }  // namespace agv
