@@ -365,31 +365,38 @@ Json relocalizationJson(const std::vector<RelocTrial>& reloc, std::size_t margin
   for (const RelocTrial& tr : reloc) {
     found += tr.found ? 1U : 0U;
     wrong += tr.wrong ? 1U : 0U;
-    trials.push_back(Json{{"kind", tr.kidnapped ? "kidnapped" : "cold_start"},
-                          {"x_m", tr.truth.x},
-                          {"y_m", tr.truth.y},
-                          {"heading_deg", rad2deg(tr.truth.theta)},
-                          {"lost_detected", tr.lostDetected},
-                          {"found", tr.found},
-                          {"sweeps", tr.sweeps},
-                          {"position_error_m", tr.positionError},
-                          {"heading_error_deg", rad2deg(tr.headingError)},
-                          {"wrong", tr.wrong},
-                          {"ambiguous_searches", tr.ambiguous},
-                          {"unique", tr.unique},
-                          {"visible_reflectors", tr.visibleReflectors},
-                          {"distinct_pose_support", tr.otherSupport},
-                          {"decoys", tr.decoys},
-                          {"searches", tr.searches},
-                          {"candidates", tr.candidates},
-                          {"unconfirmed", tr.unconfirmed},
-                          {"last_search", tr.found ? Json()
-                                                   : Json{{"detected", tr.detected},
-                                                          {"outcome", relocOutcomeName(tr.lastOutcome)},
-                                                          {"inliers", tr.lastInliers},
-                                                          {"runner_up_inliers", tr.lastSecondInliers},
-                                                          {"missed", tr.lastMissed},
-                                                          {"runner_up_missed", tr.lastSecondMissed}}}});
+    Json trial{{"kind", tr.kidnapped ? "kidnapped" : "cold_start"},
+               {"x_m", tr.truth.x},
+               {"y_m", tr.truth.y},
+               {"heading_deg", rad2deg(tr.truth.theta)},
+               {"lost_detected", tr.lostDetected},
+               {"found", tr.found},
+               {"sweeps", tr.sweeps},
+               {"position_error_m", tr.positionError},
+               {"heading_error_deg", rad2deg(tr.headingError)},
+               {"wrong", tr.wrong},
+               {"ambiguous_searches", tr.ambiguous},
+               {"unique", tr.unique},
+               {"visible_reflectors", tr.visibleReflectors},
+               {"distinct_pose_support", tr.otherSupport},
+               {"decoys", tr.decoys},
+               {"searches", tr.searches},
+               {"candidates", tr.candidates},
+               {"unconfirmed", tr.unconfirmed},
+               {"last_search", tr.found ? Json()
+                                        : Json{{"detected", tr.detected},
+                                               {"outcome", relocOutcomeName(tr.lastOutcome)},
+                                               {"inliers", tr.lastInliers},
+                                               {"runner_up_inliers", tr.lastSecondInliers},
+                                               {"missed", tr.lastMissed},
+                                               {"runner_up_missed", tr.lastSecondMissed}}}};
+    if (tr.onField) {
+      // On the field: no oracle and no landmark search; the field searches instead.
+      trial.erase("last_search");
+      trial["field_searches"] = tr.fieldSearches;
+      trial["last_field_search"] = tr.fieldSearchEnded ? Json(toString(tr.lastFieldOutcome)) : Json(nullptr);
+    }
+    trials.push_back(std::move(trial));
   }
   return Json{{"trials", std::move(trials)},
               {"found", found},
@@ -427,19 +434,23 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
   for (const RunResult& r : s.mappingRuns) {
     mappingRuns.push_back(localizerRunJson(r));
   }
-  return Json{{"calibration", calibrationJson(cfg, s)},
-              {"requirement", {{"position_m", kPositionRequirement}, {"heading_deg", kHeadingRequirementDeg}}},
-              {"can_encoders", canJson(cfg, canTotals(s))},
-              {"stages", std::move(stageStates)},
-              {"runs", std::move(runs)},
-              {"static_falko_mapping",
-               {{"frozen_corners", s.mapCorners},
-                {"field_surface_cells", s.fieldSurfacePoints},
-                {"runs", std::move(mappingRuns)}}},
-              {"relocalization", relocalizationJson(s.reloc, cfg.relocAmbiguityMargin)},
-              {"relocalization_corners", relocalizationJson(s.relocCorners, cfg.relocAmbiguityMargin)},
-              {"missions", missionsJson(cfg, s)},
-              {"requirement_met", requirementMet}};
+  Json doc{{"calibration", calibrationJson(cfg, s)},
+           {"requirement", {{"position_m", kPositionRequirement}, {"heading_deg", kHeadingRequirementDeg}}},
+           {"can_encoders", canJson(cfg, canTotals(s))},
+           {"stages", std::move(stageStates)},
+           {"runs", std::move(runs)},
+           {"static_falko_mapping",
+            {{"frozen_corners", s.mapCorners},
+             {"field_surface_cells", s.fieldSurfacePoints},
+             {"runs", std::move(mappingRuns)}}},
+           {"relocalization", relocalizationJson(s.reloc, cfg.relocAmbiguityMargin)},
+           {"relocalization_corners", relocalizationJson(s.relocCorners, cfg.relocAmbiguityMargin)},
+           {"missions", missionsJson(cfg, s)},
+           {"requirement_met", requirementMet}};
+  if (cfg.relocField) {  // only when run (`--reloc-field`): the default document keeps its keys
+    doc["relocalization_field"] = relocalizationJson(s.relocField, cfg.relocAmbiguityMargin);
+  }
+  return doc;
 }
 
 }  // namespace agv::hil

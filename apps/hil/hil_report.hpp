@@ -43,6 +43,9 @@ struct SessionResults {
   /// The same trials' poses searched on the static FALKO corner map (`mapCorners` corners): the
   /// pipeline in the static_falko mode, no reflector in use.
   std::vector<RelocTrial> relocCorners;
+  /// With `ScenarioConfig::relocField`: the same trials' poses searched on the natural mode's
+  /// likelihood field (empty when not run).
+  std::vector<RelocTrial> relocField;
   /// Missions (docs/hil.md, "Missions"): the runs of every mode with the pallets rearranged, the
   /// mapping runs on the original layout, and the maps built from them.
   std::vector<RunResult> missionRuns;

@@ -69,6 +69,7 @@ struct Options {
   int relocSpurious = 0;
   double relocMiss = 0.0;
   int relocDecoys = 0;
+  bool relocField = false;
   std::size_t relocRefutedMargin = agv::nav::relocalizationSearchDefaults().refutedMargin;
   std::size_t relocMargin = agv::nav::relocalizationSearchDefaults().ambiguityMargin;
   int jobs = ScenarioConfig{}.jobs;
@@ -119,6 +120,9 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
                  "relocalization: adversarial reflector detections per trial where the best wrong pose expects "
                  "landmarks the true view lacks (default 0)")
       ->check(CLI::Range(0, 16));
+  app.add_flag("--reloc-field", o.relocField,
+               "relocalization: also search the same trials' poses on the natural mode's likelihood field (stage "
+               "relocalization_field; adds about a minute)");
   app.add_option("--reloc-margin-refuted", o.relocRefutedMargin,
                  "relocalization: the search's margin against a runner-up the scan's negative evidence refutes "
                  "(default 1, the pipeline's)")
@@ -166,6 +170,7 @@ ScenarioConfig scenarioConfig(const Options& o) {
   cfg.relocMissProbability = o.relocMiss;
   cfg.relocDecoys = o.relocDecoys;
   cfg.relocRefutedMargin = o.relocRefutedMargin;
+  cfg.relocField = o.relocField;
   cfg.relocAmbiguityMargin = o.relocMargin;
   if (o.shortScenario) {
     cfg.relocColdStarts = 4;
@@ -350,7 +355,8 @@ bool runReflectorMode(const agv::sim::World& world, const ScenarioConfig& cfg, a
 }
 
 void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& map,
-                            agv::LandmarkKind kind, std::vector<agv::hil::RelocTrial>& trials);
+                            agv::LandmarkKind kind, std::vector<agv::hil::RelocTrial>& trials,
+                            const agv::LikelihoodFieldBase* field = nullptr);
 
 /// Which corner clusters of the mapping runs are frozen into the static FALKO map (paths and
 /// missions): at least 5 sightings within 30 mm (per coordinate) of the cluster's median, those
@@ -421,7 +427,13 @@ bool runStaticMapModes(const agv::sim::World& world, const ScenarioConfig& cfg, 
       field->surfacePoints());
   agv::hil::RunMaps natural;
   natural.field = field.get();
-  return runMode(world, cfg, LocalizationMode::Natural, *falkoMap, natural, {}, cfg.runsPerPath, 0, s.runs);
+  if (!runMode(world, cfg, LocalizationMode::Natural, *falkoMap, natural, {}, cfg.runsPerPath, 0, s.runs)) {
+    return false;
+  }
+  if (cfg.relocField) {
+    runRelocalizationStage(world, cfg, *falkoMap, agv::LandmarkKind::Corner, s.relocField, field.get());
+  }
+  return true;
 }
 
 /// Dynamic map: no prior map; FALKO corners and (unless `--no-surface-map`) scan matching against
@@ -439,12 +451,19 @@ bool runDynamicMode(const agv::sim::World& world, const ScenarioConfig& cfg, Ses
 /// pipeline finding its pose with no set-pose on `map`'s landmarks of `kind` (the surveyed
 /// reflectors, or the static FALKO corners); the trials into `trials`.
 void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& cfg, agv::LandmarkMap& map,
-                            agv::LandmarkKind kind, std::vector<agv::hil::RelocTrial>& trials) {
-  const bool corners = kind == agv::LandmarkKind::Corner;
+                            agv::LandmarkKind kind, std::vector<agv::hil::RelocTrial>& trials,
+                            const agv::LikelihoodFieldBase* field) {
+  const bool corners = kind == agv::LandmarkKind::Corner && field == nullptr;
   std::printf("relocalization%s: %d cold starts and %d kidnappings at random poses on the paths, %s\n",
-              corners ? " on corners" : "", cfg.relocColdStarts, cfg.relocKidnaps,
-              corners ? "the static FALKO corner map (no reflector in use)" : "reflector map");
-  trials = agv::hil::runRelocalization(world, cfg, map, cfg.relocColdStarts, cfg.relocKidnaps, cfg.relocSeconds, kind);
+              field != nullptr ? " on the field"
+              : corners        ? " on corners"
+                               : "",
+              cfg.relocColdStarts, cfg.relocKidnaps,
+              field != nullptr ? "the natural mode's likelihood field, searched over the sweeps (no reflector in use)"
+              : corners        ? "the static FALKO corner map (no reflector in use)"
+                               : "reflector map");
+  trials = agv::hil::runRelocalization(world, cfg, map, cfg.relocColdStarts, cfg.relocKidnaps,
+                                       field != nullptr ? cfg.relocFieldSeconds : cfg.relocSeconds, kind, field);
   int index = 0;
   for (const agv::hil::RelocTrial& tr : trials) {
     ++index;
@@ -457,6 +476,12 @@ void runRelocalizationStage(const agv::sim::World& world, const ScenarioConfig& 
     }
     if (tr.kidnapped) {
       std::printf(" (lost %s)", tr.lostDetected ? "detected" : "NOT detected");
+    }
+    if (tr.onField) {
+      std::printf("%s; %" PRIu64 " field searches, the last one ended %s\n",
+                  tr.ambiguous > 0 ? " (ambiguous searches refused)" : "", tr.fieldSearches,
+                  tr.fieldSearchEnded ? agv::toString(tr.lastFieldOutcome) : "(none ended)");
+      continue;
     }
     std::printf("%s; %s (%zu visible, a distinct pose explains %zu",
                 tr.ambiguous > 0 ? " (ambiguous searches refused)" : "", tr.unique ? "unique" : "NOT unique",
@@ -514,6 +539,32 @@ std::size_t printRelocalizationSummary(const ScenarioConfig& cfg, const std::vec
                 cfg.relocDecoys, full, trials.size());
   }
   return wrong;
+}
+
+/// The field relocalization stage's summary line (no oracle on the field: found, wrong, refused).
+void printFieldRelocalizationSummary(const std::vector<agv::hil::RelocTrial>& trials) {
+  std::size_t found = 0;
+  std::size_t wrong = 0;
+  std::size_t cold = 0;
+  std::size_t coldFound = 0;
+  std::size_t ambiguous = 0;
+  std::vector<std::size_t> sweeps;
+  for (const agv::hil::RelocTrial& tr : trials) {
+    found += tr.found ? 1U : 0U;
+    wrong += tr.wrong ? 1U : 0U;
+    cold += tr.kidnapped ? 0U : 1U;
+    coldFound += !tr.kidnapped && tr.found ? 1U : 0U;
+    ambiguous += tr.ambiguous > 0 ? 1U : 0U;
+    if (tr.found) {
+      sweeps.push_back(tr.sweeps);
+    }
+  }
+  std::sort(sweeps.begin(), sweeps.end());
+  std::printf(
+      "field, relocalization: %zu of %zu trials found the pose (cold starts %zu of %zu), %zu wrong (required: 0), "
+      "%zu trials with ambiguous searches refused; sweeps to the restart: median %zu, max %zu\n",
+      found, trials.size(), coldFound, cold, wrong, ambiguous, sweeps.empty() ? 0U : sweeps[sweeps.size() / 2],
+      sweeps.empty() ? 0U : sweeps.back());
 }
 
 /// `--relocalization-only`: the surveyed map and the relocalization stage, its summary lines; 1
@@ -818,7 +869,7 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
     }
   }
   std::size_t relocWrong = 0;  // on either map: a wrong relocalization is worse than none
-  for (const std::vector<agv::hil::RelocTrial>* trials : {&s.reloc, &s.relocCorners}) {
+  for (const std::vector<agv::hil::RelocTrial>* trials : {&s.reloc, &s.relocCorners, &s.relocField}) {
     for (const agv::hil::RelocTrial& tr : *trials) {
       relocWrong += tr.wrong ? 1U : 0U;
     }
@@ -857,6 +908,9 @@ Verdict printVerdict(const ScenarioConfig& cfg, const SessionResults& s) {
               can.steeringPositions, can.heartbeats, can.samples, can.driveCounterWraps, can.sampleMismatches);
   (void)printRelocalizationSummary(cfg, s.reloc, agv::LandmarkKind::Reflector);
   (void)printRelocalizationSummary(cfg, s.relocCorners, agv::LandmarkKind::Corner);
+  if (cfg.relocField) {
+    printFieldRelocalizationSummary(s.relocField);
+  }
   std::printf("FALKO corners alone (static_falko; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",
               falkoMeetCount, falkoRuns, kPositionRequirement * 100.0, kHeadingRequirementDeg);
   std::printf("dynamic map (%s; measured, not required): %d of %d runs within %.0f cm / %.1f deg\n",

@@ -488,15 +488,18 @@ std::vector<Pose2d::Vector2> relocDecoys(const sim::RayCaster& caster, const Sce
 /// (reflectors: the surveyed map, the pipeline in the reflector mode; corners: the frozen FALKO
 /// corners, the pipeline in the static_falko mode).
 RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, LandmarkMap& map, LandmarkKind kind,
-                      const Pose2d& start, const Pose2d* kidnapFrom, double maxSeconds, std::uint64_t seed) {
+                      const LikelihoodFieldBase* field, const Pose2d& start, const Pose2d* kidnapFrom,
+                      double maxSeconds, std::uint64_t seed) {
   RelocTrial trial;
   trial.kidnapped = kidnapFrom != nullptr;
   trial.truth = start;
+  trial.onField = field != nullptr;
   std::vector<Pose2d::Vector2> decoys;
-  const LocalizationMode mode =
-      kind == LandmarkKind::Corner ? LocalizationMode::StaticFalko : LocalizationMode::Reflectors;
+  const LocalizationMode mode = field != nullptr               ? LocalizationMode::Natural
+                                : kind == LandmarkKind::Corner ? LocalizationMode::StaticFalko
+                                                               : LocalizationMode::Reflectors;
   nav::PipelineParams params = pipelineParams(cfg, mode);
-  {
+  if (field == nullptr) {
     // The oracle: the landmarks of the kind visible from the truth, noise-free, in the vehicle
     // frame, against the map's landmarks of that kind.
     std::vector<OraclePoint> landmarks;
@@ -542,6 +545,9 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
   params.relocalization.search.ambiguityMargin = cfg.relocAmbiguityMargin;
   params.relocalization.search.refutedMargin = cfg.relocRefutedMargin;
   nav::Pipeline pipeline(params, map, nav::PipelineDevices{canEncoders, cluttered, plc, clock});
+  if (field != nullptr) {
+    pipeline.setLikelihoodField(field);
+  }
   Timestamp t{};
   vehicle.reset(kidnapFrom != nullptr ? *kidnapFrom : start, t);
   clock.set(t);
@@ -584,14 +590,19 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
       searchStart = pipeline.counters().sweeps;
     }
     trial.lostDetected = trial.lostDetected || pipeline.localizer().lost();
+    if (pipeline.lastCycle().fieldSearchEnded) {
+      trial.fieldSearchEnded = true;
+      trial.lastFieldOutcome = pipeline.lastCycle().fieldSearchOutcome;
+    }
     return pipeline.counters().relocalizations > 0;
   });
+  trial.fieldSearches = pipeline.counters().fieldSearches;
   trial.found = pipeline.counters().relocalizations > 0;
   trial.ambiguous = pipeline.counters().ambiguous;
   trial.searches = pipeline.counters().searches;
   trial.candidates = pipeline.counters().candidates;
   trial.unconfirmed = pipeline.counters().unconfirmed;
-  if (!trial.found) {
+  if (!trial.found && field == nullptr) {
     // The last sweep searched again with the pipeline's parameters: why it was refused.
     const hal::LaserMeasurement& meas = pipeline.lastMeasurement();
     std::vector<PointObservation> obs;
@@ -633,7 +644,8 @@ RelocTrial relocTrial(const sim::RayCaster& caster, const ScenarioConfig& cfg, L
 }  // namespace
 
 std::vector<RelocTrial> runRelocalization(const sim::World& world, const ScenarioConfig& config, LandmarkMap& map,
-                                          int count, int kidnaps, double maxSeconds, LandmarkKind kind) {
+                                          int count, int kidnaps, double maxSeconds, LandmarkKind kind,
+                                          const LikelihoodFieldBase* field) {
   std::vector<RelocTrial> trials;
   if (world.paths.empty()) {
     return trials;
@@ -655,7 +667,7 @@ std::vector<RelocTrial> runRelocalization(const sim::World& world, const Scenari
       from = draw();
     }
     const std::uint64_t seed = config.seed * 1000003U + 900000U + static_cast<std::uint64_t>(i);
-    trials.push_back(relocTrial(caster, config, map, kind, at, i >= count ? &from : nullptr, maxSeconds, seed));
+    trials.push_back(relocTrial(caster, config, map, kind, field, at, i >= count ? &from : nullptr, maxSeconds, seed));
   }
   return trials;
 }

@@ -89,6 +89,12 @@ struct ScenarioConfig {
   int relocColdStarts = 20;
   int relocKidnaps = 8;
   double relocSeconds = 4.0;  ///< [s] of simulated time per trial at most
+  /// Also run the trials on the natural mode's likelihood field (stage `relocalization_field`:
+  /// the field search spread over the sweeps; measured, off by default for the main job's time).
+  bool relocField = false;
+  /// [s] per field trial at most: a whole-hall search (41 m x 26 m, ~3.6 M grid poses at 20 000 per
+  /// sweep, 12.5 Hz) takes ~15 s, then 12 refining and 2 confirming sweeps.
+  double relocFieldSeconds = 25.0;
   /// Spurious reflector detections per sweep in each relocalization trial (0: none, the default):
   /// fixed places 1-20 m from the standing vehicle, as shiny objects nearby would give.
   int relocSpurious = 0;
@@ -236,6 +242,12 @@ struct RelocTrial {
   std::size_t lastMissed = 0;
   std::size_t lastSecondInliers = 0;
   std::size_t lastSecondMissed = 0;
+  // On the likelihood field (natural navigation): the field searches started and how the last
+  // one that ended ended (no uniqueness oracle there: `unique` stays false).
+  bool onField = false;
+  std::uint64_t fieldSearches = 0;
+  bool fieldSearchEnded = false;
+  FieldRelocOutcome lastFieldOutcome = FieldRelocOutcome::NoCandidate;
 };
 
 /// `count` cold starts and `kidnaps` kidnappings at poses drawn on the world's paths (free space)
@@ -243,9 +255,13 @@ struct RelocTrial {
 /// map (only read) searched for landmarks of `kind`: `Reflector` (the surveyed map, the pipeline in
 /// the reflector mode) or `Corner` (frozen FALKO corners, the pipeline in the static_falko mode;
 /// the oracle then judges the map corners in clear view within FALKO's extraction range).
+/// With `field` set, the pipeline runs in the natural mode on that likelihood field (and `map`'s
+/// frozen corners) and searches the field (`FieldRelocalizer`, spread over the sweeps); `kind` is
+/// then ignored and no oracle judges the trial.
 std::vector<RelocTrial> runRelocalization(const sim::World& world, const ScenarioConfig& config, LandmarkMap& map,
                                           int count, int kidnaps, double maxSeconds,
-                                          LandmarkKind kind = LandmarkKind::Reflector);
+                                          LandmarkKind kind = LandmarkKind::Reflector,
+                                          const LikelihoodFieldBase* field = nullptr);
 
 /// The surveyed reflector map: every reflector pole centre of `world` with Gaussian survey noise
 /// `sigma` [m] per coordinate (seeded), as static surveyed landmarks with that sigma.

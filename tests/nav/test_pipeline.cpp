@@ -7,10 +7,12 @@
 #include <cmath>
 #include <cstdint>
 #include <deque>
+#include <memory>
 
 #include "agv/core/angle.hpp"
 #include "agv/hal/plc_messages.hpp"
 #include "agv/kinematics/tricycle.hpp"
+#include "agv/localization/likelihood_field.hpp"
 #include "agv/nav/pipeline.hpp"
 #include "agv_test.hpp"
 
@@ -109,6 +111,41 @@ double roomRange(const Pose2d::Vector2& from, double angle) {
   return best;
 }
 
+/// A block filling the room's upper left corner (x in [kPillarX0, kPillarX1], y in [kPillarY0,
+/// kPillarY1]): without it the rectangular room fits every pose and its half-turn twin alike (a
+/// small pillar is not enough: the twin would still explain 97 % of the points, within the field
+/// search's 95 % ambiguity ratio).
+constexpr double kPillarX0 = -5.0;
+constexpr double kPillarX1 = -1.0;
+constexpr double kPillarY0 = 7.0;
+constexpr double kPillarY1 = 10.0;
+
+/// Range from `from` (outside the pillar) along `angle` to the pillar (slab method); 1e9 when missed.
+double pillarRange(const Pose2d::Vector2& from, double angle) {
+  const double d[2] = {std::cos(angle), std::sin(angle)};
+  const double o[2] = {from.x(), from.y()};
+  const double lo[2] = {kPillarX0, kPillarY0};
+  const double hi[2] = {kPillarX1, kPillarY1};
+  double t0 = 0.0;
+  double t1 = 1e9;
+  for (int k = 0; k < 2; ++k) {
+    if (std::fabs(d[k]) < 1e-12) {
+      if (o[k] < lo[k] || o[k] > hi[k]) {
+        return 1e9;
+      }
+      continue;
+    }
+    double a = (lo[k] - o[k]) / d[k];
+    double b = (hi[k] - o[k]) / d[k];
+    if (a > b) {
+      std::swap(a, b);
+    }
+    t0 = std::max(t0, a);
+    t1 = std::min(t1, b);
+  }
+  return t0 <= t1 ? t0 : 1e9;
+}
+
 /// A NAV350-like reply every 125 ms: the reflectors in the sensor frame each at its own instant
 /// (20 + 20 k ms before the reply), stamped; with `beams`, also the room's walls, all beams at the
 /// reply's instant (no sweep duration).
@@ -132,7 +169,11 @@ class FakeLaser final : public agv::hal::LaserSource {
       const Pose2d at = truthAt(reply) * kMount;
       for (int i = 0; i < 628; ++i) {
         const double a = static_cast<double>(out.scan.angleMin) + i * static_cast<double>(out.scan.angleIncrement);
-        (void)out.scan.ranges.push_back(static_cast<float>(roomRange(at.translation(), at.theta + a)));
+        double r = roomRange(at.translation(), at.theta + a);
+        if (pillar) {
+          r = std::min(r, pillarRange(at.translation(), at.theta + a));
+        }
+        (void)out.scan.ranges.push_back(static_cast<float>(r));
       }
     }
     out.reflectors.clear();
@@ -154,6 +195,7 @@ class FakeLaser final : public agv::hal::LaserSource {
   Status health() const noexcept override { return Status::Ok; }
   bool stamped = true;
   bool beams = false;
+  bool pillar = false;  ///< the beams also see the pillar
 
  private:
   const FakeClock& clock_;
@@ -553,6 +595,156 @@ TEST_CASE("pipeline: relocalization switched off, or stopped by the PLC, does no
   bad.relocalization.positionStdDev = 0.0;
   Rig refused(bad);
   CHECK(refused.pipeline.configure() == Status::InvalidArgument);
+}
+
+/// The likelihood field of the room's walls (and the pillar), 5 cm cells.
+using RoomField = agv::LikelihoodField<400 * 360>;
+std::unique_ptr<RoomField> roomField(bool withPillar) {
+  auto field = std::make_unique<RoomField>();
+  REQUIRE(field->configure(agv::LikelihoodFieldParams{}, kRoomX0 - 1.0, kRoomY0 - 1.0, 380, 340) == Status::Ok);
+  // Walls facing into the room.
+  REQUIRE(field->addSegment(kRoomX0, kRoomY0, kRoomX1, kRoomY0, 0.0, 1.0) == Status::Ok);
+  REQUIRE(field->addSegment(kRoomX1, kRoomY0, kRoomX1, kRoomY1, -1.0, 0.0) == Status::Ok);
+  REQUIRE(field->addSegment(kRoomX1, kRoomY1, kRoomX0, kRoomY1, 0.0, -1.0) == Status::Ok);
+  REQUIRE(field->addSegment(kRoomX0, kRoomY1, kRoomX0, kRoomY0, 1.0, 0.0) == Status::Ok);
+  if (withPillar) {  // the block's two faces in the room, facing out of it
+    REQUIRE(field->addSegment(kPillarX0, kPillarY0, kPillarX1, kPillarY0, 0.0, -1.0) == Status::Ok);
+    REQUIRE(field->addSegment(kPillarX1, kPillarY0, kPillarX1, kPillarY1, 1.0, 0.0) == Status::Ok);
+  }
+  REQUIRE(field->build() == Status::Ok);
+  return field;
+}
+
+TEST_CASE(
+    "pipeline: with a likelihood field and no set-pose it finds its pose on the field, the search spread over "
+    "the sweeps, confirms it while rolling and localizes; no allocation",
+    "[nav][reloc][field]") {
+  PipelineParams p = rigParams();
+  p.observations.reflectors = false;             // natural navigation: the surfaces alone
+  p.relocalization.fieldPosesPerSweep = 100000;  // the search in ~11 sweeps, while the vehicle rolls
+  Rig rig(p);
+  rig.laser.beams = true;
+  rig.laser.pillar = true;
+  const auto field = roomField(true);
+  rig.pipeline.setLikelihoodField(field.get());
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  CHECK(rig.pipeline.searching());
+  std::uint64_t allocations = 0;
+  std::uint64_t sweepsSearching = 0;
+  bool sawSearching = false;
+  bool idleWhileSearching = true;
+  for (int i = 0; i < 4000 && !rig.pipeline.localizing(); ++i) {
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    allocations += agv::test::countAllocations([&]() { (void)rig.pipeline.cycle(); });
+    sweepsSearching += rig.pipeline.lastCycle().sweep ? 1U : 0U;
+    sawSearching = sawSearching || agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Searching);
+    if (!rig.pipeline.localizing()) {
+      idleWhileSearching = idleWhileSearching && rig.plc.last.health.mode == NavMode::Idle;
+    }
+  }
+  INFO("field searches " << rig.pipeline.counters().fieldSearches << ", candidates "
+                         << rig.pipeline.counters().candidates << ", ambiguous " << rig.pipeline.counters().ambiguous
+                         << ", unconfirmed " << rig.pipeline.counters().unconfirmed << ", last outcome "
+                         << static_cast<int>(rig.pipeline.lastCycle().fieldSearchOutcome) << ", sweeps "
+                         << sweepsSearching);
+  REQUIRE(rig.pipeline.localizing());
+  CHECK(allocations == 0U);
+  CHECK(sawSearching);
+  CHECK(idleWhileSearching);  // no pose published before the confirmation
+  const agv::nav::PipelineCounters& c = rig.pipeline.counters();
+  CHECK(c.relocalizations == 1U);
+  CHECK(c.fieldSearches == 1U);  // found by the first search, confirmed by the next sweeps
+  CHECK(c.candidates == 1U);
+  CHECK(c.unconfirmed == 0U);
+  // The room's grid (19 m x 17 m field, 0.25 m, 210 headings: ~1.1 M poses) at 100 000 poses per
+  // sweep, then one sweep per refined candidate (at most 12) and the two confirming sweeps.
+  INFO(sweepsSearching << " sweeps searching");
+  CHECK(sweepsSearching >= 10U);
+  CHECK(sweepsSearching <= 11U + 1U + 12U + 2U + 1U);
+  // Confirmed while rolling (the vehicle rolls from 0.5 s on): the candidate, found on a sweep of
+  // the standing vehicle, was carried by the odometry over metres.
+  CHECK(rig.clock.now() > kRollFrom + Duration::fromSeconds(1.5));
+  rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(40));
+  CHECK(rig.plc.last.health.mode == NavMode::Localizing);
+  CHECK(agv::hal::hasBit(rig.plc.last.health.bits, HealthBit::Relocalized));
+  CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.05);
+  CHECK(std::fabs(agv::angleDiff(rig.plc.last.pose.theta, truthAt(rig.plc.last.stamp).theta)) < 0.02);
+  // Tracked on the field from there.
+  rig.runUntil(rig.clock.now() + Duration::fromSeconds(1.0));
+  CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.02);
+  CHECK(std::fabs(agv::angleDiff(rig.plc.last.pose.theta, truthAt(rig.plc.last.stamp).theta)) < 0.005);
+}
+
+TEST_CASE("pipeline: a field search begun before any encoder sample is confirmed only once odometry comes",
+          "[nav][reloc][field]") {
+  PipelineParams p = rigParams();
+  p.observations.reflectors = false;
+  p.relocalization.fieldPosesPerSweep = 400000;  // the whole search on 3 sweeps
+  Rig rig(p);
+  rig.laser.beams = true;
+  rig.laser.pillar = true;
+  rig.encoders.silent = true;  // the drive's encoders not up yet
+  const auto field = roomField(true);
+  rig.pipeline.setLikelihoodField(field.get());
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  rig.runUntil(kStart + Duration::fromSeconds(3.0));  // searched and found, never confirmed without odometry
+  CHECK(rig.pipeline.counters().encoderSamples == 0U);
+  CHECK(rig.pipeline.counters().fieldSearches == 1U);
+  CHECK(rig.pipeline.counters().candidates == 1U);
+  CHECK_FALSE(rig.pipeline.localizing());
+  CHECK(rig.pipeline.searching());
+  rig.encoders.silent = false;  // samples from kStart on, the vehicle rolling since kRollFrom
+  for (int i = 0; i < 2000 && !rig.pipeline.localizing(); ++i) {
+    rig.clock.set(rig.clock.now() + Duration::fromMilliseconds(5));
+    (void)rig.pipeline.cycle();
+  }
+  // The search's sweep came before any sample: its candidate is carried from the first sweep with
+  // odometry on. Here the vehicle rolled metres in between (the samples come late), so that
+  // candidate fails its confirmation and a new search finds the pose; what must hold is that no
+  // pose was taken before odometry came, and that the pose taken is right.
+  INFO("candidates " << rig.pipeline.counters().candidates << ", unconfirmed " << rig.pipeline.counters().unconfirmed);
+  REQUIRE(rig.pipeline.localizing());
+  CHECK(rig.pipeline.counters().relocalizations == 1U);
+  rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(500));
+  CHECK(positionError(rig.plc.last.pose, truthAt(rig.plc.last.stamp)) < 0.02);
+}
+
+TEST_CASE("pipeline: on the field of a bare rectangular room every search is ambiguous: refused, never guessed",
+          "[nav][reloc][field]") {
+  PipelineParams p = rigParams();
+  p.observations.reflectors = false;
+  p.relocalization.fieldPosesPerSweep = 200000;  // a search in ~6 sweeps: several searches in the run
+  Rig rig(p);
+  rig.laser.beams = true;  // the walls alone: the room and its half-turn twin fit every scan alike
+  const auto field = roomField(false);
+  rig.pipeline.setLikelihoodField(field.get());
+  REQUIRE(rig.pipeline.configure() == Status::Ok);
+  REQUIRE(rig.pipeline.activate() == Status::Ok);
+  rig.runUntil(kStart + Duration::fromSeconds(5.0));
+  CHECK_FALSE(rig.pipeline.localizing());
+  CHECK(rig.pipeline.searching());
+  const agv::nav::PipelineCounters& c = rig.pipeline.counters();
+  INFO(c.fieldSearches << " field searches, " << c.ambiguous << " ambiguous, " << c.candidates << " candidates");
+  CHECK(c.fieldSearches >= 3U);
+  CHECK(c.ambiguous >= 2U);
+  CHECK(c.relocalizations == 0U);
+  CHECK(rig.plc.last.health.mode == NavMode::Idle);
+  // A set-pose ends the search and wins.
+  rig.plc.send(agv::hal::PlcCommandKind::Localize, truthAt(rig.clock.now()));
+  rig.runUntil(rig.clock.now() + Duration::fromMilliseconds(50));
+  CHECK(rig.pipeline.localizing());
+  CHECK_FALSE(rig.pipeline.searching());
+  // Refused parameters of the field search.
+  PipelineParams bad = rigParams();
+  bad.relocalization.fieldPosesPerSweep = 0;
+  Rig refused(bad);
+  CHECK(refused.pipeline.configure() == Status::InvalidArgument);
+  bad = rigParams();
+  bad.relocalization.field.positionStep = NAN;
+  Rig refusedNan(bad);
+  CHECK(refusedNan.pipeline.configure() == Status::NonFiniteInput);
 }
 
 TEST_CASE(

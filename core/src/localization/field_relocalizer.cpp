@@ -26,6 +26,26 @@ Status FieldRelocalizerParams::validate() const noexcept {
   return match.validate();
 }
 
+const char* toString(FieldRelocOutcome outcome) noexcept {
+  switch (outcome) {
+    case FieldRelocOutcome::Found:
+      return "found";
+    case FieldRelocOutcome::InvalidInput:
+      return "invalid_input";
+    case FieldRelocOutcome::NoPoints:
+      return "no_points";
+    case FieldRelocOutcome::NoCandidate:
+      return "no_candidate";
+    case FieldRelocOutcome::WeakSupport:
+      return "weak_support";
+    case FieldRelocOutcome::Ambiguous:
+      return "ambiguous";
+    case FieldRelocOutcome::WorkBoundHit:
+      return "work_bound_hit";
+  }
+  return "?";
+}
+
 void FieldRelocalizer::offer(const Candidate& c) noexcept {
   const std::size_t cap = params_.candidates;
   // A kept candidate within one grid step (position and heading) is the same basin: keep the better.

@@ -48,7 +48,13 @@ Status PipelineParams::validate() const noexcept {
       r.confirm.scansToConfirm == 0) {
     return Status::InvalidArgument;
   }
-  return Status::Ok;
+  if (!std::isfinite(r.fieldRegionRadius)) {
+    return Status::NonFiniteInput;
+  }
+  if (r.fieldPosesPerSweep == 0 || r.fieldConfirmSweeps == 0 || r.fieldRegionRadius < 0.0) {
+    return Status::InvalidArgument;
+  }
+  return r.field.validate();
 }
 
 const char* toString(PipelineState state) noexcept {
@@ -112,6 +118,11 @@ struct Pipeline::Impl {
   /// Relocalization on this sweep's observations (while searching): confirm the candidate, or
   /// search for one; restart the localizer when confirmed.
   void relocalize() noexcept;
+  /// The same with a likelihood field: advance the field search, or confirm its candidate.
+  void relocalizeOnField() noexcept;
+  /// Restarts the localizer at `pose` (at the sweep whose dead reckoning is `dr`), carried to the
+  /// newest sample.
+  void restartAt(const Pose2d& pose, const Result<Pose2d>& dr, Timestamp ref) noexcept;
   void startSearch() noexcept;
   void watchDevices() noexcept;
   void publishIfDue() noexcept;
@@ -174,6 +185,16 @@ struct Pipeline::Impl {
   Timestamp searchStamp{};             // ... its reference instant
   bool everRelocalized = false;
   Timestamp relocalizedAt{};
+  /// With a likelihood field: the field search (allocated when the first field is set), its stage,
+  /// the dead reckoning at the sweep its candidate refers to, the candidate and its confirmations.
+  enum class FieldStage : std::uint8_t { Idle, Searching, Confirming };
+  std::unique_ptr<FieldRelocalizer> fieldReloc;
+  FieldStage fieldStage = FieldStage::Idle;
+  Pose2d fieldAnchor{};
+  bool fieldHaveAnchor = false;
+  Pose2d fieldCandidate{};
+  std::uint32_t fieldConfirmed = 0;
+  RelocRegion fieldRegion{};
 
   PipelineState state = PipelineState::Unconfigured;
   Status faultReason = Status::Ok;
@@ -358,9 +379,105 @@ void Pipeline::Impl::startSearch() noexcept {
   searchWithoutOdometry = false;
   lastSearchAmbiguous = false;
   *confirmer = RelocConfirmer(params.relocalization.confirm);  // Idle: no candidate
+  if (fieldReloc) {
+    fieldReloc->cancel();
+  }
+  fieldStage = FieldStage::Idle;
+  // Lost: around the last estimate when a radius is set; at start (nothing tracked): everywhere.
+  const double radius = params.relocalization.fieldRegionRadius;
+  fieldRegion =
+      localizing && radius > 0.0 ? RelocRegion{localizer->pose().x, localizer->pose().y, radius} : RelocRegion{};
+}
+
+void Pipeline::Impl::restartAt(const Pose2d& pose, const Result<Pose2d>& dr, Timestamp ref) noexcept {
+  // Restart at the newest sample: the confirmed pose carried there by dead reckoning.
+  const Timestamp t = haveSample ? lastSample.stamp : ref;
+  const Result<Pose2d> drNow = motion->at(t);
+  const Pose2d now = drNow.ok() && dr.ok() ? pose * between(dr.value(), drNow.value()) : pose;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  cov(0, 0) = cov(1, 1) = params.relocalization.positionStdDev * params.relocalization.positionStdDev;
+  cov(2, 2) = params.relocalization.headingStdDev * params.relocalization.headingStdDev;
+  if (localizer->reset(t, now, cov) == Status::Ok) {
+    localizing = true;
+    searching = false;
+    everRelocalized = true;
+    clearSurfaces();
+    relocalizedAt = t;
+    report.relocalized = true;
+    report.searching = false;
+    ++counters.relocalizations;
+    log("relocalized: the pose found on the map held over the confirmation sweeps");
+  }
+}
+
+void Pipeline::Impl::relocalizeOnField() noexcept {
+  report.searching = true;
+  const RelocalizationParams& rp = params.relocalization;
+  const Pose2d& mount = params.localizer.laser.mounting;
+  const Timestamp ref = observations->stamp;
+  const Result<Pose2d> dr = motion->at(ref);
+  ++counters.searches;
+  if (fieldStage != FieldStage::Idle && !fieldHaveAnchor && dr.ok()) {
+    // The search began on a sweep before any odometry (the first after power-up): its candidate is
+    // carried from the first sweep with odometry; the motion before that is not known (a standing
+    // vehicle's is absorbed by the confirmation's match window).
+    fieldAnchor = dr.value();
+    fieldHaveAnchor = true;
+  }
+  if (fieldStage == FieldStage::Confirming) {
+    if (!dr.ok() || !fieldHaveAnchor) {
+      return;  // nothing to carry the candidate with yet
+    }
+    const Pose2d carried = fieldCandidate * between(fieldAnchor, dr.value());
+    Pose2d refined;
+    if (!fieldReloc->confirm(*matchPoints, mount, carried, *field, refined)) {
+      ++counters.unconfirmed;
+      fieldStage = FieldStage::Idle;  // this sweep starts a new search (below)
+    } else {
+      fieldCandidate = refined;
+      fieldAnchor = dr.value();
+      if (++fieldConfirmed >= rp.fieldConfirmSweeps) {
+        fieldStage = FieldStage::Idle;
+        restartAt(fieldCandidate, dr, ref);
+      }
+      return;
+    }
+  }
+  if (fieldStage == FieldStage::Idle) {
+    ++counters.fieldSearches;
+    fieldHaveAnchor = dr.ok();
+    fieldAnchor = dr.ok() ? dr.value() : Pose2d{};
+    if (fieldReloc->start(*matchPoints, mount, *field, fieldRegion) != Status::Ok) {
+      report.fieldSearchEnded = true;
+      report.fieldSearchOutcome = fieldReloc->result().outcome;
+      return;  // refused at once (no point, no free position...): the next sweep tries again
+    }
+    fieldStage = FieldStage::Searching;
+  }
+  if (!fieldReloc->advance(rp.fieldPosesPerSweep)) {
+    return;
+  }
+  const FieldRelocResult& r = fieldReloc->result();
+  report.searched = true;
+  report.fieldSearchEnded = true;
+  report.fieldSearchOutcome = r.outcome;
+  lastSearchAmbiguous = r.outcome == FieldRelocOutcome::Ambiguous;
+  counters.ambiguous += lastSearchAmbiguous ? 1U : 0U;
+  if (r.outcome != FieldRelocOutcome::Found) {
+    fieldStage = FieldStage::Idle;  // nothing: the next sweep starts a new search
+    return;
+  }
+  ++counters.candidates;
+  fieldCandidate = r.pose;  // at the search's sweep, carried from fieldAnchor
+  fieldConfirmed = 0;
+  fieldStage = FieldStage::Confirming;
 }
 
 void Pipeline::Impl::relocalize() noexcept {
+  if (field != nullptr && fieldReloc) {
+    relocalizeOnField();
+    return;
+  }
   report.searching = true;
   // The vehicle's motion since the previous searched sweep, by dead reckoning at the sweeps'
   // reference instants.
@@ -408,25 +525,7 @@ void Pipeline::Impl::relocalize() noexcept {
       *confirmer = RelocConfirmer(params.relocalization.confirm);  // Idle: the candidate dropped
     }
     if (st == RelocConfirmState::Confirmed) {
-      // Restart at the newest sample: the confirmed pose carried there by dead reckoning.
-      const Timestamp t = haveSample ? lastSample.stamp : ref;
-      const Result<Pose2d> drNow = motion->at(t);
-      const Pose2d pose =
-          drNow.ok() && dr.ok() ? confirmer->pose() * between(dr.value(), drNow.value()) : confirmer->pose();
-      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-      cov(0, 0) = cov(1, 1) = params.relocalization.positionStdDev * params.relocalization.positionStdDev;
-      cov(2, 2) = params.relocalization.headingStdDev * params.relocalization.headingStdDev;
-      if (localizer->reset(t, pose, cov) == Status::Ok) {
-        localizing = true;
-        searching = false;
-        everRelocalized = true;
-        clearSurfaces();
-        relocalizedAt = t;
-        report.relocalized = true;
-        report.searching = false;
-        ++counters.relocalizations;
-        log("relocalized: the pose found on the map held over the confirmation sweeps");
-      }
+      restartAt(confirmer->pose(), dr, ref);
       return;
     }
     if (st == RelocConfirmState::Pending) {
@@ -801,8 +900,16 @@ const SurfaceMapBase* Pipeline::mapChanges() const noexcept {
   return impl_->changes.get();
 }
 
-void Pipeline::setLikelihoodField(const LikelihoodFieldBase* field) noexcept {
-  impl_->field = field;
+void Pipeline::setLikelihoodField(const LikelihoodFieldBase* field) {
+  Impl& m = *impl_;
+  m.field = field;
+  if (field != nullptr && !m.fieldReloc) {
+    m.fieldReloc = std::make_unique<FieldRelocalizer>(m.params.relocalization.field);
+  }
+  if (m.fieldReloc) {
+    m.fieldReloc->cancel();  // it may hold the previous field
+  }
+  m.fieldStage = Impl::FieldStage::Idle;
 }
 
 void Pipeline::setLogSink(PipelineLogSink sink, void* context) noexcept {

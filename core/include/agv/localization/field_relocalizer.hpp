@@ -86,6 +86,9 @@ enum class FieldRelocOutcome : std::uint8_t {
   WorkBoundHit,  ///< the grid has more poses than maxPoses (NotConverged): coarsen the steps
 };
 
+/// Stable lower-case name of an outcome ("found", "weak_support", ...). Never null.
+const char* toString(FieldRelocOutcome outcome) noexcept;
+
 /// Where to search: the disc of `radius` around (x, y) [m], or the whole field when `radius` is 0.
 struct RelocRegion {
   double x = 0.0;

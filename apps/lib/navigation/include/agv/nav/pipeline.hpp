@@ -45,6 +45,7 @@
 #include "agv/hal/laser_source.hpp"
 #include "agv/hal/plc_link.hpp"
 #include "agv/kinematics/tricycle.hpp"
+#include "agv/localization/field_relocalizer.hpp"
 #include "agv/localization/landmark_map.hpp"
 #include "agv/localization/localizer.hpp"
 #include "agv/localization/map_changes.hpp"
@@ -91,7 +92,11 @@ inline GlobalLocalizerParams relocalizationSearchDefaults() noexcept {
 }
 
 /// Relocalization: finding the pose on the map with no prior (`GlobalLocalizer`), confirming it over
-/// the next sweeps (`RelocConfirmer`), and only then (re-)initialising the localizer.
+/// the next sweeps (`RelocConfirmer`), and only then (re-)initialising the localizer. With a
+/// likelihood field set (natural navigation) the search is the field's instead (`FieldRelocalizer`
+/// on a sweep's points, spread over the cycles, confirmed by matching the next sweeps near the
+/// candidate carried by the odometry): the surfaces are that vehicle's map, the landmarks a sparse
+/// extra.
 struct RelocalizationParams {
   /// Search when the localizer is lost, and (with `atStart`) when activated without a set-pose.
   /// A PLC Stop ends the search until the next Localize; a set-pose always wins.
@@ -106,6 +111,17 @@ struct RelocalizationParams {
   double headingStdDev = 0.02;   ///< [rad]
   /// `HealthBit::Relocalized` stays set this long after a relocalization.
   Duration relocalizedHold = Duration::fromSeconds(2.0);
+  /// With a likelihood field: the field search (grid, fit and ambiguity limits, confirmation
+  /// window; docs/localization.md, "Field relocalization").
+  FieldRelocalizerParams field{};
+  /// Grid poses the field search visits per sweep (its time per cycle: about 0.65 us per pose on
+  /// the development VM, so 20 000 are ~13 ms; a 41 m x 26 m hall takes ~180 sweeps, 7 s at 25 Hz).
+  std::uint32_t fieldPosesPerSweep = 20000;
+  /// Sweeps after the search's whose match must confirm the candidate before the restart.
+  std::uint32_t fieldConfirmSweeps = 2;
+  /// [m] the field search covers this disc around the last estimate when the localizer was lost
+  /// (0: the whole field, also at start, where there is no estimate).
+  double fieldRegionRadius = 0.0;
 };
 
 /// Everything the pipeline needs besides the devices and the map. Defaults are those of a vehicle.
@@ -155,6 +171,7 @@ struct PipelineCounters {
   std::uint64_t refusedCommands = 0;  ///< of which not carried out (Calibrate)
   std::uint64_t setPoses = 0;         ///< set-poses applied
   std::uint64_t searches = 0;         ///< global localization calls (every sweep while searching or confirming)
+  std::uint64_t fieldSearches = 0;    ///< field searches started (with a likelihood field; each spans sweeps)
   std::uint64_t candidates = 0;       ///< of which found a unique, supported pose (then confirmed or not)
   std::uint64_t ambiguous = 0;        ///< of which refused as ambiguous
   std::uint64_t unconfirmed = 0;      ///< candidates a later sweep did not support
@@ -176,6 +193,9 @@ struct CycleReport {
   bool relocalized = false;                     ///< this cycle restarted the localizer at a found pose
   RelocOutcome searchOutcome = RelocOutcome::EmptyInput;  ///< of this cycle's search (when one ran)
   bool searched = false;                                  ///< a search ran in this cycle
+  /// With a likelihood field: a field search ended in this cycle, and how.
+  bool fieldSearchEnded = false;
+  FieldRelocOutcome fieldSearchOutcome = FieldRelocOutcome::NoCandidate;
   /// Sweep points left out of this cycle's match as lying on surfaces changed since the mapping
   /// run (`ObservationParams::mapChanges`).
   std::uint32_t changedPointsDropped = 0;
@@ -270,8 +290,10 @@ class Pipeline {
 
   /// The surfaces of a mapping run for scan-to-map matching (`Localizer::correct` with a
   /// likelihood field; each sweep's valid beams de-skewed to its reference instant). Null: none
-  /// (the default). The owner keeps the field alive and unchanged while it is set.
-  void setLikelihoodField(const LikelihoodFieldBase* field) noexcept;
+  /// (the default). The owner keeps the field alive and unchanged while it is set. The first field
+  /// set allocates the field search's scratch (about 90 KB; a set-up call, never in the cycle);
+  /// a field search under way is abandoned.
+  void setLikelihoodField(const LikelihoodFieldBase* field);
 
   /// Where the log lines go (none by default).
   void setLogSink(PipelineLogSink sink, void* context) noexcept;
