@@ -29,10 +29,9 @@ std::string containerOf(const std::string& path) {
   in.read(reinterpret_cast<char*>(head), sizeof head);
   const std::streamsize n = in.gcount();
   if (n >= 4) {
-    const std::uint32_t le =
-        head[0] | (head[1] << 8U) | (head[2] << 16U) | (static_cast<std::uint32_t>(head[3]) << 24U);
-    const std::uint32_t be =
-        head[3] | (head[2] << 8U) | (head[1] << 16U) | (static_cast<std::uint32_t>(head[0]) << 24U);
+    const auto byte = [&](int k) { return static_cast<std::uint32_t>(head[k]); };
+    const std::uint32_t le = byte(0) | (byte(1) << 8U) | (byte(2) << 16U) | (byte(3) << 24U);
+    const std::uint32_t be = byte(3) | (byte(2) << 8U) | (byte(1) << 16U) | (byte(0) << 24U);
     for (const std::uint32_t magic : {0xa1b2c3d4U, 0xa1b23c4dU}) {
       if (le == magic || be == magic) {
         return "pcap";
