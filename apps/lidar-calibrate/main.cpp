@@ -44,6 +44,26 @@ Json conditioningJson(const lc::ConditioningReport& c) {
   return j;
 }
 
+/// What a laser's report says in every run (refused or not): its outcome, evidence and correlation.
+Json laserReportJson(const lc::LaserReport& l) {
+  return Json{{"laser", l.laser},
+              {"estimated", l.estimated},
+              {"reason", l.reason},
+              {"points", l.points},
+              {"scans", l.scans},
+              {"max_correlation", l.maxCorrelation},
+              {"max_correlation_pair", l.maxCorrelationPair}};
+}
+
+/// A scan's target as segmented, with its plane rms at the start values.
+Json scanReportJson(const lc::ScanReport& r, double rmsStart) {
+  return Json{{"name", r.name},
+              {"returns", r.returns},
+              {"target_points", r.targetPoints},
+              {"rms_start_m", rmsStart},
+              {"extent_m", Json{r.extent.x(), r.extent.y()}}};
+}
+
 void printConditioning(const char* title, const lc::ConditioningReport& c) {
   std::printf("%s: %zu parameters, condition number %.3g (gauges fixed), %zu null directions besides the gauges\n",
               title, c.parameters, c.conditionNumber, c.nullDirections);
@@ -440,22 +460,12 @@ int main(int argc, char** argv) {
       const lc::ScanReport& r = result.scans[s];
       std::printf("%-40s %8zu %10.5f %7.2f x %-7.2f\n", r.name.c_str(), r.targetPoints, rmsStart[s], r.extent.x(),
                   r.extent.y());
-      scanJson.push_back(Json{{"name", r.name},
-                              {"returns", r.returns},
-                              {"target_points", r.targetPoints},
-                              {"rms_start_m", rmsStart[s]},
-                              {"extent_m", Json{r.extent.x(), r.extent.y()}}});
+      scanJson.push_back(scanReportJson(r, rmsStart[s]));
     }
     doc["scans"] = scanJson;
     doc["conditioning_start"] = conditioningJson(result.startConditioning);
     for (const lc::LaserReport& l : result.lasers) {
-      lasers.push_back(Json{{"laser", l.laser},
-                            {"estimated", l.estimated},
-                            {"reason", l.reason},
-                            {"points", l.points},
-                            {"scans", l.scans},
-                            {"max_correlation", l.maxCorrelation},
-                            {"max_correlation_pair", l.maxCorrelationPair}});
+      lasers.push_back(laserReportJson(l));
     }
     doc["laser_reports"] = lasers;
     if (!jsonPath.empty() && !agv::report::writeJsonFile(jsonPath, doc, error)) {
@@ -492,12 +502,8 @@ int main(int argc, char** argv) {
     worstRatio = std::max(worstRatio, ratio);
     std::printf("%-22s %8zu %10.5f %10.5f %10.5f %8.4f\n", r.name.c_str(), r.targetPoints, r.rmsStart, r.rmsFinal,
                 floor[s], ratio);
-    Json sj{{"name", r.name},
-            {"returns", r.returns},
-            {"target_points", r.targetPoints},
-            {"rms_start_m", r.rmsStart},
-            {"rms_final_m", r.rmsFinal},
-            {"extent_m", Json{r.extent.x(), r.extent.y()}}};
+    Json sj = scanReportJson(r, r.rmsStart);
+    sj["rms_final_m"] = r.rmsFinal;
     if (simulated) {
       sj["rms_truth_m"] = floor[s];
     }
@@ -514,13 +520,7 @@ int main(int argc, char** argv) {
                 agv::rad2deg(l.sigma[agv::kTheta]) * 1e3, agv::rad2deg(l.estimate.alpha),
                 agv::rad2deg(e[agv::kAlpha]) * 1e3, agv::rad2deg(l.sigma[agv::kAlpha]) * 1e3, l.maxCorrelation,
                 l.estimated ? "" : "  held");
-    Json lj{{"laser", l.laser},
-            {"estimated", l.estimated},
-            {"reason", l.reason},
-            {"points", l.points},
-            {"scans", l.scans},
-            {"max_correlation", l.maxCorrelation},
-            {"max_correlation_pair", l.maxCorrelationPair}};
+    Json lj = laserReportJson(l);
     Json est;
     Json sig;
     Json err;
