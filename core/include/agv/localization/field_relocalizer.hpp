@@ -173,7 +173,7 @@ class FieldRelocalizer {
                             const LikelihoodFieldBase& field) const noexcept;
 
   enum class Stage : std::uint8_t { Idle, Coarse, Refine, Done };
-  /// Whether (x, y) is a candidate position; `d` its field distance.
+  /// Whether (x, y) is a candidate position (in the region, minClearance from every surface).
   bool candidatePosition(double x, double y) const noexcept;
   /// The field's stored distance at (x, y); false outside the field.
   bool cellDistance(double x, double y, double& d) const noexcept;
