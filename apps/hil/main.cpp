@@ -60,6 +60,7 @@ struct Options {
   bool dynamicSurfaceMap = ScenarioConfig{}.dynamicSurfaceMap;
   bool adaptiveBand = ScenarioConfig{}.adaptiveBand;
   bool mapChanges = ScenarioConfig{}.mapChanges;
+  bool surfaceFallback = ScenarioConfig{}.surfaceFallback;
   bool canSync = false;
   int missionRuns = ScenarioConfig{}.runsPerMission;
   bool missionRunsGiven = false;
@@ -99,6 +100,9 @@ bool parseCommandLine(int argc, char** argv, Options& o, int& exitCode) {
   app.add_flag("!--no-map-changes", o.mapChanges,
                "natural mode: match every sweep point against the mapping run's field, also those on surfaces it "
                "did not see");
+  app.add_flag("--surface-fallback", o.surfaceFallback,
+               "natural mode: where a sweep's match against the field is not fused, match it against a surface map "
+               "of the localized sweeps (measured option)");
   app.add_flag("--can-sync", o.canSync,
                "encoders send synchronous TPDOs on the vehicle's SYNC (every encoder period) instead of cyclic ones");
   app.add_option("--mission-runs", o.missionRuns,
@@ -159,6 +163,7 @@ ScenarioConfig scenarioConfig(const Options& o) {
   cfg.dynamicSurfaceMap = o.dynamicSurfaceMap;
   cfg.adaptiveBand = o.adaptiveBand;
   cfg.mapChanges = o.mapChanges;
+  cfg.surfaceFallback = o.surfaceFallback;
   cfg.jobs = o.jobs;
   if (o.canSync) {
     cfg.can.bus.syncPeriod = cfg.vehicle.encoderPeriod;

@@ -140,6 +140,7 @@ nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode m
   p.observations.collectScanPoints = mode == LocalizationMode::Mapping;
   p.observations.surfaceMap = mode == LocalizationMode::Dynamic && cfg.dynamicSurfaceMap;
   p.observations.mapChanges = mode == LocalizationMode::Natural && cfg.mapChanges;
+  p.observations.surfaceFallback = mode == LocalizationMode::Natural && cfg.surfaceFallback;
   l.scanMatch.adaptiveBand = cfg.adaptiveBand;
   // The vehicle is placed at the path start to within a few millimetres (startPositionStdDev).
   p.setPosePositionStdDev = 0.005;

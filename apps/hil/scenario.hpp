@@ -125,6 +125,9 @@ struct ScenarioConfig {
   /// Natural mode: the surfaces the mapping run did not see are kept and their points left out of
   /// the match (`ObservationParams::mapChanges`).
   bool mapChanges = true;
+  /// The natural mode keeps a surface map of its sweeps as the field's fallback off the map
+  /// (`ObservationParams::surfaceFallback`; a measured option, off by default).
+  bool surfaceFallback = false;
   /// Threads running the localizing runs of a mode side by side (0: the machine's cores, at most 8;
   /// mapping runs always run one after the other). Every run is seeded by its index and localizes
   /// on its own copy of the map, so the results do not depend on this.

@@ -115,6 +115,9 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_flag("--map-changes,!--no-map-changes", options.mapChanges,
                "with --map-fraction: keep the surfaces the mapping run did not see and leave the scan points on them "
                "out of the match");
+  app.add_flag("--surface-fallback,!--no-surface-fallback", options.surfaceFallback,
+               "with --map-fraction: where the field cannot judge a scan (off the map), match it against a surface map "
+               "of the localized scans, moving the estimate but not its covariance");
   app.add_flag("--adaptive-band", options.localizer.scanMatch.adaptiveBand,
                "scan matching: a final run in a band of 3 robust sigmas of the match's residuals");
   app.add_flag("!--no-field-relocalization", options.fieldRelocalization,

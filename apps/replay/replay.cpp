@@ -274,6 +274,14 @@ class ScanReplay {
           changeDetector_ = std::make_unique<MapChangeDetector>(options_.changes);
           r_.mapChanges = true;
         }
+        if (options_.surfaceFallback) {
+          fallback_ = std::make_unique<HallSurfaceMap>(options_.surface);
+          if (fallback_->params().validate() != Status::Ok) {
+            error = "invalid surface map parameters";
+            return false;
+          }
+          r_.surfaceFallback = true;
+        }
         r_.fieldWidth = static_cast<double>(field_->width()) * options_.field.resolution;
         r_.fieldHeight = static_cast<double>(field_->height()) * options_.field.resolution;
       }
@@ -298,7 +306,8 @@ class ScanReplay {
           "scan,keypoints,used,expected,unmatched,gate,inserted,deleted,flags,sigma_xy,sigma_theta,err_xy,err_theta,"
           "map,match,match_inliers,match_rms,match_d2,correction,heading_correction,match_err_xy,match_err_theta,"
           "window,hypothesis,hypothesis_checked,on_map,lost,true_x,true_y,true_theta,est_x,est_y,est_theta,reloc,"
-          "reloc_err_xy,reloc_err_theta,reloc_inliers,reloc_points,reloc_rms,reloc_truth_in_region,reloc_truth_fits\n",
+          "reloc_err_xy,reloc_err_theta,reloc_inliers,reloc_points,reloc_rms,reloc_truth_in_region,reloc_truth_fits,"
+          "fallback,fallback_inliers,fallback_rms,fallback_d2,fallback_window,fallback_err_xy,fallback_err_theta\n",
           trace_);
     }
     return true;
@@ -318,6 +327,15 @@ class ScanReplay {
     if (surface_ && mayExtendSurfaceMap(h)) {
       const SurfaceInsert in = surface_->insert(*surfacePoints_, h.scanPose.compose(lp_.laser.mounting));
       r_.surfaceAdded += in.added;
+    }
+    if (fallback_) {
+      r_.fallbackAttempts += h.fallbackMatch.attempted ? 1U : 0U;
+      r_.fallbackFused += h.fallbackMatch.fused ? 1U : 0U;
+      if (h.scanMatch.resynced) {
+        clearFallback();  // its surfaces were placed with the estimate the resync overruled
+      } else if (mayExtendFallbackMap(h)) {
+        r_.fallbackPieces += fallback_->insert(*fallbackPoints_, h.scanPose.compose(lp_.laser.mounting)).added;
+      }
     }
     if (changes_ && h.scanMatch.fused && !h.scanMatch.softGated && !h.scanMatch.resynced) {
       const Pose2d sensor = h.scanMatch.pose.compose(lp_.laser.mounting);
@@ -416,6 +434,7 @@ class ScanReplay {
           cov(0, 0) = cov(1, 1) = options_.relocConfirmDistance() * options_.relocConfirmDistance() / 4.0;
           cov(2, 2) = options_.relocConfirmAngle() * options_.relocConfirmAngle() / 4.0;
           if (localizer_->reset(stamp, candidate_, cov) == Status::Ok) {
+            clearFallback();
             ++r_.relocConfirmed;
             const Pose2d& t = log_.scans[i].robotPose;
             r_.relocWrong += isWrongRestart(candidate_, t) ? 1U : 0U;
@@ -473,9 +492,30 @@ class ScanReplay {
            std::fabs(normalizeAngle(pose.theta - truth.theta)) > deg2rad(5.0);
   }
 
+  /// Drops the fallback surface map (when there is one) at a restart of the filter.
+  void clearFallback() {
+    if (fallback_) {
+      fallback_->clear();
+      ++r_.fallbackClears;
+    }
+  }
+
   /// The localizer's correction of the current scan: against the mapping run's field, the surface
   /// map of the earlier scans (with the beams it takes: within its range), or the corners alone.
   const LocalizerHealth& correct() {
+    if (field_ && fallback_) {
+      fallback_->takenBeams(*scan_, *fallbackPoints_);
+      const MatchPoints* toMatch = allPoints_.get();
+      scanToMatchPoints(*scan_, *allPoints_);
+      if (changes_) {
+        std::size_t dropped = 0;
+        (void)changeDetector_->keepUnchanged(*allPoints_, localizer_->pose().compose(lp_.laser.mounting), *field_,
+                                             changes_->field(), *keptPoints_, dropped);
+        r_.changedPointsDropped += dropped;
+        toMatch = keptPoints_.get();
+      }
+      return localizer_->correct(*obs_, *scan_, *toMatch, *map_, *field_, *fallbackPoints_, fallback_->field());
+    }
     if (field_ && changes_) {
       // All valid beams, less those on the changes since the mapping run (seen from the prior).
       scanToMatchPoints(*scan_, *allPoints_);
@@ -579,11 +619,17 @@ class ScanReplay {
     // Appended columns (the ones above keep their order): whether the scan is on the map at its
     // true pose, the poses, and this scan's field relocalization (its best refined match).
     const FieldRelocResult& f = traceReloc_;
-    std::fprintf(trace_, ",%d,%d,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%s,%.4f,%.4f,%u,%u,%.4f,%d,%d\n",
+    std::fprintf(trace_, ",%d,%d,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%s,%.4f,%.4f,%u,%u,%.4f,%d,%d",
                  !r_.onMap.empty() && r_.onMap.back() ? 1 : 0, h.lost ? 1 : 0, t.x, t.y, t.theta, e.x, e.y, e.theta,
                  traceRelocLabel_, std::hypot(f.pose.x - t.x, f.pose.y - t.y), normalizeAngle(f.pose.theta - t.theta),
                  unsigned{f.inliers}, unsigned{f.points}, f.rmsResidual, traceTruthInRegion_ ? 1 : 0,
                  traceTruthFits_ ? 1 : 0);
+    // The fallback's match (`surfaceFallback`): "fused", the matcher's status, or "-".
+    const ScanMatchHealth& b = h.fallbackMatch;
+    std::fprintf(trace_, ",%s,%u,%.4f,%.2f,%.3f,%.4f,%.5f\n",
+                 b.fused ? "fused" : (b.attempted ? toString(b.status) : "-"), unsigned{b.inliers}, b.rmsResidual,
+                 b.mahalanobis2, b.window, std::hypot(b.pose.x - t.x, b.pose.y - t.y),
+                 normalizeAngle(b.pose.theta - t.theta));
     traceRelocLabel_ = "-";
     traceTruthInRegion_ = false;
     traceTruthFits_ = false;
@@ -600,6 +646,8 @@ class ScanReplay {
   std::unique_ptr<FalkoDetector> detector_;
   std::unique_ptr<LikelihoodField<kReplayFieldCells>> field_;
   std::unique_ptr<HallSurfaceMap> surface_;
+  std::unique_ptr<HallSurfaceMap> fallback_;  // with surfaceFallback: the field's fallback
+  std::unique_ptr<MatchPoints> fallbackPoints_ = std::make_unique<MatchPoints>();
   std::unique_ptr<MatchPoints> surfacePoints_ = std::make_unique<MatchPoints>();  // beams within its range
   std::size_t start_ = 0;
   std::unique_ptr<LaserScan> scan_ = std::make_unique<LaserScan>();
@@ -787,6 +835,10 @@ std::string resultText(const ReplayResult& r) {
       << r.relocFound << " found, " << r.relocAmbiguous << " ambiguous, " << r.relocWeak << " weak; "
       << r.relocConfirmed << " confirmed restarts (" << r.relocWrong << " wrong), " << r.relocUnconfirmed
       << " unconfirmed\n";
+    if (r.surfaceFallback) {
+      o << "surface fallback (off the map): " << r.fallbackAttempts << " matches, " << r.fallbackFused << " fused, "
+        << r.fallbackPieces << " surface pieces, " << r.fallbackClears << " clears at restarts\n";
+    }
   }
   if (r.surfaceMap) {
     o << "surface map (the earlier scans' surfaces): " << r.surfaceAdded
@@ -837,7 +889,13 @@ report::Json resultJson(const ReplayResult& r) {
                 {"resyncs", r.matchResyncs},
                 {"resync_wrong", r.resyncWrong},
                 {"map_changes",
-                 {{"enabled", r.mapChanges}, {"pieces", r.changePieces}, {"points_dropped", r.changedPointsDropped}}}}},
+                 {{"enabled", r.mapChanges}, {"pieces", r.changePieces}, {"points_dropped", r.changedPointsDropped}}},
+                {"surface_fallback",
+                 {{"enabled", r.surfaceFallback},
+                  {"attempts", r.fallbackAttempts},
+                  {"fused", r.fallbackFused},
+                  {"pieces", r.fallbackPieces},
+                  {"clears", r.fallbackClears}}}}},
               {"field_relocalization",
                {{"searches", r.relocSearches},
                 {"found", r.relocFound},

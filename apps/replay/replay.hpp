@@ -110,6 +110,11 @@ struct ReplayOptions {
   /// match, as the vehicle's pipeline does (`ObservationParams::mapChanges`).
   bool mapChanges = false;
   MapChangeParams changes{};
+  /// Runs on a mapping run's field: a `SurfaceMap` of the localized scans (with `surface`'s
+  /// parameters) as the field's fallback, matched when the field cannot judge a scan (off the
+  /// map), moving the estimate but not shrinking its covariance (`Localizer::correct` with a
+  /// fallback). Cleared at every restart (relocalization, re-synchronisation).
+  bool surfaceFallback = false;
   /// When not empty, one CSV line per scan (health and errors) is written here.
   std::string tracePath;
 };
@@ -165,6 +170,11 @@ struct ReplayResult {
   bool mapChanges = false;               ///< the changes since the mapping run were kept (`mapChanges`)
   std::size_t changePieces = 0;          ///< surface pieces the change map took
   std::size_t changedPointsDropped = 0;  ///< scan points left out of the matches as lying on changes
+  bool surfaceFallback = false;          ///< the field's fallback surface map ran (`surfaceFallback`)
+  std::size_t fallbackAttempts = 0;      ///< scans the field could not judge, matched against it
+  std::size_t fallbackFused = 0;         ///< of which moved the estimate
+  std::size_t fallbackPieces = 0;        ///< surface pieces it took
+  std::size_t fallbackClears = 0;        ///< times it was dropped at a restart
   std::size_t matchResyncs = 0;          ///< resets of the filter to a confirmed hypothesis (`resyncAfter`)
   std::size_t resyncWrong = 0;           ///< of which more than 0.3 m / 5 deg from the corrected pose
   std::size_t lostCycles = 0;            ///< cycles whose health said lost

@@ -357,3 +357,203 @@ TEST_CASE("surface map: the steady-state insert and the match against it allocat
   AGV_CHECK_NO_ALLOCATIONS((void)run.surface->insert(*run.scan, run.truth.compose(Pose2d{15.0, 0.0, 0.0})));
   CHECK(run.surface->recentres() == 2U);
 }
+
+TEST_CASE("surface map as the field's fallback: which cycles may write their scan", "[localization][surface]") {
+  LocalizerHealth h;
+  h.status = Status::Ok;
+  CHECK_FALSE(mayExtendFallbackMap(h));  // no field match: not a run on a mapping run's field
+  h.scanMatch.attempted = true;
+  h.scanMatch.status = Status::Ok;
+  h.scanMatch.fused = true;  // placed by the map
+  CHECK(mayExtendFallbackMap(h));
+  h.scanMatch.fused = false;
+  h.scanMatch.status = Status::NotEnoughData;  // off the map, the fallback still empty
+  CHECK(mayExtendFallbackMap(h));
+  h.scanMatch.status = Status::Rejected;  // the map's match disagrees, nothing else to go by
+  CHECK_FALSE(mayExtendFallbackMap(h));
+  h.fallbackMatch.attempted = true;
+  h.fallbackMatch.fused = true;
+  h.fallbackMatch.status = Status::Ok;
+  CHECK(mayExtendFallbackMap(h));
+  h.fallbackMatch.fused = false;
+  h.fallbackMatch.status = Status::NotEnoughData;  // new ground for the fallback too
+  CHECK(mayExtendFallbackMap(h));
+  for (const Status refused :
+       {Status::Rejected, Status::IllConditioned, Status::OutOfRange, Status::NotConverged, Status::Unobservable}) {
+    h.fallbackMatch.status = refused;
+    CHECK_FALSE(mayExtendFallbackMap(h));
+  }
+  h.fallbackMatch.status = Status::Ok;
+  h.fallbackMatch.fused = true;
+  h.lost = true;
+  CHECK_FALSE(mayExtendFallbackMap(h));
+  h.lost = false;
+  h.status = Status::Rejected;
+  CHECK_FALSE(mayExtendFallbackMap(h));
+}
+
+namespace {
+
+/// The localizer on a mapping run's field (the hall) with a surface map of its own scans as the
+/// fallback, driving a copy of the hall 100 m away: a room the mapping run never saw.
+struct FallbackRun {
+  std::unique_ptr<HallField> field = std::make_unique<HallField>();
+  std::unique_ptr<TestSurfaceMap> surface = std::make_unique<TestSurfaceMap>();
+  std::vector<Segment> world;
+  LocalizerParams params;
+  std::unique_ptr<Localizer> loc;
+  std::unique_ptr<LandmarkMap> map;
+  std::unique_ptr<ScanObservations> obs = std::make_unique<ScanObservations>();
+  std::unique_ptr<LaserScan> scan = std::make_unique<LaserScan>();
+  std::unique_ptr<MatchPoints> points = std::make_unique<MatchPoints>();
+  std::unique_ptr<MatchPoints> fallbackPoints = std::make_unique<MatchPoints>();
+  bool useFallback = true;
+  Pose2d truth;
+  Pose2d deadReckoning;
+  Timestamp t = Timestamp::fromSeconds(1.0);
+  std::mt19937_64 rng{35};
+
+  explicit FallbackRun(double offsetX) : truth{offsetX + 2.0, 2.0, 0.0}, deadReckoning(truth) {
+    const std::vector<Segment> segs = hall();
+    buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+    for (const Segment& s : segs) {
+      world.push_back(Segment{s.a + Eigen::Vector2d(offsetX, 0.0), s.b + Eigen::Vector2d(offsetX, 0.0)});
+    }
+    params.laser.mounting = Pose2d{0.6, 0.0, 0.0};
+    loc = std::make_unique<Localizer>(params);
+    LandmarkMapParams mp;
+    mp.mode = MapMode::Static;
+    map = std::make_unique<LandmarkMap>(mp);
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0.diagonal() << 1e-6, 1e-6, 1e-8;
+    REQUIRE(loc->reset(t, truth, P0) == Status::Ok);
+  }
+
+  /// Drives `delta` reporting `reported`, one scan (1 cm range noise): correct against the field
+  /// (and the fallback once it has surfaces), then the fallback's insert policy.
+  const LocalizerHealth& step(const Pose2d& delta, const Pose2d& reported) {
+    t = t + Duration::fromMilliseconds(100);
+    OdometryIncrement inc;
+    inc.stamp = t;
+    inc.delta = reported;
+    inc.covariance = Eigen::Matrix3d::Identity() * 1e-5;
+    REQUIRE(loc->predict(inc) == Status::Ok);
+    truth = truth.compose(delta);
+    deadReckoning = deadReckoning.compose(reported);
+    castScan(world, truth.compose(params.laser.mounting), 0.01, rng, *scan);
+    scan->stamp = t;
+    obs->stamp = t;
+    scanToMatchPoints(*scan, *points);
+    surface->takenBeams(*scan, *fallbackPoints);
+    const LocalizerHealth& h = useFallback && surface->field().built()
+                                   ? loc->correct(*obs, *scan, *points, *map, *field, *fallbackPoints, surface->field())
+                                   : loc->correct(*obs, *scan, *points, *map, *field);
+    if (useFallback && mayExtendFallbackMap(h)) {
+      REQUIRE(surface->insert(*fallbackPoints, h.scanPose.compose(params.laser.mounting)).status == Status::Ok);
+    }
+    return h;
+  }
+};
+
+}  // namespace
+
+TEST_CASE(
+    "surface map as the field's fallback: off the map the estimate follows the surfaces, the covariance "
+    "dead reckoning's",
+    "[localization][surface][localizer]") {
+  const auto drive = [](bool useFallback, double& worst, double& worstHeading, int& fallbackFused, double& sigma,
+                        double& drError) {
+    FallbackRun run(100.0);
+    run.useFallback = useFallback;
+    worst = 0.0;
+    worstHeading = 0.0;
+    fallbackFused = 0;
+    for (int c = 0; c < 60; ++c) {
+      // The odometry reports 3 % less distance and 2 % less turn (as the map-less test above).
+      const LocalizerHealth& h = run.step(Pose2d{0.1, 0.0, 0.01}, Pose2d{0.097, 0.0, 0.0098});
+      REQUIRE(h.scanMatch.attempted);
+      CHECK_FALSE(h.scanMatch.fused);  // off the map: the field cannot place a single scan
+      CHECK(h.scanMatch.status == Status::NotEnoughData);
+      CHECK(h.fallbackMatch.attempted == (useFallback && c > 0));
+      CHECK(hasFlag(h.flags, LocalizerFlag::FallbackMatchFused) == h.fallbackMatch.fused);
+      fallbackFused += h.fallbackMatch.fused ? 1 : 0;
+      worst = std::max(worst, std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y));
+      worstHeading = std::max(worstHeading, std::fabs(normalizeAngle(run.loc->pose().theta - run.truth.theta)));
+    }
+    sigma = run.loc->health().positionSigma;
+    drError = std::hypot(run.deadReckoning.x - run.truth.x, run.deadReckoning.y - run.truth.y);
+  };
+  double worst = 0.0;
+  double worstHeading = 0.0;
+  int fused = 0;
+  double sigma = 0.0;
+  double drError = 0.0;
+  drive(true, worst, worstHeading, fused, sigma, drError);
+  CHECK(fused >= 58);
+  CHECK(drError > 0.15);
+  CHECK(worst < 0.02);
+  CHECK(worstHeading < 0.1 * kPiD / 180.0);
+  double worstWithout = 0.0;
+  double headingWithout = 0.0;
+  int fusedWithout = 0;
+  double sigmaWithout = 0.0;
+  double drWithout = 0.0;
+  drive(false, worstWithout, headingWithout, fusedWithout, sigmaWithout, drWithout);
+  CHECK(fusedWithout == 0);
+  CHECK(worstWithout > 0.15);  // dead reckoning, without the fallback
+  // The fallback moved the mean only: the covariance is dead reckoning's (to the prediction's
+  // Jacobian, taken at each run's own mean: 0.04 % apart here), not a fused match's millimetres.
+  CHECK(sigma == Approx(sigmaWithout).epsilon(2e-3));
+  CHECK(sigma > 0.02);
+}
+
+TEST_CASE("surface map as the field's fallback: no authority over the odometry, and unused on the map",
+          "[localization][surface][localizer]") {
+  FallbackRun off(100.0);
+  for (int c = 0; c < 5; ++c) {
+    REQUIRE(off.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0}).fallbackMatch.attempted == (c > 0));
+  }
+  // A 0.25 m sideways slip the odometry never reports: inside the fallback's search window (the
+  // recovery window, 0.3 m), far outside the gate of the odometry's 3 mm per cycle. The match
+  // finds it and is refused: the estimate stays where the odometry put it.
+  const Pose2d before = off.loc->pose();
+  const LocalizerHealth& h = off.step(Pose2d{0.0, 0.25, 0.0}, Pose2d{0.0, 0.0, 0.0});
+  REQUIRE(h.fallbackMatch.attempted);
+  CHECK(h.fallbackMatch.status == Status::Rejected);
+  CHECK(h.fallbackMatch.mahalanobis2 > off.params.scanMatchGate);
+  CHECK_FALSE(h.fallbackMatch.fused);
+  CHECK(std::hypot(h.fallbackMatch.pose.y - before.y - 0.25, h.fallbackMatch.pose.x - before.x) < 0.02);
+  CHECK(std::hypot(off.loc->pose().x - before.x, off.loc->pose().y - before.y) < 1e-9);
+  CHECK_FALSE(mayExtendFallbackMap(h));
+
+  // On the map the field's fused match is the fix; the fallback is not asked.
+  FallbackRun on(0.0);
+  for (int c = 0; c < 10; ++c) {
+    const LocalizerHealth& g = on.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0});
+    CHECK(g.scanMatch.fused);
+    CHECK_FALSE(g.fallbackMatch.attempted);
+  }
+  CHECK(on.surface->size() > 500U);  // it still keeps the surfaces, for when the vehicle leaves the map
+}
+
+TEST_CASE("surface map as the field's fallback: the steady-state correction allocates nothing",
+          "[localization][surface][alloc]") {
+  FallbackRun run(100.0);
+  for (int c = 0; c < 3; ++c) {
+    (void)run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0});
+  }
+  const Pose2d d{0.1, 0.0, 0.01};
+  for (int c = 0; c < 3; ++c) {
+    run.truth = run.truth.compose(d);
+    castScan(run.world, run.truth.compose(run.params.laser.mounting), 0.01, run.rng, *run.scan);
+    OdometryIncrement inc;
+    inc.delta = d;
+    inc.covariance = Eigen::Matrix3d::Identity() * 1e-5;
+    AGV_CHECK_NO_ALLOCATIONS(
+        run.t = run.t + Duration::fromMilliseconds(100); inc.stamp = run.t; (void)run.loc->predict(inc);
+        run.scan->stamp = run.t; run.obs->stamp = run.t; scanToMatchPoints(*run.scan, *run.points);
+        run.surface->takenBeams(*run.scan, *run.fallbackPoints); (void)run.loc->correct(
+            *run.obs, *run.scan, *run.points, *run.map, *run.field, *run.fallbackPoints, run.surface->field()));
+    CHECK(run.loc->health().fallbackMatch.fused);
+  }
+}

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "agv/localization/beam_lookup.hpp"
+#include "agv/localization/surface_map.hpp"
 
 namespace agv {
 
@@ -50,6 +51,7 @@ Status Localizer::reset(Timestamp stamp, const Pose2d& pose, const Eigen::Matrix
   e.cov = ekf_.covariance();
   e.odo = odo_;
   e.odoCov = odoCov_;
+  fixOdoCov_ = odoCov_;
   history_.clear();
   (void)history_.push(e);
   initialized_ = true;
@@ -367,23 +369,30 @@ void Localizer::finishHealth() noexcept {
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, LandmarkMap& map) noexcept {
-  return correctWith(scan, nullptr, map, nullptr, nullptr);
+  return correctWith(scan, nullptr, map, nullptr, nullptr, Fallback{});
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams,
                                           LandmarkMap& map) noexcept {
-  return correctWith(scan, &beams, map, nullptr, nullptr);
+  return correctWith(scan, &beams, map, nullptr, nullptr, Fallback{});
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams, LandmarkMap& map,
                                           const LikelihoodFieldBase& field) noexcept {
-  return correctWith(scan, &beams, map, &field, nullptr);
+  return correctWith(scan, &beams, map, &field, nullptr, Fallback{});
 }
 
 const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams,
                                           const MatchPoints& points, LandmarkMap& map,
                                           const LikelihoodFieldBase& field) noexcept {
-  return correctWith(scan, &beams, map, &field, &points);
+  return correctWith(scan, &beams, map, &field, &points, Fallback{});
+}
+
+const LocalizerHealth& Localizer::correct(const ScanObservations& scan, const LaserScan& beams,
+                                          const MatchPoints& points, LandmarkMap& map, const LikelihoodFieldBase& field,
+                                          const MatchPoints& fallbackPoints,
+                                          const LikelihoodFieldBase& fallback) noexcept {
+  return correctWith(scan, &beams, map, &field, &points, Fallback{&fallback, &fallbackPoints});
 }
 
 void Localizer::odometryAt(const Rewind& at, Pose2d& odo, Eigen::Matrix3d& odoCov) const noexcept {
@@ -540,8 +549,59 @@ void Localizer::resync(const ScanMatchResult& m, const Pose2d& before, const Rew
   }
 }
 
+void Localizer::matchFallback(const Rewind& at, const Fallback& fallback) noexcept {
+  ScanMatchHealth& h = health_.fallbackMatch;
+  h.attempted = true;
+  Pose2d odo;
+  Eigen::Matrix3d odoCov;
+  odometryAt(at, odo, odoCov);
+  // The fallback's surfaces were placed with the estimates up to the last fix: relative to them
+  // the prior is as uncertain as the odometry since.
+  Eigen::Matrix3d relative = odoCov - fixOdoCov_;
+  relative = (0.5 * (relative + relative.transpose())).eval();
+  for (int i = 0; i < 3; ++i) {
+    relative(i, i) = relative(i, i) > 0.0 ? relative(i, i) : 0.0;  // rounding of the two sums
+  }
+  const ScanMatchParams sp = surfaceMapMatching(params_.scanMatch);
+  matcher_.setParams(sp);
+  SearchWindow window = matcher_.searchWindow(relative);
+  // The odometry's model does not cover its worst steps (a slip in a turn): search at least the
+  // recovery window, the gate below still weighs the match against the odometry.
+  window.x = window.x > sp.recoveryTranslation ? window.x : sp.recoveryTranslation;
+  window.y = window.y > sp.recoveryTranslation ? window.y : sp.recoveryTranslation;
+  window.theta = window.theta > sp.recoveryRotation ? window.theta : sp.recoveryRotation;
+  h.window = window.x > window.y ? window.x : window.y;
+  const Pose2d before = ekf_.pose();
+  const ScanMatchResult m = matcher_.match(*fallback.points, params_.laser.mounting, before, window, *fallback.field);
+  h.status = m.status;
+  h.pose = m.pose;
+  h.points = m.points;
+  h.inliers = m.inliers;
+  h.rmsResidual = m.rmsResidual;
+  if (m.status != Status::Ok) {
+    return;
+  }
+  // A filter of the relative uncertainty alone moves the mean; the covariance stays the prior's.
+  PoseEkf rel(params_.ekf);
+  if (rel.reset(before, relative) != Status::Ok) {
+    h.status = Status::IllConditioned;
+    return;
+  }
+  h.mahalanobis2 = rel.poseMahalanobis2(m.pose, m.covariance);
+  const Status u = rel.updatePose(m.pose, m.covariance, params_.scanMatchGate);
+  if (u != Status::Ok || ekf_.reset(rel.pose(), ekf_.covariance()) != Status::Ok) {
+    h.status = u != Status::Ok ? u : Status::IllConditioned;
+    return;
+  }
+  h.fused = true;
+  h.correction = std::hypot(ekf_.pose().x - before.x, ekf_.pose().y - before.y);
+  fixOdoCov_ = odoCov;
+  health_.flags |= bit(LocalizerFlag::FallbackMatchFused);
+}
+
 const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map,
-                                              const LikelihoodFieldBase* field, const MatchPoints* points) noexcept {
+                                              const LikelihoodFieldBase* field, const MatchPoints* points,
+                                              Fallback fallback) noexcept {
   ++cycle_;
   health_ = LocalizerHealth{};
   health_.cycle = cycle_;
@@ -567,6 +627,13 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   // The scan match first: it moves the prior the landmarks are associated against.
   if (field != nullptr && beams != nullptr) {
     matchScan(at, *beams, points, *field);
+    if (health_.scanMatch.fused) {
+      Pose2d odo;
+      odometryAt(at, odo, fixOdoCov_);
+    } else if (fallback.field != nullptr && fallback.points != nullptr && fallback.field->built() &&
+               !health_.scanMatch.resynced) {
+      matchFallback(at, fallback);
+    }
   }
   // Association against the prior at the scan time, and what the check expects to see.
   associate(scan, map);

@@ -28,6 +28,20 @@ bool mayExtendSurfaceMap(const LocalizerHealth& health) noexcept {
   return !m.attempted || m.fused || m.status == Status::NotEnoughData;
 }
 
+bool mayExtendFallbackMap(const LocalizerHealth& health) noexcept {
+  if (health.status != Status::Ok || health.lost) {
+    return false;
+  }
+  if (health.scanMatch.fused) {
+    return true;
+  }
+  const ScanMatchHealth& f = health.fallbackMatch;
+  if (f.attempted) {
+    return f.fused || f.status == Status::NotEnoughData;
+  }
+  return health.scanMatch.attempted && health.scanMatch.status == Status::NotEnoughData;
+}
+
 ScanMatchParams surfaceMapMatching(const ScanMatchParams& base) noexcept {
   ScanMatchParams p = base;
   p.resyncAfter = 0;

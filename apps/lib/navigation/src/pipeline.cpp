@@ -24,9 +24,11 @@ LocalizerParams localizerParams(const PipelineParams& p) noexcept {
 }  // namespace
 
 Status PipelineParams::validate() const noexcept {
-  for (const Status s : {kinematics.validate(), odometryNoise.validate(), localizer.validate(), agv::validate(falko),
-                         observations.surfaceMap || observations.mapChanges ? surface.validate() : Status::Ok,
-                         observations.mapChanges ? changes.validate() : Status::Ok}) {
+  for (const Status s :
+       {kinematics.validate(), odometryNoise.validate(), localizer.validate(), agv::validate(falko),
+        observations.surfaceMap || observations.mapChanges || observations.surfaceFallback ? surface.validate()
+                                                                                           : Status::Ok,
+        observations.mapChanges ? changes.validate() : Status::Ok}) {
     if (s != Status::Ok) {
       return s;
     }
@@ -90,8 +92,9 @@ struct Pipeline::Impl {
     search.laserMount = p.localizer.laser.mounting;
     globalLocalizer = std::make_unique<GlobalLocalizer>(search);
     confirmer = std::make_unique<RelocConfirmer>(p.relocalization.confirm);
-    if (p.observations.surfaceMap) {
+    if (p.observations.surfaceMap || p.observations.surfaceFallback) {
       surface = std::make_unique<HallSurfaceMap>(p.surface);
+      fallbackPoints = std::make_unique<MatchPoints>();
     }
     if (p.observations.mapChanges) {
       changes = std::make_unique<HallSurfaceMap>(changeMapParams(p.surface, p.changes));
@@ -167,7 +170,8 @@ struct Pipeline::Impl {
   std::unique_ptr<FixedVector<Pose2d::Vector2, kMaxCorners>> corners;
   const LikelihoodFieldBase* field = nullptr;
   std::unique_ptr<MatchPoints> matchPoints = std::make_unique<MatchPoints>();
-  std::unique_ptr<HallSurfaceMap> surface;  // with observations.surfaceMap
+  std::unique_ptr<HallSurfaceMap> surface;      // with observations.surfaceMap or surfaceFallback
+  std::unique_ptr<MatchPoints> fallbackPoints;  // the sweep's points within the surface map's range
   /// With observations.mapChanges: the surfaces the mapping run did not see, placed by the fused
   /// matches (kept across set-poses: they are in the field's frame, not the filter's), and the
   /// scratch of the sweep's points on them and of those left to match.
@@ -348,11 +352,32 @@ void Pipeline::Impl::readSweep() noexcept {
         toMatch = unchangedPoints.get();
       }
     }
-    const LocalizerHealth& h = against != nullptr
-                                   ? localizer->correct(*observations, meas.scan, *toMatch, map, *against)
-                                   : localizer->correct(*observations, meas.scan, map);
+    // With a field, the surface map (when kept) is its fallback, with the beams it takes.
+    const bool fallback = field != nullptr && surface && params.observations.surfaceFallback;
+    if (fallback) {
+      fallbackPoints->clear();
+      for (const MatchPoint& p : points) {
+        if (std::hypot(static_cast<double>(p.x), static_cast<double>(p.y)) <= params.surface.maxRange) {
+          (void)fallbackPoints->push_back(p);
+        }
+      }
+    }
+    const LocalizerHealth& h =
+        against == nullptr ? localizer->correct(*observations, meas.scan, map)
+        : fallback && surface->field().built()
+            ? localizer->correct(*observations, meas.scan, *toMatch, map, *against, *fallbackPoints, surface->field())
+            : localizer->correct(*observations, meas.scan, *toMatch, map, *against);
     if (surfaceMatching && mayExtendSurfaceMap(h)) {
       (void)surface->insert(*matchPoints, h.scanPose.compose(params.localizer.laser.mounting));
+    }
+    if (fallback) {
+      report.fallbackMatched = h.fallbackMatch.attempted;
+      report.fallbackFused = h.fallbackMatch.fused;
+      if (h.scanMatch.resynced) {
+        clearSurfaces();  // placed with the estimate the re-synchronisation overruled
+      } else if (mayExtendFallbackMap(h)) {
+        (void)surface->insert(*fallbackPoints, h.scanPose.compose(params.localizer.laser.mounting));
+      }
     }
     if (trackChanges && h.scanMatch.fused && !h.scanMatch.softGated && !h.scanMatch.resynced) {
       // Placed by the match itself: in the field's frame, whatever the filter's prior said.

@@ -227,6 +227,9 @@ enum class LocalizerFlag : std::uint32_t {
   ScanMatchRejected = 1U << 17,    ///< a likelihood field was given and its match not fused (see `ScanMatchHealth`)
   ScanMatchResync = 1U << 18,      ///< consistent refused matches reset the pose to the map (`resyncAfter`)
   SupportRejected = 1U << 19,      ///< uncertain prior, too few observations to correct: held back (`minSupport`)
+  /// The field could not judge the scan (off the map) and the fallback field's match moved the
+  /// estimate (`LocalizerHealth::fallbackMatch`); the covariance was left as dead reckoning made it.
+  FallbackMatchFused = 1U << 20,
 };
 
 /// True when `flag` is set in `flags`.
@@ -315,6 +318,11 @@ struct LocalizerHealth {
   /// Per observation kind, indexed by `LandmarkKind`.
   SourceHealth sources[kLandmarkKindCount] = {};
   ScanMatchHealth scanMatch{};
+  /// The match against the fallback field (`correct` with a fallback): attempted when the
+  /// likelihood field's match was not fused (nor resynced) and the fallback field is built.
+  /// `fused`: it moved the estimate; `mahalanobis2` is against the odometry since the last fix,
+  /// not against the filter.
+  ScanMatchHealth fallbackMatch{};
 };
 
 class Localizer {
@@ -357,6 +365,23 @@ class Localizer {
   /// `scan.stamp`; `beams` still serve the occlusion test): for a scan taken while moving.
   const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, const MatchPoints& points,
                                  LandmarkMap& map, const LikelihoodFieldBase& field) noexcept;
+
+  /// The same, with a fallback for the scans whose match against the mapping run's field is not
+  /// fused (off the map: rooms it never saw, a lane end): `fallbackPoints` (laser frame at
+  /// `scan.stamp`, e.g. the beams within a `SurfaceMap`'s range) are matched against `fallback`, a
+  /// field of the localizer's own recent surfaces placed with its estimates (a `SurfaceMap`), with
+  /// `surfaceMapMatching(params().scanMatch)`. The fallback has no authority over the map's frame:
+  /// its prior uncertainty is the odometry's since the last fused match of either field (the
+  /// search covers at least the recovery window, `recoveryTranslation` / `recoveryRotation`: the
+  /// odometry's worst steps exceed its model), a match outside `scanMatchGate` against that
+  /// uncertainty is refused (no soft gate, no re-synchronisation), and a match inside it moves only
+  /// the estimate: the covariance keeps growing as dead reckoning makes it, so the covariance
+  /// limits and the lost logic see the vehicle off the map as it is. What it gains is a mean that
+  /// follows the surfaces instead of the odometry's drift, so that the map's field finds the
+  /// vehicle again inside its tracking window on re-entry.
+  const LocalizerHealth& correct(const ScanObservations& scan, const LaserScan& beams, const MatchPoints& points,
+                                 LandmarkMap& map, const LikelihoodFieldBase& field, const MatchPoints& fallbackPoints,
+                                 const LikelihoodFieldBase& fallback) noexcept;
 
   /// Newest pose estimate (at `stamp()`), its covariance and time.
   const Pose2d& pose() const noexcept { return ekf_.pose(); }
@@ -417,8 +442,17 @@ class Localizer {
     double detections = 0.0;
   };
   // Stages of one correction (correctWith), in order.
+  /// The fallback field of a correction and the points matched against it.
+  struct Fallback {
+    const LikelihoodFieldBase* field = nullptr;
+    const MatchPoints* points = nullptr;
+  };
   const LocalizerHealth& correctWith(const ScanObservations& scan, const LaserScan* beams, LandmarkMap& map,
-                                     const LikelihoodFieldBase* field, const MatchPoints* points) noexcept;
+                                     const LikelihoodFieldBase* field, const MatchPoints* points,
+                                     Fallback fallback) noexcept;
+  /// The fallback's match (see the `correct` overload with a fallback), after the field's match
+  /// left the scan unjudged; health_.fallbackMatch.
+  void matchFallback(const Rewind& at, const Fallback& fallback) noexcept;
   /// Scan-to-map match at the rewound prior (of `points` when given, else of `beams`), fused when
   /// it passes (health_.scanMatch).
   void matchScan(const Rewind& at, const LaserScan& beams, const MatchPoints* points,
@@ -479,6 +513,9 @@ class Localizer {
   PoseEkf hyp_{};
   Pose2d hypOdo_{};
   Eigen::Matrix3d hypOdoCov_ = Eigen::Matrix3d::Zero();
+  /// The summed odometry covariance at the last scan a match (either field) fixed, or at reset:
+  /// the fallback's uncertainty is what the odometry added since.
+  Eigen::Matrix3d fixOdoCov_ = Eigen::Matrix3d::Zero();
   LocalizerHealth health_{};
 };
 

@@ -158,6 +158,14 @@ class SurfaceMapBase {
 /// worse.
 bool mayExtendSurfaceMap(const LocalizerHealth& health) noexcept;
 
+/// The same for a surface map kept as the fallback of a mapping run's field (`Localizer::correct`
+/// with a fallback): a cycle not refused and not lost whose field match was fused (the scan placed
+/// by the map), or whose fallback match was fused or saw too little of the surface map to judge
+/// (new ground off the map), or, with no fallback match (the surface map still empty), whose field
+/// match found too little of the map to judge. A match refused (gate, fit, convergence) keeps it
+/// out.
+bool mayExtendFallbackMap(const LocalizerHealth& health) noexcept;
+
 /// The localizer's scan-matching settings for matching against a surface map: `base` with the
 /// re-synchronisation and the widened recovery search off (`resyncAfter`, `widenAfter` = 0). Both
 /// let a match overrule the filter's prior, which is right against a surveyed map when the

@@ -77,6 +77,14 @@ struct ObservationParams {
   /// `PipelineParams::surface`) and leave the sweep points that lie on them out of the match. A
   /// pallet moved since the mapping run then no longer pulls the pose towards where it stood.
   bool mapChanges = false;
+  /// With a likelihood field: keep a surface map of the localized sweeps (`PipelineParams::surface`,
+  /// written per `mayExtendFallbackMap`) and match a sweep against it when its match against the
+  /// field is not fused (off the map: a lane the mapping run never drove, a hall extended since):
+  /// the estimate follows those surfaces instead of the odometry's drift, the covariance keeps
+  /// growing as dead reckoning's (`Localizer::correct` with a fallback). Dropped at every set-pose,
+  /// relocalization and re-synchronisation. Off by default: measured on the real logs only
+  /// (docs/localization.md, "Off the map: the surface map as the field's fallback").
+  bool surfaceFallback = false;
 };
 
 /// The pipeline's search: the core defaults with `refutedMargin` 1. The pipeline searches every
@@ -199,6 +207,10 @@ struct CycleReport {
   /// Sweep points left out of this cycle's match as lying on surfaces changed since the mapping
   /// run (`ObservationParams::mapChanges`).
   std::uint32_t changedPointsDropped = 0;
+  /// With `ObservationParams::surfaceFallback`: the sweep was matched against the fallback surface
+  /// map (its field match was not fused), and that match moved the estimate.
+  bool fallbackMatched = false;
+  bool fallbackFused = false;
 };
 
 /// Receives one line per noteworthy event (device state changes, refused commands, lifecycle
