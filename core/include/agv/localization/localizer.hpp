@@ -227,8 +227,8 @@ enum class LocalizerFlag : std::uint32_t {
   ScanMatchRejected = 1U << 17,    ///< a likelihood field was given and its match not fused (see `ScanMatchHealth`)
   ScanMatchResync = 1U << 18,      ///< consistent refused matches reset the pose to the map (`resyncAfter`)
   SupportRejected = 1U << 19,      ///< uncertain prior, too few observations to correct: held back (`minSupport`)
-  /// The field could not judge the scan (off the map) and the fallback field's match moved the
-  /// estimate (`LocalizerHealth::fallbackMatch`); the covariance was left as dead reckoning made it.
+  /// The field's match was not fused (off the map, typically) and the fallback field's match moved
+  /// the estimate (`LocalizerHealth::fallbackMatch`); the covariance was left as dead reckoning made it.
   FallbackMatchFused = 1U << 20,
 };
 
@@ -451,7 +451,7 @@ class Localizer {
                                      const LikelihoodFieldBase* field, const MatchPoints* points,
                                      Fallback fallback) noexcept;
   /// The fallback's match (see the `correct` overload with a fallback), after the field's match
-  /// left the scan unjudged; health_.fallbackMatch.
+  /// was not fused; health_.fallbackMatch.
   void matchFallback(const Rewind& at, const Fallback& fallback) noexcept;
   /// Scan-to-map match at the rewound prior (of `points` when given, else of `beams`), fused when
   /// it passes (health_.scanMatch).
