@@ -503,10 +503,10 @@ class ScanReplay {
   /// The localizer's correction of the current scan: against the mapping run's field, the surface
   /// map of the earlier scans (with the beams it takes: within its range), or the corners alone.
   const LocalizerHealth& correct() {
-    if (field_ && fallback_) {
-      fallback_->takenBeams(*scan_, *fallbackPoints_);
-      const MatchPoints* toMatch = allPoints_.get();
+    if (field_ && (changes_ || fallback_)) {
+      // All valid beams, less those on the changes since the mapping run (seen from the prior).
       scanToMatchPoints(*scan_, *allPoints_);
+      const MatchPoints* toMatch = allPoints_.get();
       if (changes_) {
         std::size_t dropped = 0;
         (void)changeDetector_->keepUnchanged(*allPoints_, localizer_->pose().compose(lp_.laser.mounting), *field_,
@@ -514,16 +514,11 @@ class ScanReplay {
         r_.changedPointsDropped += dropped;
         toMatch = keptPoints_.get();
       }
+      if (!fallback_) {
+        return localizer_->correct(*obs_, *scan_, *toMatch, *map_, *field_);
+      }
+      fallback_->takenBeams(*scan_, *fallbackPoints_);
       return localizer_->correct(*obs_, *scan_, *toMatch, *map_, *field_, *fallbackPoints_, fallback_->field());
-    }
-    if (field_ && changes_) {
-      // All valid beams, less those on the changes since the mapping run (seen from the prior).
-      scanToMatchPoints(*scan_, *allPoints_);
-      std::size_t dropped = 0;
-      (void)changeDetector_->keepUnchanged(*allPoints_, localizer_->pose().compose(lp_.laser.mounting), *field_,
-                                           changes_->field(), *keptPoints_, dropped);
-      r_.changedPointsDropped += dropped;
-      return localizer_->correct(*obs_, *scan_, *keptPoints_, *map_, *field_);
     }
     if (field_) {
       return localizer_->correct(*obs_, *scan_, *map_, *field_);
