@@ -420,6 +420,10 @@ struct FallbackRun {
       world.push_back(Segment{s.a + Eigen::Vector2d(offsetX, 0.0), s.b + Eigen::Vector2d(offsetX, 0.0)});
     }
     params.laser.mounting = Pose2d{0.6, 0.0, 0.0};
+    // Off the mapped floor on purpose: the field check would declare the run without the fallback
+    // lost at its third sweep; off, the runs with and without the fallback compare cycle for cycle
+    // (the check with the fallback: the test after this one).
+    params.health.minFieldInlierFraction = 0.0;
     loc = std::make_unique<Localizer>(params);
     LandmarkMapParams mp;
     mp.mode = MapMode::Static;
@@ -505,6 +509,38 @@ TEST_CASE(
   // Jacobian, taken at each run's own mean: 0.04 % apart here), not a fused match's millimetres.
   CHECK(sigma == Approx(sigmaWithout).epsilon(2e-3));
   CHECK(sigma > 0.02);
+}
+
+TEST_CASE("surface map as the field's fallback: its fused sweeps are not judged by the field check",
+          "[localization][surface][localizer]") {
+  // The default field check (LocalizerHealthParams::minFieldInlierFraction) with the fallback
+  // asked for: off the mapped floor every sweep contradicts the field, but those matched against
+  // the fallback are not judged, so the vehicle is not declared lost; without the fallback it is.
+  for (const bool useFallback : {true, false}) {
+    FallbackRun run(100.0);
+    run.params.health = LocalizerHealthParams{};
+    run.loc = std::make_unique<Localizer>(run.params);
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0.diagonal() << 1e-6, 1e-6, 1e-8;
+    REQUIRE(run.loc->reset(run.t, run.truth, P0) == Status::Ok);
+    run.useFallback = useFallback;
+    int contradicted = 0;
+    int lostAt = -1;
+    for (int c = 0; c < 30 && lostAt < 0; ++c) {
+      const LocalizerHealth& h = run.step(Pose2d{0.1, 0.0, 0.01}, Pose2d{0.097, 0.0, 0.0098});
+      const bool flagged = hasFlag(h.flags, LocalizerFlag::FieldContradicted);
+      contradicted += flagged ? 1 : 0;
+      CHECK_FALSE((flagged && h.fallbackMatch.attempted));
+      lostAt = h.lost ? c : lostAt;
+    }
+    if (useFallback) {
+      CHECK(lostAt < 0);
+      CHECK(contradicted == 1);  // the first sweep, before the fallback had surfaces
+    } else {
+      CHECK(lostAt == LocalizerHealthParams{}.lostAfterBadCycles - 1);
+      CHECK(contradicted == LocalizerHealthParams{}.lostAfterBadCycles);
+    }
+  }
 }
 
 TEST_CASE("surface map as the field's fallback: no authority over the odometry, and unused on the map",

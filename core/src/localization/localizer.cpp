@@ -873,6 +873,13 @@ bool Localizer::judgeCycle(MapMode mode) noexcept {
       }
     }
   }
+  const ScanMatchHealth& sm = health_.scanMatch;
+  if (mode == MapMode::Static && sm.attempted && !sm.fused && !health_.fallbackMatch.attempted &&
+      hp.minFieldInlierFraction > 0.0 && sm.points >= params_.scanMatch.minInliers &&
+      static_cast<double>(sm.inliers) < hp.minFieldInlierFraction * static_cast<double>(sm.points)) {
+    health_.flags |= bit(LocalizerFlag::FieldContradicted);
+    bad = true;
+  }
   const Eigen::Matrix3d& P = ekf_.covariance();
   const double ps = std::sqrt(largestEigen2(P(0, 0), P(0, 1), P(1, 1)));
   if (!(ps <= hp.maxPositionSigma) || !(std::sqrt(P(2, 2)) <= hp.maxHeadingSigma)) {

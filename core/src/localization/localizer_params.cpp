@@ -86,8 +86,9 @@ Status LocalizerHealthParams::validate() const noexcept {
     ratesOk = ratesOk && r >= 0.0 && r <= 1.0;
   }
   const bool finite = allFinite(detectionRate) && allFinite(minObservedMatchedFraction) &&
-                      allFinite({minMatchedFraction, maxPositionSigma, maxHeadingSigma});
-  const bool valid = ratesOk && minMatchedFraction >= 0.0 && minMatchedFraction <= 1.0 && maxPositionSigma > 0.0 &&
+                      allFinite({minMatchedFraction, minFieldInlierFraction, maxPositionSigma, maxHeadingSigma});
+  const bool valid = ratesOk && minMatchedFraction >= 0.0 && minMatchedFraction <= 1.0 &&
+                     minFieldInlierFraction >= 0.0 && minFieldInlierFraction <= 1.0 && maxPositionSigma > 0.0 &&
                      maxHeadingSigma > 0.0 && lostAfterBadCycles > 0U && minMatchesForFix > 0U;
   return verdict(finite, valid);
 }

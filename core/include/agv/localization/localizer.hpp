@@ -170,6 +170,17 @@ struct LocalizerHealthParams {
   /// Per kind: reflectors 0.3 (a stray reflective surface or two is tolerated), corners 0 (off:
   /// most FALKO corners are not in a map).
   double minObservedMatchedFraction[kLandmarkKindCount] = {0.3, 0.0};
+  /// The same check against a likelihood field (a static map given to `correct` with the scan's
+  /// points): a cycle whose field match is not fused is bad when, at the best pose of the tracking
+  /// search (the filter's estimate and its window), fewer than this fraction of the sweep's points
+  /// lie on a mapped surface (within `ScanMatchParams::inlierDistance`), counted when the sweep has
+  /// at least `ScanMatchParams::minInliers` points. A mapping run covers the floor the vehicle
+  /// drives, so a sweep that no pose near the estimate fits says the estimate is wrong: it catches
+  /// the vehicle carried away at rest (kidnapped), whose covariance does not grow and whose old pose
+  /// expects no landmark it could miss. A sweep matched against a fallback surface map is not
+  /// judged (`correct` with a fallback: driving off the mapped floor was asked for; only its first
+  /// sweeps, before the fallback has surfaces, are). 0 turns the check off.
+  double minFieldInlierFraction = 0.25;
   /// Consecutive bad cycles that make the localizer lost (latched until `reset`).
   std::uint8_t lostAfterBadCycles = 3;
   /// Position (largest axis) and heading standard deviations beyond which a cycle is bad against
@@ -230,6 +241,9 @@ enum class LocalizerFlag : std::uint32_t {
   /// The field's match was not fused (off the map, typically) and the fallback field's match moved
   /// the estimate (`LocalizerHealth::fallbackMatch`); the covariance was left as dead reckoning made it.
   FallbackMatchFused = 1U << 20,
+  /// The sweep contradicts the likelihood field at the estimate: its best match in the tracking
+  /// window has fewer than `minFieldInlierFraction` of its points on a mapped surface (a bad cycle).
+  FieldContradicted = 1U << 21,
 };
 
 /// True when `flag` is set in `flags`.
