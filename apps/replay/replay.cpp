@@ -586,6 +586,7 @@ class ScanReplay {
     r_.rejectedDuplicate += h.rejectedDuplicate;
     r_.rejectedUpdate += h.rejectedUpdate;
     r_.badCycles += hasFlag(h.flags, LocalizerFlag::BadCycle) ? 1U : 0U;
+    r_.fieldContradicted += hasFlag(h.flags, LocalizerFlag::FieldContradicted) ? 1U : 0U;
     r_.expected += h.expectedInView;
     r_.occluded += h.occluded + h.noReturn;
     if (h.used > 0) {
@@ -796,7 +797,7 @@ std::string resultText(const ReplayResult& r) {
     << fmt("               %.2f / %.2f\n", r.localizerAbsolute.heading.rms * kDeg,
            r.localizerAbsolute.heading.max * kDeg);
   o << "localizer: " << r.keypoints << " keypoints, " << r.used << " used, " << r.fixCycles << " cycles with a fix, "
-    << r.badCycles << " bad cycles, " << r.lostEvents << " lost events (" << r.mapRestarts
+    << r.badCycles << " bad cycles (" << r.fieldContradicted << " contradicting the field), " << r.lostEvents << " lost events (" << r.mapRestarts
     << " map restarts); rejected gate " << r.rejectedGate << ", ambiguous " << r.rejectedAmbiguous << ", duplicate "
     << r.rejectedDuplicate << ", update " << r.rejectedUpdate << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
   o << "in view: " << r.expected << " landmark-cycles expected, " << r.occluded
@@ -912,6 +913,7 @@ report::Json resultJson(const ReplayResult& r) {
                 {"used", r.used},
                 {"fix_cycles", r.fixCycles},
                 {"bad_cycles", r.badCycles},
+                {"field_contradicted", r.fieldContradicted},
                 {"lost_events", r.lostEvents},
                 {"lost_cycles", r.lostCycles},
                 {"no_fix_cycles", r.noFixCycles},

@@ -145,6 +145,7 @@ struct ReplayResult {
   std::size_t rejectedDuplicate = 0;
   std::size_t rejectedUpdate = 0;
   std::size_t badCycles = 0;
+  std::size_t fieldContradicted = 0;  ///< bad cycles whose sweep fit no pose near the estimate on the field
   double laserX = 0.0;          ///< [m] the laser offset used
   std::size_t laserXLine = 0;   ///< the log line it came from (0: the options)
   std::size_t lostEvents = 0;   ///< times the localizer declared itself lost

@@ -2,15 +2,19 @@
 # surface map of the earlier scans, no surveyed map), included by tests/support/run_json_program.cmake
 # with the document in `j` (fr079's check_replay_json.cmake includes it too):
 # - the localizer never declared itself lost: a map-less localizer has nothing to reset to, and the
-#   covariance growth of dead reckoning must not latch it (aces went lost 135 times in a loop);
+#   covariance growth of dead reckoning must not latch it (aces went lost 135 times in a loop), and
+#   no cycle contradicts a field (the field check is for static maps);
 # - the surface map ran and took points;
 # - its mean position and heading errors per metre are below the raw odometry's, the heading by at
 #   least MIN_HEADING_REDUCTION (a fraction of the odometry's; 0 when not given).
-expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;lost_events;lost_cycles;no_fix_cycles;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
+expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;field_contradicted;lost_events;lost_cycles;no_fix_cycles;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
 string(JSON lost GET "${j}" localizer lost_events)
 if(NOT lost EQUAL 0)
   message(FATAL_ERROR "JSON: ${LOG_NAME}: the localizer went lost ${lost} times")
 endif()
+# The field check judges a static map only: the surface map is the localizer's own, never a
+# contradiction.
+expect_number_in("${j}" 0 0 localizer field_contradicted)
 expect_number_in("${j}" 1 1000000000 localizer used)
 string(JSON surface GET "${j}" surface_map enabled)
 if(NOT surface)
