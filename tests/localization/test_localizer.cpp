@@ -526,6 +526,18 @@ TEST_CASE("localizer: carried to where its old pose expected nothing, unmatched 
   LocalizerParams bad;
   bad.health.minObservedMatchedFraction[0] = 1.5;
   CHECK(bad.validate() == Status::InvalidArgument);
+  // The field's side of the check (test_scan_matcher.cpp, "carried away at rest"): a fraction too.
+  for (const double f : {-0.1, 1.01}) {
+    LocalizerParams p;
+    p.health.minFieldInlierFraction = f;
+    CHECK(p.validate() == Status::InvalidArgument);
+  }
+  LocalizerParams nonFinite;
+  nonFinite.health.minFieldInlierFraction = std::nan("");
+  CHECK(nonFinite.validate() == Status::NonFiniteInput);
+  LocalizerParams off;
+  off.health.minFieldInlierFraction = 0.0;
+  CHECK(off.validate() == Status::Ok);
 }
 
 TEST_CASE("localizer: an uncertain prior is not corrected by one observation alone (minimum support)",
