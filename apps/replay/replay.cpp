@@ -797,9 +797,10 @@ std::string resultText(const ReplayResult& r) {
     << fmt("               %.2f / %.2f\n", r.localizerAbsolute.heading.rms * kDeg,
            r.localizerAbsolute.heading.max * kDeg);
   o << "localizer: " << r.keypoints << " keypoints, " << r.used << " used, " << r.fixCycles << " cycles with a fix, "
-    << r.badCycles << " bad cycles (" << r.fieldContradicted << " contradicting the field), " << r.lostEvents << " lost events (" << r.mapRestarts
-    << " map restarts); rejected gate " << r.rejectedGate << ", ambiguous " << r.rejectedAmbiguous << ", duplicate "
-    << r.rejectedDuplicate << ", update " << r.rejectedUpdate << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
+    << r.badCycles << " bad cycles (" << r.fieldContradicted << " contradicting the field), " << r.lostEvents
+    << " lost events (" << r.mapRestarts << " map restarts); rejected gate " << r.rejectedGate << ", ambiguous "
+    << r.rejectedAmbiguous << ", duplicate " << r.rejectedDuplicate << ", update " << r.rejectedUpdate
+    << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
   o << "in view: " << r.expected << " landmark-cycles expected, " << r.occluded
     << " inside the view limits but hidden or without a return\n";
   if (r.mappingScans > 0) {
