@@ -124,6 +124,10 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
                "with --map-fraction: no search of the whole field when lost");
   app.add_option("--reloc-radius", options.relocRadius,
                  "[m] field relocalization: search radius around the estimate (0: whole field)");
+  app.add_option("--reloc-confirm-sigmas", options.relocalizer.confirmSigmas,
+                 "field relocalization: the confirmation window grows to this many standard deviations of the "
+                 "odometry noise model over the carry (0: the fixed 0.25 m / 0.08 rad)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--widen-after", options.localizer.scanMatch.widenAfter,
                  "failed matches before the search widens (0: off)");
   app.add_option("--match-inflation", options.localizer.scanMatch.covarianceInflation,

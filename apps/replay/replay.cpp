@@ -423,8 +423,10 @@ class ScanReplay {
     const Pose2d& mount = lp_.laser.mounting;
     if (reloc_ == RelocState::Confirming) {
       const Pose2d carried = candidate_.compose(inc_[i]);
+      // The window the carry may be off by: its covariance under the odometry noise model.
+      const Eigen::Matrix3d carry = unicycleIncrement(stamp, inc_[i], options_.odometryNoise).covariance;
       Pose2d refined;
-      if (relocalizer_->confirm(*points_, mount, carried, *field_, refined)) {
+      if (relocalizer_->confirm(*points_, mount, carried, *field_, carry, refined)) {
         candidate_ = refined;
         traceRelocLabel_ = "confirming";
         traceReloc_.pose = refined;

@@ -792,6 +792,113 @@ TEST_CASE("field relocalizer: a symmetric room is ambiguous, a region bounds the
   CHECK(bad.validate() == Status::InvalidArgument);
 }
 
+TEST_CASE("field relocalizer: the confirmation window follows the carry's odometry covariance, within its caps",
+          "[localization][scanmatch][reloc]") {
+  auto field = std::make_unique<HallField>();
+  const std::vector<Segment> segs = hall();
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  auto scan = std::make_unique<LaserScan>();
+  auto points = std::make_unique<MatchPoints>();
+  auto reloc = std::make_unique<FieldRelocalizer>();
+  const FieldRelocalizerParams& p = reloc->params();
+
+  SECTION("the window: fixed for a small carry, sigmas for a large one, capped, frame-independent") {
+    const SearchWindow fixed = reloc->confirmWindow(Eigen::Matrix3d::Zero());
+    CHECK(fixed.x == p.confirmDistance);
+    CHECK(fixed.y == p.confirmDistance);
+    CHECK(fixed.theta == p.confirmAngle);
+    // A 25 Hz vehicle's carry (a few mm, a few mrad): the fixed window.
+    Eigen::Matrix3d small = Eigen::Matrix3d::Zero();
+    small.diagonal() << 1e-5, 4e-6, 1e-5;
+    CHECK(reloc->confirmWindow(small).x == p.confirmDistance);
+    CHECK(reloc->confirmWindow(small).theta == p.confirmAngle);
+    // A log's metre of Pioneer odometry: sigma 0.1 m across, 0.06 rad.
+    Eigen::Matrix3d large = Eigen::Matrix3d::Zero();
+    large.diagonal() << 0.0025, 0.01, 0.0036;
+    const SearchWindow w = reloc->confirmWindow(large);
+    CHECK(w.x == Approx(p.confirmSigmas * 0.1));
+    CHECK(w.y == w.x);
+    CHECK(w.theta == Approx(p.confirmSigmas * 0.06));
+    // The position bound is the largest variance in any direction: rotating the carry's frame
+    // (any angle) leaves it unchanged, a correlated block included.
+    Eigen::Matrix3d corr = large;
+    corr(0, 1) = corr(1, 0) = 0.004;
+    for (const double a : {0.3, 1.2, -2.5}) {
+      Eigen::Matrix3d r = Eigen::Matrix3d::Identity();
+      r(0, 0) = r(1, 1) = std::cos(a);
+      r(1, 0) = std::sin(a);
+      r(0, 1) = -r(1, 0);
+      CHECK(reloc->confirmWindow(r * corr * r.transpose()).x == Approx(reloc->confirmWindow(corr).x));
+    }
+    CHECK(reloc->confirmWindow(corr).x > w.x);
+    // Beyond the caps: the caps (the confirmation's search covers them, bounded).
+    const SearchWindow capped = reloc->confirmWindow(Eigen::Matrix3d::Identity() * 4.0);
+    CHECK(capped.x == p.confirmMaxDistance);
+    CHECK(capped.theta == p.confirmMaxAngle);
+    // Non-finite or negative: nothing agrees.
+    Eigen::Matrix3d nan = Eigen::Matrix3d::Zero();
+    nan(2, 2) = std::nan("");
+    CHECK(reloc->confirmWindow(nan).x == 0.0);
+    Eigen::Matrix3d neg = Eigen::Matrix3d::Zero();
+    neg(0, 0) = -1e-3;
+    CHECK(reloc->confirmWindow(neg).theta == 0.0);
+    // withinWindow: the distance and the wrapped heading difference.
+    const Pose2d c{1.0, 2.0, kPiD - 0.01};
+    CHECK(FieldRelocalizer::withinWindow(Pose2d{1.1, 2.1, -kPiD + 0.02}, c, SearchWindow{0.15, 0.15, 0.04}));
+    CHECK_FALSE(FieldRelocalizer::withinWindow(Pose2d{1.2, 2.1, c.theta}, c, SearchWindow{0.15, 0.15, 0.04}));
+    CHECK_FALSE(FieldRelocalizer::withinWindow(Pose2d{1.0, 2.0, -kPiD + 0.04}, c, SearchWindow{0.15, 0.15, 0.04}));
+  }
+
+  SECTION(
+      "a candidate carried 0.15 rad off by a metre of odometry: refused by the fixed window, confirmed by "
+      "the carry's") {
+    std::mt19937_64 rng(5);
+    const Pose2d laser{0.6, 0.0, 0.0};
+    const Pose2d truth{4.0, 2.5, 0.3};
+    castScan(segs, truth.compose(laser), 0.01, rng, *scan);
+    scanToMatchPoints(*scan, *points);
+    // The odometry turned 0.15 rad short and carried the position 0.12 m off: beyond the fixed
+    // window's 0.08 rad, within 3 sigma of a carry with sigma 0.06 rad, 0.07 m.
+    const Pose2d carried{truth.x + 0.10, truth.y - 0.066, truth.theta - 0.15};
+    Eigen::Matrix3d carry = Eigen::Matrix3d::Zero();
+    carry.diagonal() << 0.0049, 0.0049, 0.0036;
+    Pose2d refined;
+    CHECK_FALSE(reloc->confirm(*points, laser, carried, *field, refined));
+    bool ok = false;
+    AGV_CHECK_NO_ALLOCATIONS(ok = reloc->confirm(*points, laser, carried, *field, carry, refined));
+    REQUIRE(ok);
+    CHECK(std::hypot(refined.x - truth.x, refined.y - truth.y) < 0.02);
+    CHECK(std::fabs(normalizeAngle(refined.theta - truth.theta)) < 0.2 * kPiD / 180.0);
+    // The same carry never stretches beyond the caps: a candidate 0.9 m off is not confirmed by a
+    // carry whose 3 sigma would cover it.
+    Eigen::Matrix3d huge = Eigen::Matrix3d::Identity();
+    CHECK_FALSE(reloc->confirm(*points, laser, truth.compose(Pose2d{0.0, 0.9, 0.0}), *field, huge, refined));
+    // A non-finite covariance confirms nothing, not even the true pose.
+    Eigen::Matrix3d bad = carry;
+    bad(0, 0) = INFINITY;
+    CHECK_FALSE(reloc->confirm(*points, laser, truth, *field, bad, refined));
+    CHECK(reloc->confirm(*points, laser, truth, *field, carry, refined));
+  }
+
+  SECTION("parameters") {
+    FieldRelocalizerParams bad;
+    bad.confirmSigmas = -1.0;
+    CHECK(bad.validate() == Status::InvalidArgument);
+    bad = FieldRelocalizerParams{};
+    bad.confirmMaxDistance = bad.confirmDistance - 0.01;
+    CHECK(bad.validate() == Status::InvalidArgument);
+    bad = FieldRelocalizerParams{};
+    bad.confirmMaxAngle = bad.confirmAngle - 0.01;
+    CHECK(bad.validate() == Status::InvalidArgument);
+    bad = FieldRelocalizerParams{};
+    bad.confirmMaxAngle = std::nan("");
+    CHECK(bad.validate() == Status::NonFiniteInput);
+    bad = FieldRelocalizerParams{};
+    bad.confirmSigmas = 0.0;  // the fixed window
+    CHECK(bad.validate() == Status::Ok);
+  }
+}
+
 TEST_CASE("scanToMatchPoints: the valid beams within the range limit, in beam order, laser frame", "[scanmatch]") {
   auto scan = std::make_unique<LaserScan>();
   scan->angleMin = -1.0F;

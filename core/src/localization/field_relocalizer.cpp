@@ -1,5 +1,6 @@
 #include "agv/localization/field_relocalizer.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -8,9 +9,9 @@
 namespace agv {
 
 Status FieldRelocalizerParams::validate() const noexcept {
-  const double values[] = {positionStep,   rotationStep,    minClearance,   minInlierFraction,
-                           maxRms,         closeDistance,   ambiguityRatio, ambiguityDistance,
-                           ambiguityAngle, confirmDistance, confirmAngle};
+  const double values[] = {positionStep,  rotationStep,   minClearance,       minInlierFraction, maxRms,
+                           closeDistance, ambiguityRatio, ambiguityDistance,  ambiguityAngle,    confirmDistance,
+                           confirmAngle,  confirmSigmas,  confirmMaxDistance, confirmMaxAngle};
   for (const double v : values) {
     if (!std::isfinite(v)) {
       return Status::NonFiniteInput;
@@ -20,7 +21,8 @@ Status FieldRelocalizerParams::validate() const noexcept {
       candidates == 0 || candidates > FieldRelocalizer::kMaxCandidates || !(minInlierFraction > 0.0) ||
       minInlierFraction > 1.0 || !(maxRms > 0.0) || !(closeDistance > 0.0) || !(ambiguityRatio > 0.0) ||
       ambiguityRatio > 1.0 || !(ambiguityDistance > 0.0) || !(ambiguityAngle > 0.0) || !(confirmDistance > 0.0) ||
-      !(confirmAngle > 0.0)) {
+      !(confirmAngle > 0.0) || confirmSigmas < 0.0 || confirmMaxDistance < confirmDistance ||
+      confirmMaxAngle < confirmAngle) {
     return Status::InvalidArgument;
   }
   return match.validate();
@@ -367,15 +369,45 @@ FieldRelocResult FieldRelocalizer::localize(const MatchPoints& points, const Pos
 
 bool FieldRelocalizer::confirm(const MatchPoints& points, const Pose2d& laser, const Pose2d& carried,
                                const LikelihoodFieldBase& field, Pose2d& refined) noexcept {
+  return confirm(points, laser, carried, field, Eigen::Matrix3d::Zero(), refined);
+}
+
+SearchWindow FieldRelocalizer::confirmWindow(const Eigen::Matrix3d& carryCovariance) const noexcept {
+  const double a = carryCovariance(0, 0);
+  const double b = carryCovariance(0, 1);
+  const double c = carryCovariance(1, 1);
+  const double t = carryCovariance(2, 2);
+  if (!carryCovariance.allFinite() || a < 0.0 || c < 0.0 || t < 0.0) {
+    return SearchWindow{};
+  }
+  // The largest eigenvalue of the position block: the window does not depend on the frame.
+  const double half = 0.5 * (a - c);
+  const double positionVariance = 0.5 * (a + c) + std::sqrt(half * half + b * b);
+  const double d = std::min(params_.confirmMaxDistance,
+                            std::max(params_.confirmDistance, params_.confirmSigmas * std::sqrt(positionVariance)));
+  const double th =
+      std::min(params_.confirmMaxAngle, std::max(params_.confirmAngle, params_.confirmSigmas * std::sqrt(t)));
+  return SearchWindow{d, d, th};
+}
+
+bool FieldRelocalizer::withinWindow(const Pose2d& pose, const Pose2d& carried, const SearchWindow& window) noexcept {
+  return std::hypot(pose.x - carried.x, pose.y - carried.y) <= window.x &&
+         std::fabs(normalizeAngle(pose.theta - carried.theta)) <= window.theta;
+}
+
+bool FieldRelocalizer::confirm(const MatchPoints& points, const Pose2d& laser, const Pose2d& carried,
+                               const LikelihoodFieldBase& field, const Eigen::Matrix3d& carryCovariance,
+                               Pose2d& refined) noexcept {
   if (params_.validate() != Status::Ok || !carried.isFinite()) {
     return false;
   }
+  const SearchWindow window = confirmWindow(carryCovariance);
+  if (!(window.x > 0.0)) {
+    return false;  // a non-finite or negative covariance
+  }
   matcher_.setParams(params_.match);
-  const ScanMatchResult m =
-      matcher_.match(points, laser, carried,
-                     SearchWindow{params_.confirmDistance, params_.confirmDistance, params_.confirmAngle}, field);
-  if (!fits(m) || std::hypot(m.pose.x - carried.x, m.pose.y - carried.y) > params_.confirmDistance ||
-      std::fabs(normalizeAngle(m.pose.theta - carried.theta)) > params_.confirmAngle) {
+  const ScanMatchResult m = matcher_.match(points, laser, carried, window, field);
+  if (!fits(m) || !withinWindow(m.pose, carried, window)) {
     return false;
   }
   refined = m.pose;

@@ -68,6 +68,14 @@ struct FieldRelocalizerParams {
   /// between two scans must fit in: a few centimetres and degrees per metre driven).
   double confirmDistance = 0.25;  ///< [m]
   double confirmAngle = 0.08;     ///< [rad]
+  /// `confirmWindow`: when the caller gives the covariance of the carry (the odometry between the
+  /// candidate's scan and this one), the window grows to this many of its standard deviations
+  /// where that exceeds confirmDistance / confirmAngle: a log or vehicle whose scans lie a metre
+  /// and 30 deg of odometry apart carries a right candidate farther than a fixed window allows.
+  double confirmSigmas = 3.0;
+  /// Upper bounds of that window (the confirmation's match search covers it).
+  double confirmMaxDistance = 0.6;  ///< [m], at least confirmDistance
+  double confirmMaxAngle = 0.3;     ///< [rad], at least confirmAngle
   /// The scan matcher of the refinement and the confirmation (its search window is set here).
   ScanMatchParams match{};
   /// `Ok`, `NonFiniteInput` or `InvalidArgument` (a non-positive step, distance or count, a
@@ -156,6 +164,21 @@ class FieldRelocalizer {
   /// `localize` demands. True with `refined` set to the match.
   bool confirm(const MatchPoints& points, const Pose2d& laser, const Pose2d& carried, const LikelihoodFieldBase& field,
                Pose2d& refined) noexcept;
+
+  /// The same within `confirmWindow(carryCovariance)`: `carryCovariance` is the covariance of the
+  /// odometry that carried the candidate (x, y, theta; any frame: the window takes the largest
+  /// position variance). False for a non-finite or negative covariance.
+  bool confirm(const MatchPoints& points, const Pose2d& laser, const Pose2d& carried, const LikelihoodFieldBase& field,
+               const Eigen::Matrix3d& carryCovariance, Pose2d& refined) noexcept;
+
+  /// The confirmation window for a carry of covariance `carryCovariance`: per axis the larger of
+  /// confirmDistance (confirmAngle) and confirmSigmas standard deviations, at most
+  /// confirmMaxDistance (confirmMaxAngle); x = y = the position bound. A zero covariance gives the
+  /// fixed window; a non-finite or negative one gives a zero window (nothing agrees).
+  SearchWindow confirmWindow(const Eigen::Matrix3d& carryCovariance) const noexcept;
+
+  /// Whether `pose` lies within `window` of `carried` (position distance, heading difference).
+  static bool withinWindow(const Pose2d& pose, const Pose2d& carried, const SearchWindow& window) noexcept;
 
   const FieldRelocalizerParams& params() const noexcept { return params_; }
 
