@@ -343,8 +343,8 @@ void FieldRelocalizer::decide() noexcept {
     if (k == best || o.status != Status::Ok) {
       continue;
     }
-    const bool distinct = std::hypot(o.pose.x - b.pose.x, o.pose.y - b.pose.y) > params_.ambiguityDistance ||
-                          std::fabs(normalizeAngle(o.pose.theta - b.pose.theta)) > params_.ambiguityAngle;
+    const bool distinct = !withinWindow(
+        o.pose, b.pose, SearchWindow{params_.ambiguityDistance, params_.ambiguityDistance, params_.ambiguityAngle});
     if (distinct && close_[k] > result_.runnerUp) {
       result_.runnerUp = close_[k];
     }
