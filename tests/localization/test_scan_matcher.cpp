@@ -609,19 +609,37 @@ TEST_CASE("localizer with a likelihood field: the steady-state cycle allocates n
   }
 }
 
+namespace {
+
+/// The field relocalizer's test hall: the hall's field (12 m x 8 m), a relocalizer, the laser
+/// mounting, and scan storage that `castAt` fills with a ray-cast scan from a vehicle pose.
+struct RelocHall {
+  std::vector<Segment> segs = hall();
+  std::unique_ptr<HallField> field = std::make_unique<HallField>();
+  std::unique_ptr<LaserScan> scan = std::make_unique<LaserScan>();
+  std::unique_ptr<MatchPoints> points = std::make_unique<MatchPoints>();
+  std::unique_ptr<FieldRelocalizer> reloc = std::make_unique<FieldRelocalizer>();
+  Pose2d laser{0.6, 0.0, 0.0};
+
+  RelocHall() { buildField(*field, segs, 0.0, 0.0, 12.0, 8.0); }
+
+  /// The scan (1 cm range noise) and its points from the vehicle at `vehicle`.
+  void castAt(const Pose2d& vehicle, std::mt19937_64& rng) {
+    castScan(segs, vehicle.compose(laser), 0.01, rng, *scan);
+    scanToMatchPoints(*scan, *points);
+  }
+};
+
+}  // namespace
+
 TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with no prior, allocation-free",
           "[localization][scanmatch][reloc]") {
-  auto field = std::make_unique<HallField>();
-  const std::vector<Segment> segs = hall();
-  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
-  auto scan = std::make_unique<LaserScan>();
-  auto points = std::make_unique<MatchPoints>();
-  auto reloc = std::make_unique<FieldRelocalizer>();
+  RelocHall h;
+  auto& [segs, field, scan, points, reloc, laser] = h;
   std::mt19937_64 rng(31);
   std::uniform_real_distribution<double> ux(0.8, 11.2);
   std::uniform_real_distribution<double> uy(0.8, 7.2);
   std::uniform_real_distribution<double> ut(-kPiD, kPiD);
-  const Pose2d laser{0.6, 0.0, 0.0};
   int tried = 0;
   int found = 0;
   for (int k = 0; k < 60 && tried < 12; ++k) {
@@ -630,8 +648,7 @@ TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with
       continue;
     }
     ++tried;
-    castScan(segs, truth.compose(laser), 0.01, rng, *scan);
-    scanToMatchPoints(*scan, *points);
+    h.castAt(truth, rng);
     FieldRelocResult r;
     AGV_CHECK_NO_ALLOCATIONS(r = reloc->localize(*points, laser, *field));
     INFO("truth " << truth.x << " " << truth.y << " " << truth.theta << ": outcome " << static_cast<int>(r.outcome));
@@ -650,8 +667,7 @@ TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with
     // Confirmation: the next scan, 0.3 m on, carried by an odometry 8 cm / 3 deg off.
     const Pose2d next = truth.compose(Pose2d{0.3, 0.0, 0.0});
     if (inFreeSpace(next.compose(laser).translation())) {
-      castScan(segs, next.compose(laser), 0.01, rng, *scan);
-      scanToMatchPoints(*scan, *points);
+      h.castAt(next, rng);
       Pose2d refined;
       CHECK(reloc->confirm(*points, laser, r.pose.compose(Pose2d{0.38, 0.0, 0.05}), *field, refined));
       CHECK(std::hypot(refined.x - next.x, refined.y - next.y) < 0.02);
@@ -665,20 +681,14 @@ TEST_CASE("field relocalizer: finds the pose of a scan anywhere in the hall with
 
 TEST_CASE("field relocalizer: spread over calls with a pose budget, the same answer as in one call",
           "[localization][scanmatch][reloc]") {
-  auto field = std::make_unique<HallField>();
-  const std::vector<Segment> segs = hall();
-  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
-  auto scan = std::make_unique<LaserScan>();
-  auto points = std::make_unique<MatchPoints>();
-  auto once = std::make_unique<FieldRelocalizer>();
+  RelocHall h;
+  auto& [segs, field, scan, points, once, laser] = h;
   auto sliced = std::make_unique<FieldRelocalizer>();
   std::mt19937_64 rng(7);
-  const Pose2d laser{0.6, 0.0, 0.0};
   int compared = 0;
   for (const Pose2d& truth : {Pose2d{3.1, 2.2, 0.7}, Pose2d{8.4, 5.9, -2.5}, Pose2d{6.0, 1.4, 3.0}}) {
     REQUIRE(inFreeSpace(truth.compose(laser).translation()));
-    castScan(segs, truth.compose(laser), 0.01, rng, *scan);
-    scanToMatchPoints(*scan, *points);
+    h.castAt(truth, rng);
     const FieldRelocResult a = once->localize(*points, laser, *field);
     constexpr std::uint32_t kBudget = 4999;  // slices end at varied grid positions
     std::uint32_t calls = 0;
@@ -716,8 +726,7 @@ TEST_CASE("field relocalizer: spread over calls with a pose budget, the same ans
   }
   CHECK(compared >= 2);
   // A search abandoned part-way ends with no answer; the next one starts afresh.
-  castScan(segs, Pose2d{3.1, 2.2, 0.7}.compose(laser), 0.01, rng, *scan);
-  scanToMatchPoints(*scan, *points);
+  h.castAt(Pose2d{3.1, 2.2, 0.7}, rng);
   REQUIRE(sliced->start(*points, laser, *field) == Status::Ok);
   CHECK_FALSE(sliced->advance(100));
   sliced->cancel();
@@ -794,12 +803,8 @@ TEST_CASE("field relocalizer: a symmetric room is ambiguous, a region bounds the
 
 TEST_CASE("field relocalizer: the confirmation window follows the carry's odometry covariance, within its caps",
           "[localization][scanmatch][reloc]") {
-  auto field = std::make_unique<HallField>();
-  const std::vector<Segment> segs = hall();
-  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
-  auto scan = std::make_unique<LaserScan>();
-  auto points = std::make_unique<MatchPoints>();
-  auto reloc = std::make_unique<FieldRelocalizer>();
+  RelocHall h;
+  auto& [segs, field, scan, points, reloc, laser] = h;
   const FieldRelocalizerParams& p = reloc->params();
 
   SECTION("the window: fixed for a small carry, sigmas for a large one, capped, frame-independent") {
@@ -853,10 +858,8 @@ TEST_CASE("field relocalizer: the confirmation window follows the carry's odomet
       "a candidate carried 0.15 rad off by a metre of odometry: refused by the fixed window, confirmed by "
       "the carry's") {
     std::mt19937_64 rng(5);
-    const Pose2d laser{0.6, 0.0, 0.0};
     const Pose2d truth{4.0, 2.5, 0.3};
-    castScan(segs, truth.compose(laser), 0.01, rng, *scan);
-    scanToMatchPoints(*scan, *points);
+    h.castAt(truth, rng);
     // The odometry turned 0.15 rad short and carried the position 0.12 m off: beyond the fixed
     // window's 0.08 rad, within 3 sigma of a carry with sigma 0.06 rad, 0.07 m.
     const Pose2d carried{truth.x + 0.10, truth.y - 0.066, truth.theta - 0.15};
