@@ -1,6 +1,7 @@
-# Checks of agvnav-replay --json --map-fraction 0.5 (and 0.6) on fr079 (localization on the product's own
-# maps: static corners and a likelihood field from the first half of the log (0.6: the first 60 %), the rest
-# localized on them), included by tests/support/run_json_program.cmake with the document in `j`.
+# Checks of agvnav-replay --json --map-fraction 0.5 (and 0.6) on fr079 (localization on the
+# product's own maps: static corners and a likelihood field from the first half of the log, or
+# the first 60 %, the rest localized on them), included by tests/support/run_json_program.cmake
+# with the document in `j`.
 # End to end: the field is built, three quarters of the localized scans lie on the map, every
 # scan is matched, no field relocalization or resync restarted the localizer at a wrong pose. The tracking
 # is checked against a regression bound, not the issue's 10 cm RMS target, which it does not meet
