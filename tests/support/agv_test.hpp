@@ -6,6 +6,11 @@
 /// (INFO compiles on both and is a no-op on the MCU).
 /// Tests that need more of Catch2 (SECTION, generators, matchers) are host-only: register them
 /// without the MCU flag in CMake.
+///
+/// Emulated targets: the cross Linux trees (aarch64, armhf under qemu-user) compile every test with
+/// AGV_TEST_EMULATED, the MCU image with AGV_TEST_MCU. Both run 8-12x slower than the host, so a
+/// Monte-Carlo case may run fewer trials there with the same checks: the target's arithmetic is
+/// exercised on every code path, and the rates over many trials are the native tree's to show.
 
 #ifdef AGV_TEST_MCU
 #include "mcu_check.hpp"
