@@ -6,6 +6,12 @@
 //                            SZTAKI unit's factory calibration (../shared/data calibration/). The
 //                            packets are built once from the documented layout with pseudo-random
 //                            ranges 1..60 m (no zero: every record becomes a point).
+//   BM_OusterDecode/os2_128  one iteration = one frame of the real OS-2-128 capture
+//                            (../shared/data/lidar3d/ouster_pcaps/, RNG19_RFL8_SIG16_NIR16, 1024 x
+//                            128): its first 64 packets of 24 832 bytes decoded to firing records,
+//                            fed to the revolution assembler column by column and turned into
+//                            range-image returns by Ouster's beam model with the unit's JSON.
+//   BM_OusterDecode/os0_128  the same for the OS-0-128 capture (RNG15_RFL8_NIR8, 4-byte pixels).
 // Counters: records = records per revolution; points = points per revolution.
 #include <benchmark/benchmark.h>
 
@@ -15,7 +21,9 @@
 #include <string>
 #include <vector>
 
+#include "agv/datasets/ouster_capture.hpp"
 #include "agv/datasets/velodyne_calibration.hpp"
+#include "agv/drivers/protocol/ouster/ouster_packet.hpp"
 #include "agv/drivers/protocol/velodyne/velodyne_packet.hpp"
 
 namespace {
@@ -88,5 +96,70 @@ void BM_VelodyneDecodeHdl64(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(points);
 }
 BENCHMARK(BM_VelodyneDecodeHdl64)->Name("BM_VelodyneDecode/hdl64")->Unit(benchmark::kMillisecond);
+
+namespace os = agv::drivers::ouster;
+
+void BM_OusterDecode(benchmark::State& state, const char* capture, const char* metadata) {
+  const std::string dir = std::string(AGV_SHARED_DATA_DIR) + "/lidar3d/ouster_pcaps/";
+  agv::datasets::OusterMetadata meta;
+  std::vector<std::vector<std::uint8_t>> packets;
+  agv::datasets::PcapStats stats;
+  std::string err;
+  if (!agv::datasets::readOusterMetadata(dir + metadata + ".json", meta, err) ||
+      !agv::datasets::readPcapUdp(dir + capture + ".pcap", meta.udpPortLidar, packets, stats, err)) {
+    std::fprintf(stderr, "bench_velodyne: %s\n", err.c_str());
+    std::abort();
+  }
+  const std::size_t frame = meta.format.columnsPerFrame / meta.format.columnsPerPacket;
+  if (packets.size() < frame) {
+    std::fprintf(stderr, "bench_velodyne: %s has %zu packets, fewer than a frame's %zu\n", capture, packets.size(),
+                 frame);
+    std::abort();
+  }
+  os::OusterConfig cfg;
+  cfg.format = meta.format;
+  os::OusterDecoder dec(cfg);
+  std::vector<vd::FiringRecord> storage(os::kMaxColumnsPerFrame * os::kMaxPixelsPerColumn);
+  vd::RevolutionAssembler rev(agv::Span<vd::FiringRecord>(storage.data(), storage.size()));
+  std::vector<vd::FiringRecord> out(os::kMaxRecordsPerPacket);
+  std::vector<agv::FiringReturn> returns(frame * os::kMaxRecordsPerPacket);
+  std::size_t records = 0;
+  std::size_t points = 0;
+  for (auto _ : state) {
+    records = 0;
+    points = 0;
+    rev.reset();
+    for (std::size_t k = 0; k < frame; ++k) {
+      std::size_t n = 0;
+      benchmark::DoNotOptimize(dec.decode(agv::Span<const std::uint8_t>(packets[k].data(), packets[k].size()),
+                                          agv::Span<vd::FiringRecord>(out.data(), out.size()), n));
+      // Column by column: the assembler carries at most a Velodyne packet's records over a wrap.
+      for (std::size_t i = 0; i < n;) {
+        std::size_t j = i;
+        while (j < n && out[j].block == out[i].block) {
+          ++j;
+        }
+        benchmark::DoNotOptimize(rev.add(agv::Span<const vd::FiringRecord>(out.data() + i, j - i)));
+        i = j;
+      }
+      std::size_t m = 0;
+      benchmark::DoNotOptimize(
+          os::toFiringReturns(agv::Span<const vd::FiringRecord>(out.data(), n), meta.intrinsics,
+                              agv::Span<agv::FiringReturn>(returns.data() + points, returns.size() - points), m));
+      records += n;
+      points += m;
+    }
+    benchmark::DoNotOptimize(rev.finish());
+    benchmark::ClobberMemory();
+  }
+  state.counters["records"] = static_cast<double>(records);
+  state.counters["points"] = static_cast<double>(points);
+}
+BENCHMARK_CAPTURE(BM_OusterDecode, os2_128, "OS-2-128-U1_v2.3.0_1024x10", "OS-2-128-U1_v2.3.0_1024x10")
+    ->Name("BM_OusterDecode/os2_128")
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_OusterDecode, os0_128, "OS-0-128-U1_v2.3.0_1024x10", "OS-0-128-U1_v2.3.0_1024x10")
+    ->Name("BM_OusterDecode/os0_128")
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -1,11 +1,6 @@
 // The UDP receiver on loopback: the real einride VLP-16 recording (1000 packets) replayed from a
 // plain socket, received, stamped and decoded; a too-small socket buffer makes the kernel drop
 // datagrams and the receiver counts every one; an oversized datagram is refused and counted.
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -16,6 +11,7 @@
 #include "agv/drivers/linux/udp_receiver.hpp"
 #include "agv/drivers/protocol/velodyne/velodyne_packet.hpp"
 #include "agv_test.hpp"
+#include "udp_loopback.hpp"
 
 using agv::Duration;
 using agv::Span;
@@ -35,38 +31,16 @@ std::vector<std::uint8_t> recording() {
   return r.bytes;
 }
 
-/// A plain UDP sender to 127.0.0.1:port.
-struct Sender {
-  int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
-  sockaddr_in to{};
-  explicit Sender(std::uint16_t port) {
-    to.sin_family = AF_INET;
-    to.sin_port = htons(port);
-    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  }
-  ~Sender() { ::close(fd); }
-  bool send(const std::uint8_t* p, std::size_t n) const {
-    return ::sendto(fd, p, n, 0, reinterpret_cast<const sockaddr*>(&to), sizeof(to)) == static_cast<ssize_t>(n);
-  }
-};
-
-UdpReceiverConfig loopback(int rcvbuf) {
-  UdpReceiverConfig c;
-  std::strcpy(c.bindAddress, "127.0.0.1");
-  c.port = 0;
-  c.receiveBufferBytes = rcvbuf;
-  return c;
-}
 }  // namespace
 
 TEST_CASE("einride recording replayed over loopback: every packet received, stamped and decoded",
           "[drivers][velodyne][udp]") {
   const std::vector<std::uint8_t> rec = recording();
   REQUIRE(rec.size() == 1000U * velodyne::kPacketBytes);
-  UdpReceiver rx(loopback(1 << 20));
+  UdpReceiver rx(agv::test::loopbackReceiver(1 << 20));
   REQUIRE(rx.open() == Status::Ok);
   REQUIRE(rx.localPort() != 0U);
-  Sender tx(rx.localPort());
+  agv::test::UdpSender tx(rx.localPort());
   velodyne::VelodyneDecoder dec(velodyne::VelodyneConfig{});
   velodyne::FiringRecord out[velodyne::kMaxRecordsPerPacket];
   std::uint8_t buf[2048];
@@ -119,9 +93,9 @@ TEST_CASE("einride recording replayed over loopback: every packet received, stam
 TEST_CASE("A full socket buffer: every datagram the kernel dropped is counted", "[drivers][velodyne][udp]") {
   const std::vector<std::uint8_t> rec = recording();
   REQUIRE(rec.size() == 1000U * velodyne::kPacketBytes);
-  UdpReceiver rx(loopback(4096));  // the kernel doubles it and keeps a floor: a few datagrams fit
+  UdpReceiver rx(agv::test::loopbackReceiver(4096));  // the kernel doubles it and keeps a floor: a few datagrams fit
   REQUIRE(rx.open() == Status::Ok);
-  Sender tx(rx.localPort());
+  agv::test::UdpSender tx(rx.localPort());
   for (std::size_t k = 0; k < 200; ++k)
     REQUIRE(tx.send(rec.data() + k * velodyne::kPacketBytes, velodyne::kPacketBytes));
   std::uint8_t buf[2048];
@@ -138,9 +112,9 @@ TEST_CASE("A full socket buffer: every datagram the kernel dropped is counted", 
   CHECK(got < 201U);
   CHECK(got + rx.counters().kernelDrops == 201U);
   CHECK(rx.counters().datagrams == got);
-  UdpReceiver closed(loopback(0));
+  UdpReceiver closed(agv::test::loopbackReceiver(0));
   CHECK(closed.receive(Span<std::uint8_t>(buf), Duration::fromMilliseconds(1), n, s) == Status::NotInitialized);
-  UdpReceiverConfig bad = loopback(0);
+  UdpReceiverConfig bad = agv::test::loopbackReceiver(0);
   std::strcpy(bad.bindAddress, "not-an-address");
   UdpReceiver b(bad);
   CHECK(b.open() == Status::InvalidArgument);

@@ -269,29 +269,64 @@ Status toFiringReturns(Span<const FiringRecord> records, const OusterIntrinsics&
   if (in.columnsPerFrame == 0) {
     return Status::InvalidArgument;
   }
+  // ousterPoint() with its six sines and cosines per point factored: per beam those of its
+  // altitude and azimuth (computed at the beam's first record of the call), per column those of
+  // theta_e (a packet's records come column by column), and theta = theta_e - az by the angle
+  // difference identities. The same model; the points agree with ousterPoint() to float rounding.
+  float cosAlt[kMaxPixelsPerColumn];
+  float sinAlt[kMaxPixelsPerColumn];
+  float cosAz[kMaxPixelsPerColumn];
+  float sinAz[kMaxPixelsPerColumn];
+  bool beamReady[kMaxPixelsPerColumn] = {};
+  std::uint16_t lastM = 0;
+  bool haveColumn = false;
+  float cosE = 1.0F;
+  float sinE = 0.0F;
+  const float n = in.beamOriginM;
+  const float* t = in.lidarToSensor;
+  const std::int32_t w = in.columnsPerFrame;
   Status st = Status::Ok;
   for (std::size_t i = 0; i < records.size(); ++i) {
     const FiringRecord& r = records[i];
     if (r.secondReturn != 0U) {
       continue;
     }
-    float xyz[3];
-    const Status ps = ousterPoint(in, r, true, xyz);
-    if (ps == Status::OutOfRange) {
+    if (r.laser >= in.beams || in.beams > kMaxPixelsPerColumn) {
       st = Status::OutOfRange;
       continue;
     }
-    if (ps != Status::Ok) {
+    if (r.distance == 0U) {
       continue;
     }
     if (written >= out.size()) {
       return Status::CapacityExceeded;
     }
-    const std::int32_t w = in.columnsPerFrame;
-    const std::int32_t col =
-        (static_cast<std::int32_t>(measurementId(r.azimuth, in.columnsPerFrame)) + in.pixelShift[r.laser] % w + w) % w;
+    const std::uint16_t m = measurementId(r.azimuth, in.columnsPerFrame);
+    if (!haveColumn || m != lastM) {
+      const float thetaE = kTwoPi * (1.0F - static_cast<float>(m) / static_cast<float>(in.columnsPerFrame));
+      cosE = std::cos(thetaE);
+      sinE = std::sin(thetaE);
+      lastM = m;
+      haveColumn = true;
+    }
+    const std::size_t b = r.laser;
+    if (!beamReady[b]) {
+      cosAlt[b] = std::cos(in.altitudeRad[b]);
+      sinAlt[b] = std::sin(in.altitudeRad[b]);
+      cosAz[b] = std::cos(in.azimuthRad[b]);
+      sinAz[b] = std::sin(in.azimuthRad[b]);
+      beamReady[b] = true;
+    }
+    const float cosTheta = cosE * cosAz[b] + sinE * sinAz[b];  // cos(theta_e - az)
+    const float sinTheta = sinE * cosAz[b] - cosE * sinAz[b];  // sin(theta_e - az)
+    const float d = static_cast<float>(r.distance) * 0.002F - n;
+    const float x = d * cosTheta * cosAlt[b] + n * cosE;
+    const float y = d * sinTheta * cosAlt[b] + n * sinE;
+    const float z = d * sinAlt[b] + in.beamZOffsetM;
+    const std::int32_t col = (static_cast<std::int32_t>(m) + in.pixelShift[b] % w + w) % w;
     FiringReturn& o = out[written++];
-    o.point = Eigen::Vector3f(xyz[0], xyz[1], xyz[2]);
+    o.point = Eigen::Vector3f(t[0] * x + t[1] * y + t[2] * z + t[3], t[4] * x + t[5] * y + t[6] * z + t[7],
+                              t[8] * x + t[9] * y + t[10] * z + t[11]);
     o.laser = r.laser;
     o.firing = static_cast<std::uint32_t>(col);
   }

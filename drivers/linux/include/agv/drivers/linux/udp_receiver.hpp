@@ -1,6 +1,7 @@
 #pragma once
 /// @file udp_receiver.hpp
-/// Non-blocking UDP receiver of a lidar's data packets (Velodyne: port 2368), Linux sockets.
+/// Non-blocking UDP receiver of a lidar's data packets (Velodyne: port 2368, 1206 bytes; Ouster:
+/// port 7502, up to 24 832 bytes: size the buffer to the unit's packet), Linux sockets.
 ///
 /// Each datagram is stamped with the kernel's receive time (SO_TIMESTAMPNS) mapped onto
 /// CLOCK_MONOTONIC (the drivers' clock, see monotonic_clock.hpp), as the SocketCAN bus does.

@@ -163,6 +163,8 @@ Status ousterPoint(const OusterIntrinsics& in, const FiringRecord& r, bool senso
 /// The records as the range image's input: points in the sensor frame, laser = beam, firing =
 /// the destaggered image column (m + pixel_shift_by_row[beam]) mod W. First returns only.
 /// CapacityExceeded when `out` is full; OutOfRange when a beam is beyond the table (skipped).
+/// The points are ousterPoint()'s (sensor frame) to float rounding; the sines and cosines are
+/// taken once per beam and per column of the call, not per point.
 Status toFiringReturns(Span<const FiringRecord> records, const OusterIntrinsics& intrinsics, Span<FiringReturn> out,
                        std::size_t& written) noexcept;
 
