@@ -9,6 +9,8 @@
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_detector.hpp"
+#include "agv/localization/scan_matcher.hpp"
+#include "agv/localization/surface_map.hpp"
 #include "agv/loop/affine_hough.hpp"
 #include "agv/loop/correspondence_graph.hpp"
 #include "agv/loop/glarot_database.hpp"
@@ -161,6 +163,31 @@ bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& select
       const double ny = sp * unit(rng);
       const double nt = sh * unit(rng);
       odometry.push_back(odometry.back().compose(Pose2d{step.x + nx, step.y + ny, step.theta + nt}));
+    }
+    if (selection.submapMatched) {
+      // The odometry corrected by matching each scan against the surfaces of the scans before it
+      // (the poses are the laser's: no mounting). A refused match keeps the odometry's step and
+      // writes nothing into the map, except where the scan sees too little of it (new ground).
+      auto map = std::make_unique<HallSurfaceMap>();
+      ScanMatcher matcher;
+      std::vector<Pose2d> matched{odometry.front()};
+      (void)map->insert(out.scans.front(), matched.front());
+      const Pose2d noMount{};
+      for (std::size_t i = 1; i < out.scans.size(); ++i) {
+        const Pose2d step = between(odometry[i - 1], odometry[i]);
+        const double d = std::hypot(step.x, step.y);
+        const Pose2d prior = matched.back().compose(step);
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        cov.diagonal() << selection.submapPositionVariancePerMetre * d + 1e-6,
+            selection.submapPositionVariancePerMetre * d + 1e-6, selection.submapHeadingVariancePerMetre * d + 1e-6;
+        const ScanMatchResult r =
+            map->field().built() ? matcher.match(out.scans[i], noMount, prior, cov, map->field()) : ScanMatchResult{};
+        matched.push_back(r.status == Status::Ok ? r.pose : prior);
+        if (r.status == Status::Ok || r.status == Status::NotEnoughData || !map->field().built()) {
+          (void)map->insert(out.scans[i], matched.back());
+        }
+      }
+      odometry = std::move(matched);
     }
     // Each scan's association set: its keypoints and, while it holds fewer than submapPoints, the
     // previous submapScans - 1 selected scans', placed by that odometry, newest first.

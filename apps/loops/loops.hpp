@@ -66,6 +66,12 @@ struct ScanSelection {
   double submapPositionVariancePerMetre = 0.01;  ///< [m^2/m]
   double submapHeadingVariancePerMetre = 0.015;  ///< [rad^2/m]
   std::uint64_t submapNoiseSeed = 17;
+  /// Place the submaps by scan matching instead of by that odometry alone: each selected scan is
+  /// matched (`ScanMatcher`, the odometry's step as the prior with its variances as the search
+  /// window) against a `SurfaceMap` of the scans before it, and the matched pose is the one the
+  /// submap uses; a scan the matcher refuses keeps the odometry's step. What a vehicle with a laser
+  /// does between two places (docs/loop-closure.md, "Submaps placed by scan matching").
+  bool submapMatched = false;
 };
 
 /// Adds `points` (keypoints in another scan's sensor frame) to `submap` (this scan's frame),

@@ -149,6 +149,11 @@ int run(int argc, char** argv) {
   app.add_option("--submap-heading-noise", selection.submapHeadingVariancePerMetre,
                  "submaps: [rad^2/m] heading variance per metre of the simulated odometry (default 0.015)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--submap-noise-seed", selection.submapNoiseSeed,
+                 "submaps: seed of the simulated odometry's noise (default 17)");
+  app.add_flag("--submap-matched", selection.submapMatched,
+               "submaps: place them by matching each scan against a surface map of the scans before it, "
+               "the simulated odometry's step as the prior");
   app.add_option("--glarot-scan-points", selection.glarotScanPoints,
                  "GLAROT signature of this many beam endpoints spread over the scan (default 128); 0: of the "
                  "keypoints (thesis)")
