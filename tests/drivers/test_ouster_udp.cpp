@@ -2,7 +2,8 @@
 // loopback: every real capture of ../shared/data/lidar3d/ouster_pcaps/ replayed from a plain socket
 // at the unit's own packet size, received, stamped and decoded exactly as the file decodes; a
 // Velodyne-sized buffer refuses them and counts each; a frame's burst beyond the socket buffer is
-// counted as kernel drops, and a buffer sized to a frame (what docs/ouster.md advises) loses none.
+// counted as kernel drops, and the receiver's default 4 MB buffer (2.6 such frames) loses none.
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -55,8 +56,8 @@ Loaded load(const Capture& c) {
   return l;
 }
 
-/// What the decoder makes of a sequence of packets: records, first and last record of each packet
-/// summed up as a checksum of laser, azimuth and distance.
+/// What the decoder makes of a sequence of packets: the records, a checksum of every record's
+/// laser, azimuth and distance in order, and the decoder's counters.
 struct Decoded {
   std::size_t records = 0;
   std::uint64_t checksum = 0;

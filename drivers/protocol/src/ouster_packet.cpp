@@ -285,13 +285,14 @@ Status toFiringReturns(Span<const FiringRecord> records, const OusterIntrinsics&
   const float n = in.beamOriginM;
   const float* t = in.lidarToSensor;
   const std::int32_t w = in.columnsPerFrame;
+  const std::uint16_t beams = in.beams <= kMaxPixelsPerColumn ? in.beams : std::uint16_t{0};  // beyond capacity: none
   Status st = Status::Ok;
   for (std::size_t i = 0; i < records.size(); ++i) {
     const FiringRecord& r = records[i];
     if (r.secondReturn != 0U) {
       continue;
     }
-    if (r.laser >= in.beams || in.beams > kMaxPixelsPerColumn) {
+    if (r.laser >= beams) {
       st = Status::OutOfRange;
       continue;
     }
