@@ -72,6 +72,31 @@ void addSubmapPoints(const std::vector<Eigen::Vector2f>& points, const Pose2d& t
   }
 }
 
+std::size_t scanMatchedTrack(const std::vector<LaserScan>& scans, const Pose2d& mount, const Pose2d& start,
+                             const std::vector<Pose2d>& steps, const std::vector<Eigen::Matrix3d>& covariances,
+                             std::vector<Pose2d>& track) {
+  const std::size_t n = std::min(scans.size(), std::min(steps.size(), covariances.size()));
+  track.assign(n, start);
+  if (n == 0) {
+    return 0;
+  }
+  auto map = std::make_unique<HallSurfaceMap>();
+  ScanMatcher matcher;
+  (void)map->insert(scans.front(), start.compose(mount));
+  std::size_t matched = 0;
+  for (std::size_t i = 1; i < n; ++i) {
+    const Pose2d prior = track[i - 1].compose(steps[i]);
+    const ScanMatchResult r =
+        map->field().built() ? matcher.match(scans[i], mount, prior, covariances[i], map->field()) : ScanMatchResult{};
+    track[i] = r.status == Status::Ok ? r.pose : prior;
+    matched += r.status == Status::Ok ? 1U : 0U;
+    if (r.status == Status::Ok || r.status == Status::NotEnoughData || !map->field().built()) {
+      (void)map->insert(scans[i], track[i].compose(mount));
+    }
+  }
+  return matched;
+}
+
 bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& selection, ScanFeatures& out,
                      std::string& error) {
   out = ScanFeatures{};
@@ -165,28 +190,17 @@ bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& select
       odometry.push_back(odometry.back().compose(Pose2d{step.x + nx, step.y + ny, step.theta + nt}));
     }
     if (selection.submapMatched) {
-      // The odometry corrected by matching each scan against the surfaces of the scans before it
-      // (the poses are the laser's: no mounting). A refused match keeps the odometry's step and
-      // writes nothing into the map, except where the scan sees too little of it (new ground).
-      auto map = std::make_unique<HallSurfaceMap>();
-      ScanMatcher matcher;
-      std::vector<Pose2d> matched{odometry.front()};
-      (void)map->insert(out.scans.front(), matched.front());
-      const Pose2d noMount{};
-      for (std::size_t i = 1; i < out.scans.size(); ++i) {
-        const Pose2d step = between(odometry[i - 1], odometry[i]);
-        const double d = std::hypot(step.x, step.y);
-        const Pose2d prior = matched.back().compose(step);
-        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-        cov.diagonal() << selection.submapPositionVariancePerMetre * d + 1e-6,
+      // The poses are the laser's: no mounting.
+      std::vector<Pose2d> steps(odometry.size());
+      std::vector<Eigen::Matrix3d> covariances(odometry.size(), Eigen::Matrix3d::Zero());
+      for (std::size_t i = 1; i < odometry.size(); ++i) {
+        steps[i] = between(odometry[i - 1], odometry[i]);
+        const double d = std::hypot(steps[i].x, steps[i].y);
+        covariances[i].diagonal() << selection.submapPositionVariancePerMetre * d + 1e-6,
             selection.submapPositionVariancePerMetre * d + 1e-6, selection.submapHeadingVariancePerMetre * d + 1e-6;
-        const ScanMatchResult r =
-            map->field().built() ? matcher.match(out.scans[i], noMount, prior, cov, map->field()) : ScanMatchResult{};
-        matched.push_back(r.status == Status::Ok ? r.pose : prior);
-        if (r.status == Status::Ok || r.status == Status::NotEnoughData || !map->field().built()) {
-          (void)map->insert(out.scans[i], matched.back());
-        }
       }
+      std::vector<Pose2d> matched;
+      (void)scanMatchedTrack(out.scans, Pose2d{}, odometry.front(), steps, covariances, matched);
       odometry = std::move(matched);
     }
     // Each scan's association set: its keypoints and, while it holds fewer than submapPoints, the

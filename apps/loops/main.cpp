@@ -178,6 +178,10 @@ int run(int argc, char** argv) {
   app.add_option("--map-min-pairs", mapping.minPairs, "N_min of the loops accepted for mapping")
       ->check(CLI::Range(3, 64));
   app.add_option("--map-max-scans", mapping.maxScans, "map at most this many scans per log (0: all)");
+  bool rawOdometry = false;
+  app.add_flag(
+      "--map-raw-odometry", rawOdometry,
+      "mapping: build the graph on the raw odometry, without the scan-matching front end (the thesis' setting)");
   app.add_option("--map-submap", mapping.submapScans,
                  "keypoints of this many consecutive scans (placed by odometry) per loop query")
       ->check(CLI::Range(1, 50));
@@ -281,6 +285,7 @@ int run(int argc, char** argv) {
     }
   }
 
+  mapping.scanMatching = !rawOdometry;
   if (poseGraph) {
     doc["pose_graph"] = agv::report::Json::object();
     for (const auto& [name, path] : inputsOf(mapDatasets, kMappingLogs, mapLogFiles, dataDir)) {
@@ -296,11 +301,11 @@ int run(int argc, char** argv) {
         return 2;
       }
       std::printf(
-          "\npose graph %s: %zu scans, %zu loops accepted, %zu rejected (%zu of the accepted wrong by "
-          "the corrected poses); ATE position RMS odometry %.3f m -> optimised %.3f m, heading RMS %.2f "
-          "-> %.2f deg\n",
-          name.c_str(), r.scans, r.loopsAccepted, r.loopsRejected, r.acceptedWrong, r.odometryAteM, r.optimisedAteM,
-          r.odometryAteDeg, r.optimisedAteDeg);
+          "\npose graph %s: %zu scans (%zu matched by the front end), %zu loops accepted, %zu rejected (%zu of "
+          "the accepted wrong by the corrected poses); ATE position RMS raw odometry %.3f m -> front end %.3f m -> "
+          "optimised %.3f m, heading RMS %.2f -> %.2f -> %.2f deg\n",
+          name.c_str(), r.scans, r.scansMatched, r.loopsAccepted, r.loopsRejected, r.acceptedWrong, r.odometryAteM,
+          r.frontEndAteM, r.optimisedAteM, r.odometryAteDeg, r.frontEndAteDeg, r.optimisedAteDeg);
       doc["pose_graph"][name] = agv::loops::mappingJson(r);
       if (!svgDir.empty()) {
         const std::string svgPath = svgDir + "/map-" + name + ".svg";

@@ -158,6 +158,17 @@ double overlap(const std::vector<Eigen::Vector2d>& first, const std::vector<Eige
   return static_cast<double>(hits) / static_cast<double>(second.size());
 }
 
+// Standard deviations of an odometry edge of increment `inc`: a constant plus a part per metre
+// travelled (and, for the heading, per radian turned).
+double odometrySigmaXY(const MappingOptions& o, const Pose2d& inc) {
+  return o.odoSigmaXY + o.odoSigmaXYPerM * std::hypot(inc.x, inc.y);
+}
+
+double odometrySigmaTheta(const MappingOptions& o, const Pose2d& inc) {
+  return o.odoSigmaTheta + o.odoSigmaThetaPerM * std::hypot(inc.x, inc.y) +
+         o.odoSigmaThetaPerRad * std::fabs(normalizeAngle(inc.theta));
+}
+
 // A loop found by the correspondence graph, waiting for a partner.
 struct Hypothesis {
   Edge edge;
@@ -198,25 +209,43 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
   const Pose2d mount{log.frontLaserOffset, 0.0, 0.0};
   std::vector<Pose2d> inc;
   r.zeroIncrements = datasets::odometryIncrements(log, n, inc);
-  std::vector<double> travel(n, 0.0);
   for (std::size_t i = 0; i < n; ++i) {
     r.truth.push_back(log.scans[i].robotPose);
     r.odometry.push_back(i == 0 ? r.truth[0] : r.odometry[i - 1].compose(inc[i]));
-    travel[i] = i == 0 ? 0.0 : travel[i - 1] + std::hypot(inc[i].x, inc[i].y);
+  }
+  // The front end: the raw steps corrected by scan matching, searched over the odometry edges'
+  // sigmas; from here on the increments are the front end's.
+  r.scanMatching = o.scanMatching;
+  r.frontEnd = r.odometry;
+  if (o.scanMatching) {
+    std::vector<Eigen::Matrix3d> covariances(n, Eigen::Matrix3d::Zero());
+    for (std::size_t i = 1; i < n; ++i) {
+      const double sXY = odometrySigmaXY(o, inc[i]);
+      const double sTheta = odometrySigmaTheta(o, inc[i]);
+      covariances[i].diagonal() << sXY * sXY, sXY * sXY, sTheta * sTheta;
+    }
+    r.scansMatched = scanMatchedTrack(features.scans, mount, r.truth[0], inc, covariances, r.frontEnd);
+    for (std::size_t i = 1; i < n; ++i) {
+      inc[i] = between(r.frontEnd[i - 1], r.frontEnd[i]);
+    }
+  }
+  std::vector<double> travel(n, 0.0);
+  for (std::size_t i = 1; i < n; ++i) {
+    travel[i] = travel[i - 1] + std::hypot(inc[i].x, inc[i].y);
   }
   if (o.submapScans == 0) {
     error = "the submap needs at least 1 scan";
     return false;
   }
   // Keypoints (and signature) of each scan's submap: its own keypoints and those of the previous
-  // submapScans - 1 scans, moved into its laser frame by the odometry; newest first, one of each
+  // submapScans - 1 scans, moved into its laser frame by the front end; newest first, one of each
   // pair closer than the FALKO suppression radius, at most kMaxLoopPoints.
   std::vector<std::vector<Eigen::Vector2f>> points(n);
   std::vector<GlarotSignature> signatures(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const Pose2d laserI = r.odometry[i].compose(mount);
+    const Pose2d laserI = r.frontEnd[i].compose(mount);
     for (std::size_t k = 0; k < o.submapScans && k <= i; ++k) {
-      addSubmapPoints(features.points[i - k], between(laserI, r.odometry[i - k].compose(mount)),
+      addSubmapPoints(features.points[i - k], between(laserI, r.frontEnd[i - k].compose(mount)),
                       selection.falko.nmsRadius, kMaxLoopPoints, points[i]);
     }
     (void)computeGlarot(Span<const Eigen::Vector2f>(points[i].data(), points[i].size()), GlarotParams{}, signatures[i]);
@@ -224,11 +253,7 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
 
   std::vector<Edge> odoEdges;
   for (std::size_t i = 1; i < n; ++i) {
-    const double d = std::hypot(inc[i].x, inc[i].y);
-    odoEdges.push_back(Edge{
-        i - 1, i, inc[i], o.odoSigmaXY + o.odoSigmaXYPerM * d,
-        o.odoSigmaTheta + o.odoSigmaThetaPerM * d + o.odoSigmaThetaPerRad * std::fabs(normalizeAngle(inc[i].theta)),
-        false});
+    odoEdges.push_back(Edge{i - 1, i, inc[i], odometrySigmaXY(o, inc[i]), odometrySigmaTheta(o, inc[i]), false});
   }
   std::vector<Edge> loopEdges;
   std::vector<std::size_t> loopPairs;
@@ -341,7 +366,7 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
       lastOptimised = i;
       dirty = false;
     }
-    (void)db->insert(signatures[i], r.odometry[i]);
+    (void)db->insert(signatures[i], r.frontEnd[i]);
   }
   for (const Hypothesis& h : pending) {
     r.rejectedUnpaired += h.paired ? 0U : 1U;
@@ -376,10 +401,13 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
   }
   // First poses coincide (odometry starts at truth[0], node 0 is fixed there): no further alignment.
   const datasets::AbsoluteError odo = datasets::absoluteError(r.truth, r.odometry);
+  const datasets::AbsoluteError front = datasets::absoluteError(r.truth, r.frontEnd);
   const datasets::AbsoluteError opt = datasets::absoluteError(r.truth, r.optimised);
   r.odometryAteM = odo.position.rms;
+  r.frontEndAteM = front.position.rms;
   r.optimisedAteM = opt.position.rms;
   r.odometryAteDeg = odo.heading.rms * 180.0 / M_PI;
+  r.frontEndAteDeg = front.heading.rms * 180.0 / M_PI;
   r.optimisedAteDeg = opt.heading.rms * 180.0 / M_PI;
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return true;
@@ -391,6 +419,10 @@ report::Json mappingJson(const MappingResult& r) {
   j["optimised_ate_m"] = r.optimisedAteM;
   j["odometry_ate_deg"] = r.odometryAteDeg;
   j["optimised_ate_deg"] = r.optimisedAteDeg;
+  j["front_end"] = r.scanMatching ? "scan_matching" : "odometry";
+  j["front_end_ate_m"] = r.frontEndAteM;
+  j["front_end_ate_deg"] = r.frontEndAteDeg;
+  j["scans_matched"] = r.scansMatched;
   j["loops_accepted"] = r.loopsAccepted;
   j["loops_rejected"] = r.loopsRejected;
   j["scans"] = r.scans;
@@ -407,19 +439,29 @@ report::Json mappingJson(const MappingResult& r) {
 }
 
 std::string mapSvg(const std::string& dataset, const datasets::CarmenLog& log, const MappingResult& r) {
-  // Scan points on a 0.1 m grid (one mark per occupied cell) at both trajectories, same scale.
+  // Scan points on a 0.1 m grid (one mark per occupied cell) at each trajectory, same scale.
+  struct Panel {
+    const char* title;
+    const std::vector<Pose2d>* track;
+    double ateM;
+    double ateDeg;
+  };
+  std::vector<Panel> panels{{"raw odometry", &r.odometry, r.odometryAteM, r.odometryAteDeg}};
+  if (r.scanMatching) {
+    panels.push_back({"scan matching", &r.frontEnd, r.frontEndAteM, r.frontEndAteDeg});
+  }
+  panels.push_back({"pose graph (Ceres)", &r.optimised, r.optimisedAteM, r.optimisedAteDeg});
   const double cell = 0.10;
   const Pose2d mount{r.laserX, 0.0, 0.0};
-  std::array<std::set<std::pair<long, long>>, 2> cells;
+  std::vector<std::set<std::pair<long, long>>> cells(panels.size());
   double minX = 1e9;
   double minY = 1e9;
   double maxX = -1e9;
   double maxY = -1e9;
-  const std::vector<Pose2d>* tracks[2] = {&r.odometry, &r.optimised};
-  for (std::size_t k = 0; k < 2; ++k) {
+  for (std::size_t k = 0; k < panels.size(); ++k) {
     for (std::size_t i = 0; i < r.scans; ++i) {
       const datasets::LogScan& s = log.scans[i];
-      const Pose2d laser = (*tracks[k])[i].compose(mount);
+      const Pose2d laser = (*panels[k].track)[i].compose(mount);
       for (std::size_t b = 0; b < s.ranges.size(); b += 2) {
         const double range = static_cast<double>(s.ranges[b]);
         if (!(range > 0.0) || range >= static_cast<double>(s.maxRange)) {
@@ -440,14 +482,15 @@ std::string mapSvg(const std::string& dataset, const datasets::CarmenLog& log, c
   const double panel = 600.0;
   const double margin = 30.0;
   const double scale = panel / std::max(1.0, std::max(maxX - minX, maxY - minY));
-  report::SvgDocument svg(2 * panel + 3 * margin, panel + 2 * margin + 20, {{"font-family", "sans-serif"}});
-  const char* titles[2] = {"odometry", "pose graph (Ceres)"};
-  for (std::size_t k = 0; k < 2; ++k) {
+  const double count = static_cast<double>(panels.size());
+  report::SvgDocument svg(count * panel + (count + 1) * margin, panel + 2 * margin + 20,
+                          {{"font-family", "sans-serif"}});
+  for (std::size_t k = 0; k < panels.size(); ++k) {
     const double ox = margin + static_cast<double>(k) * (panel + margin);
     const double oy = margin + 20 + panel;
     char title[160];
-    std::snprintf(title, sizeof title, "%s %s: ATE %.2f m / %.1f deg", dataset.c_str(), titles[k],
-                  k == 0 ? r.odometryAteM : r.optimisedAteM, k == 0 ? r.odometryAteDeg : r.optimisedAteDeg);
+    std::snprintf(title, sizeof title, "%s %s: ATE %.2f m / %.1f deg", dataset.c_str(), panels[k].title, panels[k].ateM,
+                  panels[k].ateDeg);
     svg.addText("text", {{"x", ox}, {"y", margin}, {"font-size", 14}}, title);
     std::string path;
     for (const auto& c : cells[k]) {
@@ -457,7 +500,7 @@ std::string mapSvg(const std::string& dataset, const datasets::CarmenLog& log, c
     }
     svg.add("path", {{"d", path}, {"stroke", "black"}, {"stroke-width", 1}});
     report::SvgPoints line;
-    for (const Pose2d& p : *tracks[k]) {
+    for (const Pose2d& p : *panels[k].track) {
       line.add(ox + (p.x - minX) * scale, oy - (p.y - minY) * scale);
     }
     svg.add("polyline", {{"fill", "none"}, {"stroke", "#d62728"}, {"stroke-width", 1}, {"points", line.str()}});

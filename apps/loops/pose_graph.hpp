@@ -1,11 +1,11 @@
 #pragma once
 // Online pose-graph mapping on a gmapping-corrected CARMEN log: raw odometry rebuilt from the ODOM
-// lines (datasets::odometryIncrements), loops found online by GLAROT + correspondence graph,
-// screened against false loops (a gate from the odometry's accumulated uncertainty, then pairwise
-// consistency of two loops within a few scans), a pose graph optimised with Ceres (Cauchy loss on
-// the loop edges) after each batch of accepted loops, and a final residual check. The absolute
-// trajectory error against the corrected poses, with the first pose fixed at the corrected one
-// (docs/loop-closure.md, "Pose-graph mapping"). Host tool code (heap, Ceres); not core.
+// lines (datasets::odometryIncrements), corrected scan to scan by matching (the front end), loops found online by
+// GLAROT + correspondence graph, screened against false loops (a gate from the odometry's accumulated uncertainty, then
+// pairwise consistency of two loops within a few scans), a pose graph optimised with Ceres (Cauchy loss on the loop
+// edges) after each batch of accepted loops, and a final residual check. The absolute trajectory error against the
+// corrected poses, with the first pose fixed at the corrected one (docs/loop-closure.md, "Pose-graph mapping"). Host
+// tool code (heap, Ceres); not core.
 
 #include <cstddef>
 #include <string>
@@ -20,7 +20,13 @@ namespace loops {
 
 /// Settings of the online mapping (defaults: the documented runs).
 struct MappingOptions {
-  std::size_t maxScans = 0;     ///< 0: every scan of the log
+  std::size_t maxScans = 0;  ///< 0: every scan of the log
+  /// The front end: true, the odometry increments are replaced by scan-matched ones (each scan
+  /// matched by the localizer's `ScanMatcher` against a surface map of the scans before it, the raw
+  /// step as the prior, the odometry edge sigmas below as its search window; a refused match keeps
+  /// the raw step); they place the submaps and form the odometry edges and the gates. false: the raw
+  /// odometry (the thesis' setting). docs/loop-closure.md, "Pose-graph mapping".
+  bool scanMatching = true;
   std::size_t candidates = 10;  ///< GLAROT candidates per scan
   /// Keypoints of this many scans (the scan and the ones before it, placed by odometry) form the
   /// set a scan's signature and associations use; 1: the scan's own keypoints (the thesis).
@@ -75,6 +81,9 @@ struct MappingResult {
   double laserX = 0.0;             ///< [m] laser ahead of the robot centre (log PARAM)
   std::vector<Pose2d> truth;       ///< corrected robot poses
   std::vector<Pose2d> odometry;    ///< raw odometry chained from truth[0]
+  bool scanMatching = false;       ///< the front end was scan matching (else frontEnd = odometry)
+  std::size_t scansMatched = 0;    ///< scans the front end's matcher accepted
+  std::vector<Pose2d> frontEnd;    ///< the front end's poses from truth[0]: what the graph starts from
   std::vector<Pose2d> optimised;   ///< pose graph, first pose fixed at truth[0]
   std::vector<LoopEdge> loops;     ///< accepted, in the final graph
   std::size_t hypotheses = 0;      ///< CG loops with at least minPairs pairs
@@ -86,9 +95,11 @@ struct MappingResult {
   std::size_t acceptedWrong = 0;
   std::size_t hypothesesWrong = 0;  ///< hypotheses the corrected poses call wrong
   std::size_t optimisations = 0;
-  double odometryAteM = 0.0;  ///< RMS position error
+  double odometryAteM = 0.0;  ///< RMS position error of the raw odometry
+  double frontEndAteM = 0.0;
   double optimisedAteM = 0.0;
   double odometryAteDeg = 0.0;  ///< RMS heading error
+  double frontEndAteDeg = 0.0;
   double optimisedAteDeg = 0.0;
   double seconds = 0.0;
 };
@@ -100,7 +111,8 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& options, Ma
 /// The JSON object of issue 17 plus counts.
 report::Json mappingJson(const MappingResult& r);
 
-/// Two maps side by side: scan points at the odometry poses and at the optimised poses.
+/// The maps side by side: scan points at the raw odometry poses, at the front end's when it
+/// matched scans, and at the optimised poses.
 std::string mapSvg(const std::string& dataset, const datasets::CarmenLog& log, const MappingResult& r);
 
 }  // namespace loops

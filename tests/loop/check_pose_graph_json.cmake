@@ -2,12 +2,15 @@
 # included by tests/support/run_json_program.cmake with the document in `j`: for each dataset the
 # documented keys, the optimised trajectory below the raw odometry in RMS position and heading
 # error against the corrected poses, at least one loop accepted, and no accepted loop that the
-# corrected poses call wrong (> 0.5 m or 10 deg).
+# corrected poses call wrong (> 0.5 m or 10 deg). FRONT_END: the front end expected
+# ("scan_matching": at least 95 % of the scans matched and its trajectory below the raw odometry;
+# "odometry": none matched and its figures the raw odometry's). MAX_ATE (optional): a list of
+# <dataset>:<metres>:<degrees>, the largest optimised RMS position and heading error allowed.
 expect_keys("${j}" "pose_graph")
 expect_keys("${j}" "${MAP_NAMES}" pose_graph)
 foreach(name ${MAP_NAMES})
-  foreach(key odometry_ate_m optimised_ate_m odometry_ate_deg optimised_ate_deg loops_accepted loops_rejected
-              accepted_wrong)
+  foreach(key odometry_ate_m optimised_ate_m odometry_ate_deg optimised_ate_deg front_end_ate_m front_end_ate_deg
+              scans_matched scans loops_accepted loops_rejected accepted_wrong)
     expect_type("${j}" NUMBER pose_graph ${name} ${key})
   endforeach()
   string(JSON odo GET "${j}" pose_graph ${name} odometry_ate_m)
@@ -17,7 +20,38 @@ foreach(name ${MAP_NAMES})
   if(NOT opt LESS odo OR NOT optDeg LESS odoDeg)
     message(FATAL_ERROR "JSON: ${name}: optimised ATE ${opt} m / ${optDeg} deg not below odometry ${odo} m / ${odoDeg} deg")
   endif()
+  string(JSON frontEnd GET "${j}" pose_graph ${name} front_end)
+  string(JSON front GET "${j}" pose_graph ${name} front_end_ate_m)
+  string(JSON frontDeg GET "${j}" pose_graph ${name} front_end_ate_deg)
+  string(JSON scans GET "${j}" pose_graph ${name} scans)
+  string(JSON matched GET "${j}" pose_graph ${name} scans_matched)
+  if(NOT frontEnd STREQUAL FRONT_END)
+    message(FATAL_ERROR "JSON: ${name}: front_end is '${frontEnd}', expected '${FRONT_END}'")
+  endif()
+  if(FRONT_END STREQUAL "scan_matching")
+    math(EXPR atLeast "${scans} * 95 / 100")
+    if(matched LESS atLeast)
+      message(FATAL_ERROR "JSON: ${name}: ${matched} of ${scans} scans matched by the front end, expected >= ${atLeast}")
+    endif()
+    if(NOT front LESS odo OR NOT frontDeg LESS odoDeg)
+      message(FATAL_ERROR "JSON: ${name}: front end ATE ${front} m / ${frontDeg} deg not below odometry ${odo} m / ${odoDeg} deg")
+    endif()
+  elseif(NOT matched EQUAL 0 OR NOT front EQUAL odo OR NOT frontDeg EQUAL odoDeg)
+    message(FATAL_ERROR "JSON: ${name}: odometry front end with ${matched} scans matched, ATE ${front} m / ${frontDeg} deg "
+                        "(raw odometry ${odo} m / ${odoDeg} deg)")
+  endif()
+  foreach(bound ${MAX_ATE})
+    string(REPLACE ":" ";" bound "${bound}")
+    list(GET bound 0 boundName)
+    if(boundName STREQUAL name)
+      list(GET bound 1 maxM)
+      list(GET bound 2 maxDeg)
+      if(opt GREATER maxM OR optDeg GREATER maxDeg)
+        message(FATAL_ERROR "JSON: ${name}: optimised ATE ${opt} m / ${optDeg} deg, expected at most ${maxM} m / ${maxDeg} deg")
+      endif()
+    endif()
+  endforeach()
   expect_number_in("${j}" 1 1000000 pose_graph ${name} loops_accepted)
   expect_number_in("${j}" 0 0 pose_graph ${name} accepted_wrong)
-  message(STATUS "${name}: ATE ${odo} m -> ${opt} m, ${odoDeg} deg -> ${optDeg} deg")
+  message(STATUS "${name}: ATE ${odo} m -> ${front} m -> ${opt} m, ${odoDeg} deg -> ${frontDeg} deg -> ${optDeg} deg")
 endforeach()
