@@ -441,6 +441,7 @@ report::Json sessionJson(const ScenarioConfig& cfg, const std::vector<Stage>& st
            {"runs", std::move(runs)},
            {"static_falko_mapping",
             {{"frozen_corners", s.mapCorners},
+             {"surface_map", cfg.cornerModesSurfaceMap},
              {"field_surface_cells", s.fieldSurfacePoints},
              {"runs", std::move(mappingRuns)}}},
            {"relocalization", relocalizationJson(s.reloc, cfg.relocAmbiguityMargin)},

@@ -138,7 +138,8 @@ nav::PipelineParams pipelineParams(const ScenarioConfig& cfg, LocalizationMode m
   p.observations.corners = !reflectors;
   p.observations.detectCorners = mode == LocalizationMode::Mapping;  // collected, not corrected with
   p.observations.collectScanPoints = mode == LocalizationMode::Mapping;
-  p.observations.surfaceMap = mode == LocalizationMode::Dynamic && cfg.dynamicSurfaceMap;
+  p.observations.surfaceMap =
+      (mode == LocalizationMode::Dynamic || mode == LocalizationMode::StaticFalko) && cfg.cornerModesSurfaceMap;
   p.observations.mapChanges = mode == LocalizationMode::Natural && cfg.mapChanges;
   p.observations.surfaceFallback = mode == LocalizationMode::Natural && cfg.surfaceFallback;
   l.scanMatch.adaptiveBand = cfg.adaptiveBand;

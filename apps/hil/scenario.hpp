@@ -33,10 +33,14 @@ struct NominalVehicle {
 
 /// What the localizer is fed with in a run (docs/hil.md, "Localization modes").
 enum class LocalizationMode {
-  Reflectors,   ///< reflector centres against the surveyed reflector map (static)
-  Mapping,      ///< reflectors (surveyed) for the pose; FALKO corners accumulated into a corner map
-  StaticFalko,  ///< FALKO corners only, against the frozen map of the mapping runs
-  Dynamic,      ///< FALKO corners only, dynamic map starting empty
+  Reflectors,  ///< reflector centres against the surveyed reflector map (static)
+  Mapping,     ///< reflectors (surveyed) for the pose; FALKO corners accumulated into a corner map
+  /// FALKO corners against the frozen map of the mapping runs (no reflector), and the surface map
+  /// of the run's sweeps unless `ScenarioConfig::cornerModesSurfaceMap` is off
+  StaticFalko,
+  /// FALKO corners in a dynamic map starting empty, and the surface map of the run's sweeps unless
+  /// `ScenarioConfig::cornerModesSurfaceMap` is off
+  Dynamic,
   /// Natural navigation: the frozen FALKO corners of the mapping runs and scan matching against
   /// the likelihood field of their scans (no reflector)
   Natural,
@@ -117,9 +121,10 @@ struct ScenarioConfig {
   int runsPerMission = 4;
   double dwellSeconds = 2.0;
   sim::PalletMoveParams palletMoves;
-  /// Dynamic mode: scan matching against the surfaces of the run's earlier sweeps
-  /// (`ObservationParams::surfaceMap`) next to the dynamic corner map; off: the corners alone.
-  bool dynamicSurfaceMap = true;
+  /// The FALKO corner modes (dynamic and static_falko): scan matching against the surfaces of the
+  /// run's earlier sweeps (`ObservationParams::surfaceMap`) next to the corner map, dynamic or
+  /// frozen; off: the corners alone.
+  bool cornerModesSurfaceMap = true;
   /// Scan matching in every mode: `ScanMatchParams::adaptiveBand` (off by default).
   bool adaptiveBand = false;
   /// Natural mode: the surfaces the mapping run did not see are kept and their points left out of
