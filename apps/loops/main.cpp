@@ -178,9 +178,8 @@ int run(int argc, char** argv) {
   app.add_option("--map-min-pairs", mapping.minPairs, "N_min of the loops accepted for mapping")
       ->check(CLI::Range(3, 64));
   app.add_option("--map-max-scans", mapping.maxScans, "map at most this many scans per log (0: all)");
-  bool rawOdometry = false;
   app.add_flag(
-      "--map-raw-odometry", rawOdometry,
+      "!--map-raw-odometry", mapping.scanMatching,
       "mapping: build the graph on the raw odometry, without the scan-matching front end (the thesis' setting)");
   app.add_option("--map-submap", mapping.submapScans,
                  "keypoints of this many consecutive scans (placed by odometry) per loop query")
@@ -285,7 +284,6 @@ int run(int argc, char** argv) {
     }
   }
 
-  mapping.scanMatching = !rawOdometry;
   if (poseGraph) {
     doc["pose_graph"] = agv::report::Json::object();
     for (const auto& [name, path] : inputsOf(mapDatasets, kMappingLogs, mapLogFiles, dataDir)) {

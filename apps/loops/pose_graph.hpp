@@ -1,11 +1,12 @@
 #pragma once
 // Online pose-graph mapping on a gmapping-corrected CARMEN log: raw odometry rebuilt from the ODOM
-// lines (datasets::odometryIncrements), corrected scan to scan by matching (the front end), loops found online by
-// GLAROT + correspondence graph, screened against false loops (a gate from the odometry's accumulated uncertainty, then
-// pairwise consistency of two loops within a few scans), a pose graph optimised with Ceres (Cauchy loss on the loop
-// edges) after each batch of accepted loops, and a final residual check. The absolute trajectory error against the
-// corrected poses, with the first pose fixed at the corrected one (docs/loop-closure.md, "Pose-graph mapping"). Host
-// tool code (heap, Ceres); not core.
+// lines (datasets::odometryIncrements), corrected scan to scan by matching (the front end), loops
+// found online by GLAROT + correspondence graph, screened against false loops (a gate from the
+// odometry's accumulated uncertainty, then pairwise consistency of two loops within a few scans), a
+// pose graph optimised with Ceres (Cauchy loss on the loop edges) after each batch of accepted
+// loops, and a final residual check. The absolute trajectory error against the corrected poses,
+// with the first pose fixed at the corrected one (docs/loop-closure.md, "Pose-graph mapping").
+// Host tool code (heap, Ceres); not core.
 
 #include <cstddef>
 #include <string>
