@@ -5,14 +5,14 @@
 #                                    cross compilers, qemu-user/qemu-system-arm, the bare-metal
 #                                    toolchain, and for the SocketCAN VM test a Debian kernel with
 #                                    CAN modules, busybox and can-utils (~2.5 GB), clang 14 with
-#                                    libclang-rt for the fuzz tests
+#                                    libclang-rt for the fuzz tests, ccache for the five trees' builds
 set -euo pipefail
 
 base=(cmake make g++ pkg-config libeigen3-dev catch2 libbenchmark-dev zlib1g-dev libcli11-dev nlohmann-json3-dev clang-format clang-tidy
       libmodbus-dev libsqlite3-dev libceres-dev)
 cross=(g++-aarch64-linux-gnu g++-arm-linux-gnueabihf qemu-user qemu-system-arm
        gcc-arm-none-eabi binutils-arm-none-eabi libnewlib-arm-none-eabi libstdc++-arm-none-eabi-newlib
-       qemu-system-x86 linux-image-amd64 busybox-static can-utils cpio xz-utils clang-14 libclang-rt-14-dev)
+       qemu-system-x86 linux-image-amd64 busybox-static can-utils cpio xz-utils clang-14 libclang-rt-14-dev ccache)
 
 want=("${base[@]}")
 case "${1:-}" in
