@@ -575,6 +575,69 @@ TEST_CASE("global localizer: the margin against a runner-up the scan refutes, an
   }
 }
 
+TEST_CASE("global localizer: net support, the poles a pose expects in clear view and nothing shows count against it",
+          "[loop][reloc]") {
+  // Four poles seen from the origin and two more in its clear view (a 20 m open room) that nothing
+  // detected: the truth explains the 4 observations and misses 2, a net support of 2.
+  static LandmarkMap map;
+  map.clear();
+  std::uint32_t id = 1;
+  for (const Eigen::Vector2d& p : kSeenPoles) {
+    REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
+  }
+  REQUIRE(map.addSurveyed(LandmarkKind::Reflector, 2.0, 2.0, 0.001, id++).ok());
+  REQUIRE(map.addSurveyed(LandmarkKind::Reflector, -2.0, 2.5, 0.001, id++).ok());
+  map.setMode(MapMode::Static);
+  PointObservation obs[6];
+  seenPoleObservations(obs);
+  const Span<const PointObservation> o(obs, 4);
+  static GlobalLocalizer loc;  // laser at the logical point
+  static LaserScan scan;
+  openRoomScan(scan);
+  GlobalLocalizerParams p;
+  RelocReport r;
+  {  // off (the core default): found at the truth, 2 missed
+    loc.setParams(p);
+    REQUIRE(loc.localize(map, o, scan, r) == Status::Ok);
+    CHECK(std::hypot(r.pose.x, r.pose.y) < 0.01);
+    CHECK(r.inliers == 4U);
+    CHECK(r.missed == 2U);
+  }
+  {  // asked for exactly the net support: found
+    p.minNetSupport = 2;
+    loc.setParams(p);
+    REQUIRE(loc.localize(map, o, scan, r) == Status::Ok);
+    CHECK(std::hypot(r.pose.x, r.pose.y) < 0.01);
+  }
+  {  // one more: refused as weak support (not ambiguous: no other place competes), nothing allocated
+    p.minNetSupport = 3;
+    loc.setParams(p);
+    CHECK(loc.localize(map, o, scan, r) == Status::NotEnoughData);
+    CHECK(r.outcome == RelocOutcome::WeakSupport);
+    CHECK(r.inliers == 4U);
+    CHECK(r.missed == 2U);
+    AGV_CHECK_NO_ALLOCATIONS((void)loc.localize(map, o, scan, r));
+    // Without a scan there is no negative evidence and nothing to net: the inliers decide.
+    REQUIRE(loc.localize(map, o, r) == Status::Ok);
+    CHECK(std::hypot(r.pose.x, r.pose.y) < 0.01);
+  }
+  {  // the two poles detected after all: 6 inliers, nothing missed, found
+    obs[4] = PointObservation{2.0, 2.0, LandmarkKind::Reflector};
+    obs[5] = PointObservation{-2.0, 2.5, LandmarkKind::Reflector};
+    REQUIRE(loc.localize(map, Span<const PointObservation>(obs, 6), scan, r) == Status::Ok);
+    CHECK(r.inliers == 6U);
+    CHECK(r.missed == 0U);
+    CHECK(std::hypot(r.pose.x, r.pose.y) < 0.01);
+  }
+  {  // the poles hidden behind something 1 m away all round: not expected, nothing missed, found
+    for (std::size_t i = 0; i < scan.ranges.size(); ++i) {
+      scan.ranges[i] = 1.0F;
+    }
+    REQUIRE(loc.localize(map, o, scan, r) == Status::Ok);
+    CHECK(r.missed == 0U);
+  }
+}
+
 TEST_CASE("reloc confirmer: a place passed over by its refutation must stay refuted on every sweep", "[loop][reloc]") {
   // The map of the margin test with one extra pole: four poles seen from the origin, a copy of
   // three of them 40 m away and a pole at (48, 3) that a vehicle at the copy has in clear view.

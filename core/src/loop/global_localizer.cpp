@@ -484,6 +484,9 @@ Status GlobalLocalizer::search(const LandmarkMap& map, Span<const PointObservati
   // margin of the best's score can compete (a score never exceeds the inliers).
   out.missed = missed(best_.pose, observations, *scan);
   const long bestScore = static_cast<long>(best_.inliers) - static_cast<long>(out.missed);
+  if (bestScore < static_cast<long>(params_.minNetSupport)) {
+    return finish(out, RelocOutcome::WeakSupport);
+  }
   const auto margin = static_cast<long>(params_.ambiguityMargin);
   // Against a place the scan refutes (it misses a landmark): refutedMargin, never more than margin.
   const long refutedMargin = std::min(margin, static_cast<long>(params_.refutedMargin));

@@ -68,6 +68,13 @@ struct GlobalLocalizerParams {
   /// N_min: fewest verified inliers of the best pose (4: three points fix a rigid motion, the
   /// fourth is the first independent check; raise it for dense, regular maps).
   std::size_t minSupport = 4;
+  /// With a scan (the `localize` overload that takes one): fewest inliers - missed of the best pose,
+  /// its net support, where `missed` counts the landmarks it expects in the scan's clear view that
+  /// no observation explains. 0 = off. A detector that finds only some of the landmarks in view
+  /// (FALKO corners: about half) leaves a wrong place on a repeating layout with as many inliers
+  /// as the truth; the landmarks such a place expects and nothing shows are what set it apart
+  /// (docs/loop-closure.md, "Net support").
+  std::size_t minNetSupport = 0;
   /// Anchor observations tried (nearest first): tolerates anchorCount - 1 spurious anchors.
   std::size_t anchorCount = 3;
   /// Ambiguous when a distinct pose has at least best - ambiguityMargin inliers.
@@ -107,7 +114,7 @@ enum class RelocOutcome : std::uint8_t {
   NonFiniteInput,      ///< a NaN or infinite observation (NonFiniteInput)
   OverCapacity,        ///< more than kMaxLoopPoints observations (CapacityExceeded; counted)
   WindowOverCapacity,  ///< a window's candidates exceeded the CG capacity (CapacityExceeded)
-  WeakSupport,         ///< the best pose has fewer than minSupport inliers (NotEnoughData)
+  WeakSupport,         ///< fewer than minSupport inliers, or minNetSupport net (NotEnoughData)
   Ambiguous,           ///< a distinct pose is within ambiguityMargin of the best (Rejected)
   WorkBoundHit,        ///< a node budget was hit (NotConverged)
 };
