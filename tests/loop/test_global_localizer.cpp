@@ -617,6 +617,13 @@ TEST_CASE("global localizer: net support, the poles a pose expects in clear view
     CHECK(r.inliers == 4U);
     CHECK(r.missed == 2U);
     AGV_CHECK_NO_ALLOCATIONS((void)loc.localize(map, o, scan, r));
+    // The largest value refuses too (no wrap-around to a negative threshold).
+    p.minNetSupport = static_cast<std::size_t>(-1);
+    loc.setParams(p);
+    CHECK(loc.localize(map, o, scan, r) == Status::NotEnoughData);
+    CHECK(r.outcome == RelocOutcome::WeakSupport);
+    p.minNetSupport = 3;
+    loc.setParams(p);
     // Without a scan there is no negative evidence and nothing to net: the inliers decide.
     REQUIRE(loc.localize(map, o, r) == Status::Ok);
     CHECK(std::hypot(r.pose.x, r.pose.y) < 0.01);

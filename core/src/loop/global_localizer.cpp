@@ -484,7 +484,8 @@ Status GlobalLocalizer::search(const LandmarkMap& map, Span<const PointObservati
   // margin of the best's score can compete (a score never exceeds the inliers).
   out.missed = missed(best_.pose, observations, *scan);
   const long bestScore = static_cast<long>(best_.inliers) - static_cast<long>(out.missed);
-  if (bestScore < static_cast<long>(params_.minNetSupport)) {
+  // inliers - missed < minNetSupport, in unsigned terms (any minNetSupport, no wrap-around)
+  if (best_.inliers < params_.minNetSupport || best_.inliers - params_.minNetSupport < out.missed) {
     return finish(out, RelocOutcome::WeakSupport);
   }
   const auto margin = static_cast<long>(params_.ambiguityMargin);
