@@ -38,3 +38,12 @@ function(expect_number_in json lo hi)
     message(FATAL_ERROR "JSON: ${ARGN} = ${v}, expected ${lo} .. ${hi}")
   endif()
 endfunction()
+
+# expect_true(<json> <path>...): the value at <path> is the boolean true.
+function(expect_true json)
+  expect_type("${json}" BOOLEAN ${ARGN})
+  string(JSON v GET "${json}" ${ARGN})
+  if(NOT v)
+    message(FATAL_ERROR "JSON: ${ARGN} is ${v}, expected true")
+  endif()
+endfunction()
