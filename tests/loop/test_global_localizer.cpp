@@ -120,18 +120,19 @@ void openRoomScan(LaserScan& scan) {
 /// The copy scene of the negative-evidence tests: four poles seen from the origin (kSeenPoles),
 /// a copy of the first three 40 m along x, and `extras` (more poles, near the copy), static.
 const Eigen::Vector2d kSeenPoles[4] = {{5.0, 0.5}, {0.5, 6.0}, {-4.0, -3.0}, {3.0, -5.5}};
-/// Clears `map` and surveys the four poles seen from the origin; returns the next free id.
-std::uint32_t surveySeenPoles(LandmarkMap& map) {
+/// Clears `map` and surveys the four poles seen from the origin; `id` is then the next free id.
+/// (void: the MCU runner's REQUIRE returns from the function.)
+void surveySeenPoles(LandmarkMap& map, std::uint32_t& id) {
   map.clear();
-  std::uint32_t id = 1;
+  id = 1;
   for (const Eigen::Vector2d& p : kSeenPoles) {
     REQUIRE(map.addSurveyed(LandmarkKind::Reflector, p.x(), p.y(), 0.001, id++).ok());
   }
-  return id;
 }
 
 void buildCopyScene(LandmarkMap& map, const Eigen::Vector2d* extras, std::size_t extraCount) {
-  std::uint32_t id = surveySeenPoles(map);
+  std::uint32_t id = 1;
+  surveySeenPoles(map, id);
   for (std::size_t i = 0; i < 3; ++i) {
     REQUIRE(map.addSurveyed(LandmarkKind::Reflector, kSeenPoles[i].x() + 40.0, kSeenPoles[i].y(), 0.001, id++).ok());
   }
@@ -586,7 +587,8 @@ TEST_CASE("global localizer: net support, the poles a pose expects in clear view
   // Four poles seen from the origin and two more in its clear view (a 20 m open room) that nothing
   // detected: the truth explains the 4 observations and misses 2, a net support of 2.
   static LandmarkMap map;
-  std::uint32_t id = surveySeenPoles(map);
+  std::uint32_t id = 1;
+  surveySeenPoles(map, id);
   REQUIRE(map.addSurveyed(LandmarkKind::Reflector, 2.0, 2.0, 0.001, id++).ok());
   REQUIRE(map.addSurveyed(LandmarkKind::Reflector, -2.0, 2.5, 0.001, id++).ok());
   map.setMode(MapMode::Static);
