@@ -7,6 +7,7 @@
 #include <limits>
 #include <memory>
 #include <sstream>
+#include <utility>
 
 #include <Eigen/QR>
 
@@ -296,7 +297,12 @@ class ScanReplay {
       r_.surfaceMap = true;
     }
     last_ = Timestamp::fromSeconds(log_.scans[start].timestamp);
-    if (localizer_->reset(last_, r_.truth[0], p0_) != Status::Ok) {
+    if (options_.coldStart) {
+      // No pose: the first scans search the whole field (`coldStartScan`).
+      localized_ = false;
+      reloc_ = RelocState::Searching;
+      r_.coldStart = true;
+    } else if (localizer_->reset(last_, r_.truth[0], p0_) != Status::Ok) {
       error = "localizer refused the initial pose";
       return false;
     }
@@ -316,6 +322,10 @@ class ScanReplay {
   /// Scan `i`: prediction to its stamp (after the first), its corners, the correction, the tally.
   bool replayScan(std::size_t i, std::string& error) {
     Timestamp stamp = Timestamp::fromSeconds(log_.scans[i].timestamp);
+    if (!localized_) {
+      coldStartScan(i, stamp);
+      return true;
+    }
     if (i > start_ && !predictTo(i, stamp, error)) {
       return false;
     }
@@ -409,6 +419,26 @@ class ScanReplay {
     return true;
   }
 
+  /// Scan `i` of a cold start before its first restart: no pose to predict or correct; the
+  /// whole-field search, or the confirmation of its candidate, which restarts the localizer.
+  void coldStartScan(std::size_t i, Timestamp& stamp) {
+    if (i > start_ && !(last_ < stamp)) {
+      stamp = last_ + Duration::fromNanoseconds(1000);  // as predictTo: strictly increasing
+    }
+    last_ = stamp;
+    (void)log_.scans[i].toLaserScan(*scan_);
+    obs_->points.clear();
+    LocalizerHealth none{};
+    none.lost = true;  // no pose yet (the trace's `lost` column)
+    relocalize(i, stamp, none);
+    r_.localizer.push_back(localized_ ? localizer_->pose() : Pose2d{});  // left out until the restart
+    const bool on = onMap(log_.scans[i].robotPose);
+    r_.onMap.push_back(on);
+    r_.onMapScans += on ? 1U : 0U;
+    none.lost = !localized_;
+    writeTrace(i, none);
+  }
+
   /// Field relocalization of scan `i` (see `ReplayOptions::fieldRelocalization`): a search when
   /// the localizer has just been declared lost (or the last candidate was not confirmed), the
   /// confirmation of a pending candidate otherwise.
@@ -441,6 +471,12 @@ class ScanReplay {
             const Pose2d& t = log_.scans[i].robotPose;
             r_.relocWrong += isWrongRestart(candidate_, t) ? 1U : 0U;
             traceRelocLabel_ = "confirmed";
+            if (!localized_) {
+              localized_ = true;
+              r_.coldStartFound = true;
+              r_.coldStartScans = i - start_;
+              r_.coldStartWrong = isWrongRestart(candidate_, t);
+            }
           }
           reloc_ = RelocState::Idle;
         }
@@ -452,7 +488,7 @@ class ScanReplay {
     }
     const auto t0 = std::chrono::steady_clock::now();
     RelocRegion region;
-    if (options_.relocRadius > 0.0) {
+    if (options_.relocRadius > 0.0 && localized_) {  // a cold start has no estimate: the whole field
       region.x = localizer_->pose().x;
       region.y = localizer_->pose().y;
       const Eigen::Matrix3d& P = localizer_->covariance();
@@ -668,6 +704,7 @@ class ScanReplay {
   std::unique_ptr<MatchPoints> changedPoints_ = std::make_unique<MatchPoints>();
   Pose2d candidate_{};
   std::size_t confirmations_ = 0;
+  bool localized_ = true;  // false during a cold start until its first restart
   Eigen::Matrix3d p0_ = Eigen::Matrix3d::Zero();
   Timestamp last_;
   double ratioSum_ = 0.0;
@@ -694,6 +731,29 @@ void markRoute(const datasets::CarmenLog& log, std::size_t mapping, double dista
       }
     }
   }
+}
+
+/// With a cold start: the trajectories and the on-map mask of scans [start, n) cut to those from
+/// the first restart on (none when there was none), the odometry chained from its corrected pose
+/// (from where the vehicle first knew where it was, as the localizer); the time and path before.
+void cutToColdStartFix(const datasets::CarmenLog& log, std::size_t start, std::size_t n, const std::vector<Pose2d>& inc,
+                       ReplayResult& r) {
+  if (!r.coldStartFound) {
+    r.coldStartScans = r.truth.size();  // none localized
+  }
+  const std::size_t k = std::min(r.coldStartScans, r.truth.size());
+  r.coldStartSeconds = log.scans[std::min(start + k, n - 1)].timestamp - log.scans[start].timestamp;
+  r.coldStartPath = 0.0;
+  for (std::size_t i = 1; i <= k && i < r.truth.size(); ++i) {
+    r.coldStartPath += std::hypot(r.truth[i].x - r.truth[i - 1].x, r.truth[i].y - r.truth[i - 1].y);
+  }
+  const auto from = static_cast<std::ptrdiff_t>(k);
+  std::vector<Pose2d> localized(r.localizer.begin() + from, r.localizer.end());
+  std::vector<bool> onMap(r.onMap.begin() + std::min(from, static_cast<std::ptrdiff_t>(r.onMap.size())), r.onMap.end());
+  recordTracks(log, start + k, n, inc, r);
+  r.localizer = std::move(localized);
+  r.onMap = std::move(onMap);
+  r.onMapScans = static_cast<std::size_t>(std::count(r.onMap.begin(), r.onMap.end(), true));
 }
 
 }  // namespace
@@ -728,6 +788,10 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
       return false;
     }
   }
+  if (options.coldStart && (start == 0 || !options.scanMatching || !options.fieldRelocalization)) {
+    error = "a cold start needs a mapping run (--map-fraction) with its field and the field relocalization";
+    return false;
+  }
   r.mappingScans = start;
   r.scans = n - start;
   r.duration = log.scans[n - 1].timestamp - log.scans[start].timestamp;
@@ -753,6 +817,9 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
   replay.closeTrace();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   replay.finish();
+  if (r.coldStart) {
+    cutToColdStartFix(log, start, n, inc, r);
+  }
   r.odometryRelative = datasets::relativeError(r.truth, r.odometry, options.segmentLength);
   r.localizerRelative = datasets::relativeError(r.truth, r.localizer, options.segmentLength);
   r.odometryAbsolute = datasets::absoluteError(r.truth, r.odometry);
@@ -834,6 +901,15 @@ std::string resultText(const ReplayResult& r) {
       << r.relocFound << " found, " << r.relocAmbiguous << " ambiguous, " << r.relocWeak << " weak; "
       << r.relocConfirmed << " confirmed restarts (" << r.relocWrong << " wrong), " << r.relocUnconfirmed
       << " unconfirmed\n";
+    if (r.coldStart) {
+      o << "cold start (no pose given): "
+        << (r.coldStartFound
+                ? "first restart after " + std::to_string(r.coldStartScans) + " scans" +
+                      fmt(" (%.1f s, %.1f m driven), ", r.coldStartSeconds, r.coldStartPath) +
+                      (r.coldStartWrong ? "WRONG" : "right") + " (within 0.3 m / 5 deg); the figures above start there"
+                : std::string("no pose found in ") + std::to_string(r.coldStartScans) + " scans")
+        << "\n";
+    }
     if (r.surfaceFallback) {
       o << "surface fallback (off the map): " << r.fallbackAttempts << " matches, " << r.fallbackFused << " fused, "
         << r.fallbackPieces << " surface pieces, " << r.fallbackClears << " clears at restarts\n";
@@ -904,6 +980,13 @@ report::Json resultJson(const ReplayResult& r) {
                 {"wrong", r.relocWrong},
                 {"unconfirmed", r.relocUnconfirmed},
                 {"seconds", r.relocSeconds}}},
+              {"cold_start",
+               {{"enabled", r.coldStart},
+                {"found", r.coldStartFound},
+                {"scans_before_fix", r.coldStartScans},
+                {"seconds_to_fix", r.coldStartSeconds},
+                {"path_to_fix_m", r.coldStartPath},
+                {"wrong", r.coldStartWrong}}},
               {"surface_map", {{"enabled", r.surfaceMap}, {"pieces", r.surfaceAdded}}},
               {"laser_x_m", r.laserX},
               {"odometry_noise",

@@ -100,6 +100,13 @@ struct ReplayOptions {
   /// position covariance (which grows with the distance driven since the loss), at least this
   /// radius; 0: the whole field.
   double relocRadius = 3.0;
+  /// With `mapFraction` and `fieldRelocalization`: no hint at the start. The localizer is not given
+  /// the corrected pose of the first localized scan; it starts with no pose and the field
+  /// relocalization searches the whole field (there is no estimate to centre a disc on) on every
+  /// scan until a candidate is confirmed, as a vehicle powered up without a set-pose does. The
+  /// scans before that restart have no pose and are left out of the error figures
+  /// (`ReplayResult::coldStartScans`).
+  bool coldStart = false;
   /// Map-less runs (no `mapFraction`, no `staticMapFromTruth`): scan-to-map matching against a
   /// `SurfaceMap`, the likelihood field of the localizer's own earlier scans, next to the dynamic
   /// corner map. Off: the corners alone.
@@ -190,6 +197,14 @@ struct ReplayResult {
   std::size_t relocUnconfirmed = 0;  ///< candidates the next scans did not confirm
   std::size_t relocWrong = 0;        ///< confirmed restarts more than 0.3 m / 5 deg from the corrected pose
   double relocSeconds = 0.0;         ///< wall time spent in the searches
+  // Start with no hint (`ReplayOptions::coldStart`). The trajectories, masks and error figures
+  // then cover the scans from the first restart on, the odometry chained from its corrected pose.
+  bool coldStart = false;
+  bool coldStartFound = false;     ///< a candidate was confirmed before the log ended
+  std::size_t coldStartScans = 0;  ///< localized scans before the first restart (all of them when not found)
+  double coldStartSeconds = 0.0;   ///< [s] log time from the first localized scan to that restart
+  double coldStartPath = 0.0;      ///< [m] corrected path driven until then
+  bool coldStartWrong = false;     ///< the first restart is more than 0.3 m / 5 deg from the corrected pose
   /// Per localized scan: on the map, i.e. at least `onMapFraction` of its points (thinned as the
   /// matcher thins them) lie within the matcher's inlier distance of the field's surfaces at the
   /// *true* pose. What a map-based localizer can be asked to hold; off the map it dead-reckons.

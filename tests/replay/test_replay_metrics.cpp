@@ -148,6 +148,7 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
                                          "on_route",
                                          "scan_matching",
                                          "field_relocalization",
+                                         "cold_start",
                                          "surface_map",
                                          "laser_x_m",
                                          "odometry_noise",
