@@ -9,13 +9,12 @@
 
 #include "agv/core/angle.hpp"
 #include "agv/falko/falko_detector.hpp"
-#include "agv/localization/scan_matcher.hpp"
-#include "agv/localization/surface_map.hpp"
 #include "agv/loop/affine_hough.hpp"
 #include "agv/loop/correspondence_graph.hpp"
 #include "agv/loop/glarot_database.hpp"
 #include "agv/loop/ransac_association.hpp"
 #include "agv/loop/scan_overlap.hpp"
+#include "agv/mapping/scan_odometry.hpp"
 #include "agv/report/svg.hpp"
 
 namespace agv {
@@ -70,31 +69,6 @@ void addSubmapPoints(const std::vector<Eigen::Vector2f>& points, const Pose2d& t
       submap.push_back(p);
     }
   }
-}
-
-std::size_t scanMatchedTrack(const std::vector<LaserScan>& scans, const Pose2d& mount, const Pose2d& start,
-                             const std::vector<Pose2d>& steps, const std::vector<Eigen::Matrix3d>& covariances,
-                             std::vector<Pose2d>& track) {
-  const std::size_t n = std::min(scans.size(), std::min(steps.size(), covariances.size()));
-  track.assign(n, start);
-  if (n == 0) {
-    return 0;
-  }
-  auto map = std::make_unique<HallSurfaceMap>();
-  ScanMatcher matcher;
-  (void)map->insert(scans.front(), start.compose(mount));
-  std::size_t matched = 0;
-  for (std::size_t i = 1; i < n; ++i) {
-    const Pose2d prior = track[i - 1].compose(steps[i]);
-    const ScanMatchResult r =
-        map->field().built() ? matcher.match(scans[i], mount, prior, covariances[i], map->field()) : ScanMatchResult{};
-    track[i] = r.status == Status::Ok ? r.pose : prior;
-    matched += r.status == Status::Ok ? 1U : 0U;
-    if (r.status == Status::Ok || r.status == Status::NotEnoughData || !map->field().built()) {
-      (void)map->insert(scans[i], track[i].compose(mount));
-    }
-  }
-  return matched;
 }
 
 bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& selection, ScanFeatures& out,
@@ -200,7 +174,7 @@ bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& select
             selection.submapPositionVariancePerMetre * d + 1e-6, selection.submapHeadingVariancePerMetre * d + 1e-6;
       }
       std::vector<Pose2d> matched;
-      (void)scanMatchedTrack(out.scans, Pose2d{}, odometry.front(), steps, covariances, matched);
+      (void)mapping::scanMatchedTrack(out.scans, Pose2d{}, odometry.front(), steps, covariances, matched);
       odometry = std::move(matched);
     }
     // Each scan's association set: its keypoints and, while it holds fewer than submapPoints, the

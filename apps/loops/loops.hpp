@@ -81,18 +81,6 @@ struct ScanSelection {
 void addSubmapPoints(const std::vector<Eigen::Vector2f>& points, const Pose2d& toThis, float mergeRadius,
                      std::size_t limit, std::vector<Eigen::Vector2f>& submap);
 
-/// Poses corrected by laser, the front end of the scan-matched submaps and of the pose graph:
-/// pose i is scan i matched by the localizer's `ScanMatcher` (defaults) against a `HallSurfaceMap`
-/// of the scans before it, from the prior `track[i - 1] (+) steps[i]` with covariance
-/// `covariances[i]` (its search window); `mount` is the laser in the poses' frame (identity when
-/// they are the laser's). A refused match keeps the prior and writes nothing into the map, unless
-/// the scan saw too little of it (new ground). `track` starts at `start` and holds one pose per scan
-/// (the shortest of the three inputs); steps[0] and covariances[0] are not used. Returns the number of scans matched
-/// (status Ok).
-std::size_t scanMatchedTrack(const std::vector<LaserScan>& scans, const Pose2d& mount, const Pose2d& start,
-                             const std::vector<Pose2d>& steps, const std::vector<Eigen::Matrix3d>& covariances,
-                             std::vector<Pose2d>& track);
-
 /// Detects the features of the selected scans that carry ground truth (`LogScan::groundTruth`).
 /// False with `error` when no scan is usable.
 bool extractFeatures(const datasets::CarmenLog& log, const ScanSelection& selection, ScanFeatures& out,

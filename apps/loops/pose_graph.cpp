@@ -15,6 +15,7 @@
 #include "agv/datasets/trajectory_error.hpp"
 #include "agv/loop/correspondence_graph.hpp"
 #include "agv/loop/glarot_database.hpp"
+#include "agv/mapping/scan_odometry.hpp"
 #include "agv/report/svg.hpp"
 #include "loops.hpp"
 
@@ -160,13 +161,17 @@ double overlap(const std::vector<Eigen::Vector2d>& first, const std::vector<Eige
 
 // Standard deviations of an odometry edge of increment `inc`: a constant plus a part per metre
 // travelled (and, for the heading, per radian turned).
+mapping::StepSigmas odometrySigmas(const MappingOptions& o) {
+  return mapping::StepSigmas{o.odoSigmaXY, o.odoSigmaXYPerM, o.odoSigmaTheta, o.odoSigmaThetaPerM,
+                             o.odoSigmaThetaPerRad};
+}
+
 double odometrySigmaXY(const MappingOptions& o, const Pose2d& inc) {
-  return o.odoSigmaXY + o.odoSigmaXYPerM * std::hypot(inc.x, inc.y);
+  return odometrySigmas(o).sigmaXY(inc);
 }
 
 double odometrySigmaTheta(const MappingOptions& o, const Pose2d& inc) {
-  return o.odoSigmaTheta + o.odoSigmaThetaPerM * std::hypot(inc.x, inc.y) +
-         o.odoSigmaThetaPerRad * std::fabs(normalizeAngle(inc.theta));
+  return odometrySigmas(o).sigmaTheta(inc);
 }
 
 // A loop found by the correspondence graph, waiting for a partner.
@@ -220,11 +225,9 @@ bool mapOnline(const datasets::CarmenLog& log, const MappingOptions& o, MappingR
   if (o.scanMatching) {
     std::vector<Eigen::Matrix3d> covariances(n, Eigen::Matrix3d::Zero());
     for (std::size_t i = 1; i < n; ++i) {
-      const double sXY = odometrySigmaXY(o, inc[i]);
-      const double sTheta = odometrySigmaTheta(o, inc[i]);
-      covariances[i].diagonal() << sXY * sXY, sXY * sXY, sTheta * sTheta;
+      covariances[i] = odometrySigmas(o).covariance(inc[i]);
     }
-    r.scansMatched = scanMatchedTrack(features.scans, mount, r.truth[0], inc, covariances, r.frontEnd);
+    r.scansMatched = mapping::scanMatchedTrack(features.scans, mount, r.truth[0], inc, covariances, r.frontEnd);
     for (std::size_t i = 1; i < n; ++i) {
       inc[i] = between(r.frontEnd[i - 1], r.frontEnd[i]);
     }

@@ -124,6 +124,8 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
                "with --map-fraction: no search of the whole field when lost");
   app.add_option("--reloc-radius", options.relocRadius,
                  "[m] field relocalization: search radius around the estimate (0: whole field)");
+  app.add_flag("--scan-odometry", options.scanOdometry,
+               "with --map-fraction: predict with the laser odometry (wheel steps corrected by scan matching)");
   app.add_flag("--cold-start", options.coldStart,
                "with --map-fraction: no pose at the start; the whole-field relocalization finds it");
   app.add_option("--reloc-confirm-sigmas", options.relocalizer.confirmSigmas,

@@ -733,6 +733,36 @@ void markRoute(const datasets::CarmenLog& log, std::size_t mapping, double dista
   }
 }
 
+/// The laser odometry's steps of scans [0, n) (`ReplayOptions::scanOdometry`): `ScanOdometry`
+/// from the first corrected pose over the wheel steps `inc`; its figures into `r`.
+void laserOdometrySteps(const datasets::CarmenLog& log, std::size_t start, std::size_t n, const ReplayOptions& options,
+                        const std::vector<Pose2d>& inc, std::vector<Pose2d>& steps, ReplayResult& r) {
+  mapping::ScanOdometry odometry(options.laserMounting);
+  auto scan = std::make_unique<LaserScan>();
+  std::vector<Pose2d> track(n);
+  steps.assign(n, Pose2d{});
+  for (std::size_t i = 0; i < n; ++i) {
+    (void)log.scans[i].toLaserScan(*scan);
+    if (i == 0) {
+      odometry.start(*scan, log.scans[0].robotPose);
+      track[0] = odometry.pose();
+      continue;
+    }
+    track[i] = odometry.next(*scan, inc[i], options.scanOdometryWindow.covariance(inc[i]));
+    steps[i] = between(track[i - 1], track[i]);
+  }
+  r.scanOdometry = true;
+  r.scanOdometryMatched = odometry.matched();
+  r.scanOdometryScans = odometry.scans();
+  std::vector<Pose2d> truth;
+  std::vector<Pose2d> localized;
+  for (std::size_t i = start; i < n; ++i) {
+    truth.push_back(log.scans[i].robotPose);
+    localized.push_back(track[i]);
+  }
+  r.scanOdometryRelative = datasets::relativeError(truth, localized, options.segmentLength);
+}
+
 /// With a cold start: the trajectories and the on-map mask of scans [start, n) cut to those from
 /// the first restart on (none when there was none), the odometry chained from its corrected pose
 /// (from where the vehicle first knew where it was, as the localizer); the time and path before.
@@ -788,6 +818,10 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
       return false;
     }
   }
+  if (options.scanOdometry && start == 0) {
+    error = "the laser odometry (--scan-odometry) needs a mapping run (--map-fraction)";
+    return false;
+  }
   if (options.coldStart && (start == 0 || !options.scanMatching || !options.fieldRelocalization)) {
     error = "a cold start needs a mapping run (--map-fraction) with its field and the field relocalization";
     return false;
@@ -799,12 +833,18 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
   r.zeroIncrements = datasets::odometryIncrements(log, n, inc);
   recordTracks(log, start, n, inc, r);
 
+  // The prediction's steps: the wheels', or the laser odometry's.
+  std::vector<Pose2d> steps;
+  if (options.scanOdometry) {
+    laserOdometrySteps(log, start, n, options, inc, steps, r);
+  }
+  const std::vector<Pose2d>& predict = options.scanOdometry ? steps : inc;
   ReplayOptions used = options;
   if (start > 0 && options.fitOdometryNoise) {
-    used.odometryNoise = fitOdometryNoise(log, inc, 1, start, options.odometryNoise, r.odometryNoiseSteps);
+    used.odometryNoise = fitOdometryNoise(log, predict, 1, start, options.odometryNoise, r.odometryNoiseSteps);
   }
   r.odometryNoise = used.odometryNoise;
-  ScanReplay replay(log, used, inc, r);
+  ScanReplay replay(log, used, predict, r);
   if (!replay.begin(start, n, error)) {
     return false;
   }
@@ -841,6 +881,12 @@ std::string resultText(const ReplayResult& r) {
     << " ahead of the robot centre ("
     << (r.laserXLine > 0 ? "log line " + std::to_string(r.laserXLine) : std::string("not in the log: 0 or --laser-x"))
     << ")\n";
+  if (r.scanOdometry) {
+    o << "laser odometry (the prediction's steps): " << r.scanOdometryMatched << " of " << r.scanOdometryScans
+      << " scans matched; "
+      << fmt("per metre over the localized scans %.4f m / %.2f deg (mean)\n", r.scanOdometryRelative.position.mean,
+             r.scanOdometryRelative.heading.mean * kDeg);
+  }
   o << "odometry noise model"
     << (r.odometryNoiseSteps > 0 ? " (fitted on " + std::to_string(r.odometryNoiseSteps) + " mapping-run steps)"
                                  : std::string(" (given)"))
@@ -988,6 +1034,11 @@ report::Json resultJson(const ReplayResult& r) {
                 {"path_to_fix_m", r.coldStartPath},
                 {"wrong", r.coldStartWrong}}},
               {"surface_map", {{"enabled", r.surfaceMap}, {"pieces", r.surfaceAdded}}},
+              {"scan_odometry",
+               {{"enabled", r.scanOdometry},
+                {"matched", r.scanOdometryMatched},
+                {"scans", r.scanOdometryScans},
+                {"per_metre", errors(r.scanOdometryRelative.position, r.scanOdometryRelative.heading)}}},
               {"laser_x_m", r.laserX},
               {"odometry_noise",
                {{"fitted_steps", r.odometryNoiseSteps},

@@ -1,7 +1,7 @@
 # Checks of agvnav-replay --json (included by tests/support/run_json_program.cmake with the
 # document in `j`): the documented keys in order, the error statistics, the localizer counters;
 # the raw odometry's per-metre position error is the data README's 0.125 m within 10 %.
-expect_keys("${j}" "log;scans;path_length_m;duration_s;zero_increments;odometry_per_metre;localizer_per_metre;odometry_absolute;localizer_absolute;static_map;mapping_run;on_map;on_route;scan_matching;field_relocalization;cold_start;surface_map;laser_x_m;odometry_noise;localizer;replay_seconds")
+expect_keys("${j}" "log;scans;path_length_m;duration_s;zero_increments;odometry_per_metre;localizer_per_metre;odometry_absolute;localizer_absolute;static_map;mapping_run;on_map;on_route;scan_matching;field_relocalization;cold_start;surface_map;scan_odometry;laser_x_m;odometry_noise;localizer;replay_seconds")
 # fr079's log says PARAM robot_frontlaser_offset -0.04: the replay must have used it.
 expect_number_in("${j}" -0.0401 -0.0399 laser_x_m)
 string(JSON log GET "${j}" log)

@@ -150,6 +150,7 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
                                          "field_relocalization",
                                          "cold_start",
                                          "surface_map",
+                                         "scan_odometry",
                                          "laser_x_m",
                                          "odometry_noise",
                                          "localizer",

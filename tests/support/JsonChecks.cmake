@@ -47,3 +47,15 @@ function(expect_true json)
     message(FATAL_ERROR "JSON: ${ARGN} is ${v}, expected true")
   endif()
 endfunction()
+
+# expect_no_wrong_restart(<json> <log name>): an agvnav-replay document (tests/replay) whose field
+# relocalizations and resyncs never restarted the localizer at a wrong pose (more than 0.3 m or
+# 5 deg from the corrected pose).
+function(expect_no_wrong_restart json logName)
+  string(JSON wrong GET "${json}" field_relocalization wrong)
+  string(JSON resyncWrong GET "${json}" scan_matching resync_wrong)
+  if(NOT wrong EQUAL 0 OR NOT resyncWrong EQUAL 0)
+    message(FATAL_ERROR
+            "JSON: ${logName}: ${wrong} field relocalizations and ${resyncWrong} resyncs restarted the localizer at a wrong pose")
+  endif()
+endfunction()

@@ -1,5 +1,6 @@
-// agvnav-replay's cold start (ReplayOptions::coldStart): a mapping run's field, then the rest of
-// the log localized with no pose given, on simulated gmapping-corrected logs with known truth.
+// agvnav-replay on simulated gmapping-corrected logs with known truth: the cold start
+// (ReplayOptions::coldStart: a mapping run's field, then the rest of the log localized with no pose
+// given) and the laser odometry as the prediction input (ReplayOptions::scanOdometry).
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -167,4 +168,34 @@ TEST_CASE("cold start needs a mapping run with its field and the field relocaliz
   error.clear();
   CHECK_FALSE(r::replayLog(log, options, res, error));
   CHECK(error.find("cold start") != std::string::npos);
+}
+
+TEST_CASE("laser odometry as the prediction: its steps beat the wheels', the localization holds", "[replay]") {
+  const agv::datasets::CarmenLog log = simulatedLog(kRoom, 9.0, 7.0, 2);
+  r::ReplayOptions options = r::fr079Defaults();
+  options.mapFraction = 0.5;
+  options.scanOdometry = true;
+  r::ReplayResult res;
+  std::string error;
+  REQUIRE(r::replayLog(log, options, res, error));
+  REQUIRE(res.scanOdometry);
+  CHECK(res.scanOdometryScans == log.scans.size());
+  CHECK(res.scanOdometryMatched + 1 == res.scanOdometryScans);  // the room is in view everywhere
+  // The wheels run 2 % long and over-turn by 1 %: about 2 cm and 0.6 deg per metre on this
+  // circle. The matched steps keep only the matcher's error.
+  CHECK(res.odometryRelative.position.mean > 0.015);
+  CHECK(res.scanOdometryRelative.position.mean < res.odometryRelative.position.mean / 3.0);
+  CHECK(res.scanOdometryRelative.heading.mean < res.odometryRelative.heading.mean / 3.0);
+  CHECK(res.localizerOnMap.position.rms < 0.03);
+  CHECK(res.localizerOnMap.heading.rms < agv::deg2rad(0.5));
+  const agv::report::Json j = agv::report::Json::parse(agv::report::dumpJson(r::resultJson(res)));
+  CHECK(j.at("scan_odometry").at("enabled") == true);
+  CHECK(j.at("scan_odometry").at("matched") == res.scanOdometryMatched);
+  CHECK(r::resultText(res).find("laser odometry (the prediction's steps)") != std::string::npos);
+
+  // Map-less there is no mapping run: refused.
+  options.mapFraction = 0.0;
+  error.clear();
+  CHECK_FALSE(r::replayLog(log, options, res, error));
+  CHECK(error.find("--scan-odometry") != std::string::npos);
 }
