@@ -124,8 +124,9 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
                "with --map-fraction: no search of the whole field when lost");
   app.add_option("--reloc-radius", options.relocRadius,
                  "[m] field relocalization: search radius around the estimate (0: whole field)");
-  app.add_flag("--scan-odometry", options.scanOdometry,
-               "with --map-fraction: predict with the laser odometry (wheel steps corrected by scan matching)");
+  app.add_flag("--scan-odometry,!--no-scan-odometry", options.scanOdometry,
+               "with --map-fraction: predict with the laser odometry (wheel steps corrected by scan matching; "
+               "default on)");
   app.add_flag("--cold-start", options.coldStart,
                "with --map-fraction: no pose at the start; the whole-field relocalization finds it");
   app.add_option("--reloc-confirm-sigmas", options.relocalizer.confirmSigmas,
@@ -185,8 +186,8 @@ int main(int argc, char** argv) {
   addLocalizerOptions(app, cli.options);
   addExperimentOptions(app, cli.options);
   addCheckOptions(app, cli);
-  app.add_flag("--fit-odometry-noise", cli.options.fitOdometryNoise,
-               "with --map-fraction: fit the odometry noise model on the mapping run (replaces --odo-*)");
+  app.add_flag("--fit-odometry-noise,!--no-fit-odometry-noise", cli.options.fitOdometryNoise,
+               "with --map-fraction: fit the odometry noise model on the mapping run (replaces --odo-*; default on)");
   CLI11_PARSE(app, argc, argv);
 
   agv::datasets::CarmenLog log;

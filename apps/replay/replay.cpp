@@ -208,6 +208,25 @@ UnicycleNoiseParams fitOdometryNoise(const datasets::CarmenLog& log, const std::
   n.translationVariancePerMetre = p(1);
   n.rotationVariancePerRadian = h(1);
   n.rotationVariancePerMetre = h(2);
+  // Nor can the fit resolve an odometry error below that scatter: a model whose variance at the
+  // mean step falls below the intercept is raised to it (a fit with no slope left, the odometry's
+  // error hidden in the ground truth's jitter, would make the filter trust every step exactly).
+  double meanDistance = 0.0;
+  double meanTurn = 0.0;
+  for (const Eigen::Vector3d& row : heading) {
+    meanTurn += row(1) / static_cast<double>(heading.size());
+    meanDistance += row(2) / static_cast<double>(heading.size());
+  }
+  if (meanDistance > 0.0 && p(1) * meanDistance < p(0)) {
+    n.translationVariancePerMetre = p(0) / meanDistance;
+  }
+  const double headingAtMean = h(1) * meanTurn + h(2) * meanDistance;
+  if (headingAtMean < h(0) && headingAtMean > 0.0) {
+    n.rotationVariancePerRadian *= h(0) / headingAtMean;
+    n.rotationVariancePerMetre *= h(0) / headingAtMean;
+  } else if (headingAtMean < h(0) && meanTurn > 0.0) {
+    n.rotationVariancePerRadian = h(0) / meanTurn;
+  }
   return n;
 }
 
@@ -818,10 +837,6 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
       return false;
     }
   }
-  if (options.scanOdometry && start == 0) {
-    error = "the laser odometry (--scan-odometry) needs a mapping run (--map-fraction)";
-    return false;
-  }
   if (options.coldStart && (start == 0 || !options.scanMatching || !options.fieldRelocalization)) {
     error = "a cold start needs a mapping run (--map-fraction) with its field and the field relocalization";
     return false;
@@ -835,10 +850,11 @@ bool replayLog(const datasets::CarmenLog& log, const ReplayOptions& optionsIn, R
 
   // The prediction's steps: the wheels', or the laser odometry's.
   std::vector<Pose2d> steps;
-  if (options.scanOdometry) {
+  const bool laserSteps = options.scanOdometry && start > 0;  // map-less runs keep the wheels'
+  if (laserSteps) {
     laserOdometrySteps(log, start, n, options, inc, steps, r);
   }
-  const std::vector<Pose2d>& predict = options.scanOdometry ? steps : inc;
+  const std::vector<Pose2d>& predict = laserSteps ? steps : inc;
   ReplayOptions used = options;
   if (start > 0 && options.fitOdometryNoise) {
     used.odometryNoise = fitOdometryNoise(log, predict, 1, start, options.odometryNoise, r.odometryNoiseSteps);

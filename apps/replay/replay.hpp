@@ -41,19 +41,20 @@ struct ReplayOptions {
   bool laserFromLog = true;
   /// Odometry noise of the unicycle input (variances grow with distance and rotation).
   UnicycleNoiseParams odometryNoise{};
-  /// With `mapFraction`: replace `odometryNoise` by the model fitted on the mapping run (raw
-  /// odometry against the corrected poses, `fitOdometryNoise`), as a commissioning would measure
-  /// a vehicle's odometry. Off by default: on the shared logs it did not beat the fr079 model
-  /// (docs/localization.md, "Odometry noise fitted on the mapping run").
-  bool fitOdometryNoise = false;
+  /// With `mapFraction`: replace `odometryNoise` by the model fitted on the mapping run (the
+  /// prediction's steps against the corrected poses, `fitOdometryNoise`), as a commissioning would
+  /// measure a vehicle's odometry. On by default since 2026-12-07, with `scanOdometry`
+  /// (docs/localization.md, "Laser odometry as the prediction"); map-less runs have no mapping run
+  /// to fit on and keep `odometryNoise`.
+  bool fitOdometryNoise = true;
   /// With `mapFraction`: laser odometry as the prediction input (`mapping::ScanOdometry`). Each
   /// scan's wheel step is corrected by matching the scan against the surfaces of the scans before
   /// it (from the log's first scan on, so causal), searched over `scanOdometryWindow`; the
   /// localizer, the relocalization's carry and the odometry noise fit then use those steps. The
-  /// raw odometry figures stay the wheels'. Off by default (docs/localization.md, "Laser
-  /// odometry as the prediction": with the fitted noise model it brings intel's on-map RMS from
-  /// 5.5 m to 0.10 m, and makes mit-csail worse).
-  bool scanOdometry = false;
+  /// raw odometry figures stay the wheels'. On by default since 2026-12-07 (docs/localization.md,
+  /// "Laser odometry as the prediction": intel's on-map RMS from 5.5 m to 0.10 m); map-less runs
+  /// (no mapping run) keep the wheel steps.
+  bool scanOdometry = true;
   mapping::StepSigmas scanOdometryWindow{};
   LocalizerParams localizer{};
   LandmarkMapParams map{};
@@ -246,9 +247,10 @@ struct ReplayResult {
 /// truth increment; the heading variance fitted as a * |turn| + b * distance (turn and distance of
 /// the corrected step: the odometry's own carry its error and would bias the fit) and the position
 /// variance per axis as c * distance (non-negative least squares on the squared errors, each with
-/// an intercept: the corrected poses' own per-step scatter, fitted and left out). Steps with no motion, and steps whose
-/// error exceeds 1 m or 0.5 rad (a corrected pose that jumped, not odometry), are left out. `fallback` when fewer than
-/// 20 steps remain. `steps` receives the number of steps used.
+/// an intercept: the corrected poses' own per-step scatter, fitted and left out). The fit cannot resolve less than that
+/// scatter: where the model's variance at the mean step (position; heading) is below its intercept, the model is
+/// scaled up to it. Steps with no motion, and steps whose error exceeds 1 m or 0.5 rad (a corrected pose that jumped,
+/// not odometry), are left out. `fallback` when fewer than 20 steps remain. `steps` receives the number of steps used.
 UnicycleNoiseParams fitOdometryNoise(const datasets::CarmenLog& log, const std::vector<Pose2d>& inc, std::size_t begin,
                                      std::size_t end, const UnicycleNoiseParams& fallback, std::size_t& steps);
 

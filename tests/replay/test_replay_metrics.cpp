@@ -1,5 +1,6 @@
 // Error metrics and odometry rebuild of agvnav-replay on synthetic trajectories with known error.
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <string>
 #include <vector>
@@ -221,50 +222,86 @@ TEST_CASE(
   CHECK(error.find("line 3: the odometry jumps") != std::string::npos);
 }
 
-TEST_CASE("replay odometry noise fit: recovers the variances a simulated odometry was drawn with", "[replay]") {
-  // A path of random steps (0.1..1 m, turns up to 0.5 rad); the odometry of each step is the true
-  // increment with an error drawn from the unicycle model (heading variance a |turn| + b d,
-  // position variance c d per axis); the "corrected" poses jitter by 1 cm / 0.2 deg per scan
-  // (a SLAM estimate's own scatter), which the fit must not take for odometry noise.
-  const double a = 0.008;   // [rad^2/rad]
-  const double b = 0.002;   // [rad^2/m]
-  const double c = 0.0015;  // [m^2/m]
-  std::mt19937_64 rng(3);
+namespace {
+// A path of `n` random steps (0.1..1 m, turns up to 0.5 rad) whose "corrected" poses jitter by
+// 1 cm / 0.2 deg per scan (a SLAM estimate's own scatter, which a fit must not take for odometry
+// noise); each step's odometry lands `error(d, turn, rng)` away from the true step.
+struct JitteredPath {
+  agv::datasets::CarmenLog log;
+  std::vector<Pose2d> inc;
+  double meanDistance = 0.0;
+  double meanTurn = 0.0;
+};
+
+template <class Error>
+JitteredPath jitteredPath(std::uint64_t seed, std::size_t n, Error error) {
+  std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> dist(0.1, 1.0);
   std::uniform_real_distribution<double> turnDist(-0.5, 0.5);
   std::normal_distribution<double> unit(0.0, 1.0);
-  const std::size_t n = 20000;
-  agv::datasets::CarmenLog log;
-  log.scans.resize(n);
-  std::vector<Pose2d> inc(n);
+  JitteredPath p;
+  p.log.scans.resize(n);
+  p.inc.resize(n);
   Pose2d truth{};
-  Pose2d jittered{};
   for (std::size_t i = 0; i < n; ++i) {
+    Pose2d jittered = truth;
     if (i > 0) {
       const double d = dist(rng);
       const double turn = turnDist(rng);
       const Pose2d step{d * std::cos(turn / 2.0), d * std::sin(turn / 2.0), turn};
-      const Pose2d noise{std::sqrt(c * d) * unit(rng), std::sqrt(c * d) * unit(rng),
-                         std::sqrt(a * std::fabs(turn) + b * d) * unit(rng)};
+      const Pose2d noise = error(d, turn, rng);
       truth = truth.compose(step);
       jittered = truth.compose(Pose2d{0.01 * unit(rng), 0.01 * unit(rng), 0.0035 * unit(rng)});
-      // The odometry step that lands `noise` away from the true step: inc ⊕ noise = step.
-      inc[i] = step.compose(noise.inverse());
-    } else {
-      jittered = truth;
+      // The odometry step that lands `noise` away from the true step: inc (+) noise = step.
+      p.inc[i] = step.compose(noise.inverse());
+      p.meanDistance += d / static_cast<double>(n - 1);
+      p.meanTurn += std::fabs(turn) / static_cast<double>(n - 1);
     }
-    log.scans[i].robotPose = jittered;
+    p.log.scans[i].robotPose = jittered;
   }
+  return p;
+}
+}  // namespace
+
+TEST_CASE("replay odometry noise fit: recovers the variances a simulated odometry was drawn with", "[replay]") {
+  // The odometry error of each step is drawn from the unicycle model (heading variance
+  // a |turn| + b d, position variance c d per axis).
+  const double a = 0.008;   // [rad^2/rad]
+  const double b = 0.002;   // [rad^2/m]
+  const double c = 0.0015;  // [m^2/m]
+  const std::size_t n = 20000;
+  const JitteredPath path = jitteredPath(3, n, [&](double d, double turn, std::mt19937_64& rng) {
+    std::normal_distribution<double> unit(0.0, 1.0);
+    return Pose2d{std::sqrt(c * d) * unit(rng), std::sqrt(c * d) * unit(rng),
+                  std::sqrt(a * std::fabs(turn) + b * d) * unit(rng)};
+  });
   std::size_t steps = 0;
   const agv::UnicycleNoiseParams fallback{};
-  const agv::UnicycleNoiseParams fit = r::fitOdometryNoise(log, inc, 1, n, fallback, steps);
+  const agv::UnicycleNoiseParams fit = r::fitOdometryNoise(path.log, path.inc, 1, n, fallback, steps);
   CHECK(steps == n - 1);
   // 20 000 squared Gaussian errors: each coefficient within 10 %.
   CHECK(fit.rotationVariancePerRadian == Approx(a).epsilon(0.10));
   CHECK(fit.rotationVariancePerMetre == Approx(b).epsilon(0.10));
   CHECK(fit.translationVariancePerMetre == Approx(c).epsilon(0.10));
   // Too few steps: the fallback, and no steps reported.
-  const agv::UnicycleNoiseParams few = r::fitOdometryNoise(log, inc, 1, 10, fallback, steps);
+  const agv::UnicycleNoiseParams few = r::fitOdometryNoise(path.log, path.inc, 1, 10, fallback, steps);
   CHECK(steps == 0);
   CHECK(few.translationVariancePerMetre == fallback.translationVariancePerMetre);
+}
+
+TEST_CASE("replay odometry noise fit: an odometry error below the ground truth's jitter is not fitted as zero",
+          "[replay]") {
+  // Exact odometry: every step's error is the corrected poses' jitter, which does not grow with
+  // the step. The fit cannot tell the odometry's error from it, and must not call it zero: the
+  // model's variance at the mean step is the jitter's.
+  const std::size_t n = 20000;
+  const JitteredPath path = jitteredPath(5, n, [](double, double, std::mt19937_64&) { return Pose2d{}; });
+  std::size_t steps = 0;
+  const agv::UnicycleNoiseParams fit = r::fitOdometryNoise(path.log, path.inc, 1, n, agv::UnicycleNoiseParams{}, steps);
+  REQUIRE(steps == n - 1);
+  // Per axis the step's error is the difference of two 1 cm jitters (2e-4 m^2), plus the heading
+  // jitter turning the step (d^2 x 1.2e-5, a few percent); the heading's, of two 0.0035 rad jitters.
+  CHECK(fit.translationVariancePerMetre * path.meanDistance == Approx(2.0e-4).epsilon(0.10));
+  CHECK(fit.rotationVariancePerRadian * path.meanTurn + fit.rotationVariancePerMetre * path.meanDistance ==
+        Approx(2.0 * 0.0035 * 0.0035).epsilon(0.10));
 }

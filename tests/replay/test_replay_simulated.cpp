@@ -174,7 +174,7 @@ TEST_CASE("laser odometry as the prediction: its steps beat the wheels', the loc
   const agv::datasets::CarmenLog log = simulatedLog(kRoom, 9.0, 7.0, 2);
   r::ReplayOptions options = r::fr079Defaults();
   options.mapFraction = 0.5;
-  options.scanOdometry = true;
+  REQUIRE(options.scanOdometry);  // the default with a mapping run
   r::ReplayResult res;
   std::string error;
   REQUIRE(r::replayLog(log, options, res, error));
@@ -193,9 +193,18 @@ TEST_CASE("laser odometry as the prediction: its steps beat the wheels', the loc
   CHECK(j.at("scan_odometry").at("matched") == res.scanOdometryMatched);
   CHECK(r::resultText(res).find("laser odometry (the prediction's steps)") != std::string::npos);
 
-  // Map-less there is no mapping run: refused.
+  // Map-less there is no mapping run to fit on: the wheel steps, and the given noise model.
   options.mapFraction = 0.0;
-  error.clear();
-  CHECK_FALSE(r::replayLog(log, options, res, error));
-  CHECK(error.find("--scan-odometry") != std::string::npos);
+  r::ReplayResult mapless;
+  REQUIRE(r::replayLog(log, options, mapless, error));
+  CHECK_FALSE(mapless.scanOdometry);
+  CHECK(mapless.odometryNoiseSteps == 0);
+  CHECK(mapless.odometryNoise.translationVariancePerMetre == options.odometryNoise.translationVariancePerMetre);
+  // The wheel steps on request (--no-scan-odometry): no laser odometry in the result.
+  options.mapFraction = 0.5;
+  options.scanOdometry = false;
+  r::ReplayResult wheels;
+  REQUIRE(r::replayLog(log, options, wheels, error));
+  CHECK_FALSE(wheels.scanOdometry);
+  CHECK(wheels.scanOdometryScans == 0);
 }
