@@ -55,6 +55,8 @@ struct ReplayOptions {
   /// "Laser odometry as the prediction": intel's on-map RMS from 5.5 m to 0.10 m); map-less runs
   /// (no mapping run) keep the wheel steps.
   bool scanOdometry = true;
+  /// The search window of each laser-odometry match: the wheel step's sigmas (the pose graph's
+  /// odometry edges by default).
   mapping::StepSigmas scanOdometryWindow{};
   LocalizerParams localizer{};
   LandmarkMapParams map{};
