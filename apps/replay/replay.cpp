@@ -397,9 +397,7 @@ class ScanReplay {
     }
     r_.localizer.push_back(localizer_->pose());
     if (field_) {
-      const bool on = onMap(log_.scans[i].robotPose);
-      r_.onMap.push_back(on);
-      r_.onMapScans += on ? 1U : 0U;
+      tallyOnMap(i);
     }
     writeTrace(i, h);
     return true;
@@ -451,9 +449,7 @@ class ScanReplay {
     none.lost = true;  // no pose yet (the trace's `lost` column)
     relocalize(i, stamp, none);
     r_.localizer.push_back(localized_ ? localizer_->pose() : Pose2d{});  // left out until the restart
-    const bool on = onMap(log_.scans[i].robotPose);
-    r_.onMap.push_back(on);
-    r_.onMapScans += on ? 1U : 0U;
+    tallyOnMap(i);
     none.lost = !localized_;
     writeTrace(i, none);
   }
@@ -488,13 +484,14 @@ class ScanReplay {
             clearFallback();
             ++r_.relocConfirmed;
             const Pose2d& t = log_.scans[i].robotPose;
-            r_.relocWrong += isWrongRestart(candidate_, t) ? 1U : 0U;
+            const bool wrong = isWrongRestart(candidate_, t);
+            r_.relocWrong += wrong ? 1U : 0U;
             traceRelocLabel_ = "confirmed";
             if (!localized_) {
               localized_ = true;
               r_.coldStartFound = true;
               r_.coldStartScans = i - start_;
-              r_.coldStartWrong = isWrongRestart(candidate_, t);
+              r_.coldStartWrong = wrong;
             }
           }
           reloc_ = RelocState::Idle;
@@ -586,6 +583,13 @@ class ScanReplay {
     surface_->takenBeams(*scan_, *surfacePoints_);
     return surface_->field().built() ? localizer_->correct(*obs_, *scan_, *surfacePoints_, *map_, surface_->field())
                                      : localizer_->correct(*obs_, *scan_, *map_);
+  }
+
+  /// Scan `i`'s entry of `ReplayResult::onMap` (the current scan at its corrected pose).
+  void tallyOnMap(std::size_t i) {
+    const bool on = onMap(log_.scans[i].robotPose);
+    r_.onMap.push_back(on);
+    r_.onMapScans += on ? 1U : 0U;
   }
 
   /// Whether the current scan is on the map at the vehicle pose `truth` (`ReplayResult::onMap`).

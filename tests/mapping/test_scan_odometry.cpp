@@ -64,14 +64,19 @@ constexpr const char* kRoom =
     "pallet 14 9 17 10\n"
     "pillar 7 1.5 0.3\n"
     "pillar 15 4 0.3\n";
-}  // namespace
 
-TEST_CASE("scan odometry: the walls hold the track where the wheels slip and over-turn", "[mapping][scan_odometry]") {
+// The drive in kRoom.
+Drive roomDrive() {
   agv::sim::World world;
   agv::sim::WorldParseError err;
   REQUIRE(agv::sim::parseWorld(kRoom, world, err) == agv::Status::Ok);
   const agv::sim::RayCaster caster(world, 1.0);
-  const Drive d = drive(caster);
+  return drive(caster);
+}
+}  // namespace
+
+TEST_CASE("scan odometry: the walls hold the track where the wheels slip and over-turn", "[mapping][scan_odometry]") {
+  const Drive d = roomDrive();
   const agv::mapping::StepSigmas window{};
   agv::mapping::ScanOdometry odometry(Pose2d{});
   odometry.start(*d.scans[0], d.truth[0]);
@@ -119,11 +124,7 @@ TEST_CASE("scan odometry: the walls hold the track where the wheels slip and ove
 }
 
 TEST_CASE("scan odometry: a scan with nothing to match keeps the wheel step", "[mapping][scan_odometry]") {
-  agv::sim::World world;
-  agv::sim::WorldParseError err;
-  REQUIRE(agv::sim::parseWorld(kRoom, world, err) == agv::Status::Ok);
-  const agv::sim::RayCaster caster(world, 1.0);
-  const Drive d = drive(caster);
+  const Drive d = roomDrive();
   agv::mapping::ScanOdometry odometry(Pose2d{});
   odometry.start(*d.scans[0], d.truth[0]);
   agv::LaserScan blind = *d.scans[1];
