@@ -63,6 +63,12 @@ void addLocalizerOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--support-sigma", options.localizer.association.supportSigma,
                  "[m] prior position sigma above which --min-support applies");
   app.add_option("--ambiguity", options.localizer.association.ambiguityMargin, "ambiguity margin (0: off)");
+  app.add_flag("--field-support,!--no-field-support", options.localizer.association.fieldSupport,
+               "static map with a likelihood field: --min-support applies in every cycle whose scan match was not "
+               "fused, whatever the prior's sigma");
+  app.add_option("--field-check-gate", options.localizer.association.fieldCheckGate,
+                 "with a likelihood field: undo a landmark correction that makes the scan fit the field worse than "
+                 "this 3-dof gate allows (0: off)");
   app.add_option("--max-position-sigma", options.localizer.health.maxPositionSigma,
                  "[m] covariance limit of a good cycle");
   app.add_option("--max-heading-sigma", options.localizer.health.maxHeadingSigma,
@@ -129,6 +135,9 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
                "default on)");
   app.add_flag("--cold-start", options.coldStart,
                "with --map-fraction: no pose at the start; the whole-field relocalization finds it");
+  app.add_option("--reloc-confirmations", options.relocConfirmations,
+                 "field relocalization: scans after the search that must confirm a candidate before the restart")
+      ->check(CLI::PositiveNumber);
   app.add_option("--reloc-confirm-sigmas", options.relocalizer.confirmSigmas,
                  "field relocalization: the confirmation window grows to this many standard deviations of the "
                  "odometry noise model over the carry (0: the fixed 0.25 m / 0.08 rad)")

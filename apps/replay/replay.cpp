@@ -646,6 +646,7 @@ class ScanReplay {
     r_.rejectedAmbiguous += h.rejectedAmbiguous;
     r_.rejectedDuplicate += h.rejectedDuplicate;
     r_.rejectedUpdate += h.rejectedUpdate;
+    r_.rejectedField += h.rejectedField;
     r_.badCycles += hasFlag(h.flags, LocalizerFlag::BadCycle) ? 1U : 0U;
     r_.fieldContradicted += hasFlag(h.flags, LocalizerFlag::FieldContradicted) ? 1U : 0U;
     r_.expected += h.expectedInView;
@@ -934,8 +935,8 @@ std::string resultText(const ReplayResult& r) {
   o << "localizer: " << r.keypoints << " keypoints, " << r.used << " used, " << r.fixCycles << " cycles with a fix, "
     << r.badCycles << " bad cycles (" << r.fieldContradicted << " contradicting the field), " << r.lostEvents
     << " lost events (" << r.mapRestarts << " map restarts); rejected gate " << r.rejectedGate << ", ambiguous "
-    << r.rejectedAmbiguous << ", duplicate " << r.rejectedDuplicate << ", update " << r.rejectedUpdate
-    << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
+    << r.rejectedAmbiguous << ", duplicate " << r.rejectedDuplicate << ", update " << r.rejectedUpdate << ", field "
+    << r.rejectedField << fmt("; mean test ratio %.3f\n", r.meanTestRatio);
   o << "in view: " << r.expected << " landmark-cycles expected, " << r.occluded
     << " inside the view limits but hidden or without a return\n";
   if (r.mappingScans > 0) {
@@ -1079,6 +1080,7 @@ report::Json resultJson(const ReplayResult& r) {
                 {"rejected_ambiguous", r.rejectedAmbiguous},
                 {"rejected_duplicate", r.rejectedDuplicate},
                 {"rejected_update", r.rejectedUpdate},
+                {"rejected_field", r.rejectedField},
                 {"mean_test_ratio", r.meanTestRatio},
                 {"map_size", r.mapSize},
                 {"map_inserted", r.mapInserted},

@@ -106,6 +106,10 @@ struct ReplayOptions {
   /// own estimate (`resetWhenLost`).
   bool fieldRelocalization = true;
   FieldRelocalizerParams relocalizer{};
+  /// Two. Three (`--reloc-confirmations 3`) refused the one wrong restart left in fr079's 28 runs
+  /// (F = 0.35-0.65) but kept mit-csail, whose scans are up to 1.3 m / 0.9 rad apart, lost far
+  /// longer (median on-map RMS 1.87 -> 3.64 m): docs/localization.md, "Field support and the
+  /// field check".
   std::size_t relocConfirmations = 2;
   double relocConfirmDistance() const { return relocalizer.confirmDistance; }
   double relocConfirmAngle() const { return relocalizer.confirmAngle; }
@@ -164,6 +168,9 @@ struct ReplayResult {
   std::size_t rejectedAmbiguous = 0;
   std::size_t rejectedDuplicate = 0;
   std::size_t rejectedUpdate = 0;
+  /// Landmark observations fused, then undone: their correction contradicted the likelihood field
+  /// (`AssociationParams::fieldCheckGate`).
+  std::size_t rejectedField = 0;
   std::size_t badCycles = 0;
   std::size_t fieldContradicted = 0;  ///< bad cycles whose sweep fit no pose near the estimate on the field
   double laserX = 0.0;                ///< [m] the laser offset used

@@ -1001,3 +1001,159 @@ TEST_CASE("localizer with a likelihood field: a vehicle carried away at rest is 
   CHECK(detected >= 8);
   CHECK(detectedOff == 0);
 }
+
+TEST_CASE("scan matcher: costAt is lowest at the pose the scan was taken from, NaN without points or field",
+          "[localization][scanmatch]") {
+  auto field = std::make_unique<HallField>();
+  const std::vector<Segment> segs = hall();
+  buildField(*field, segs, 0.0, 0.0, 12.0, 8.0);
+  auto scan = std::make_unique<LaserScan>();
+  auto matcher = std::make_unique<ScanMatcher>();
+  const Pose2d laser{0.6, 0.0, 0.0};
+  const Pose2d truth{2.5, 2.0, 0.3};
+  std::mt19937_64 rng(3);
+  castScan(segs, truth.compose(laser), 0.01, rng, *scan);
+  const double atTruth = matcher->costAt(*scan, laser, truth, *field);
+  REQUIRE(std::isfinite(atTruth));
+  // Every displacement of 5 cm or 1 deg, and more, costs more; the cost grows with the offset.
+  for (const Pose2d& d : {Pose2d{0.05, 0.0, 0.0}, Pose2d{0.0, -0.05, 0.0}, Pose2d{0.0, 0.0, 0.0175}}) {
+    const Pose2d near{truth.x + d.x, truth.y + d.y, truth.theta + d.theta};
+    const Pose2d far{truth.x + 4.0 * d.x, truth.y + 4.0 * d.y, truth.theta + 4.0 * d.theta};
+    const double cNear = matcher->costAt(*scan, laser, near, *field);
+    const double cFar = matcher->costAt(*scan, laser, far, *field);
+    CHECK(cNear > atTruth);
+    CHECK(cFar > cNear);
+  }
+  // The same points given as MatchPoints cost the same.
+  auto points = std::make_unique<MatchPoints>();
+  scanToMatchPoints(*scan, *points);
+  CHECK(std::fabs(matcher->costAt(*points, laser, truth, *field) - atTruth) <= 1e-4 * atTruth);
+  // Refusals: an unbuilt field, a non-finite pose, no valid beam.
+  auto empty = std::make_unique<HallField>();
+  CHECK(std::isnan(matcher->costAt(*scan, laser, truth, *empty)));
+  CHECK(std::isnan(matcher->costAt(*scan, laser, Pose2d{NAN, 0.0, 0.0}, *field)));
+  for (float& r : scan->ranges) {
+    r = std::numeric_limits<float>::quiet_NaN();
+  }
+  CHECK(std::isnan(matcher->costAt(*scan, laser, truth, *field)));
+}
+
+namespace {
+
+/// A `FieldRun` whose matches never fuse (the matcher demands more inliers than a scan has), with
+/// surveyed corners at `corners` in its static map: the landmarks are the only correction, and
+/// the field can only cross-check them.
+struct CornersOnField {
+  FieldRun run;
+  std::vector<Eigen::Vector2d> world;  // where the corners are in the hall
+
+  CornersOnField(const std::vector<Eigen::Vector2d>& truthCorners, const Eigen::Vector2d& mapOffset,
+                 const AssociationParams& association, double priorSigma) {
+    world = truthCorners;
+    run.params.scanMatch.minInliers = 10000;
+    run.params.association = association;
+    run.loc = std::make_unique<Localizer>(run.params);
+    std::uint32_t id = 1;
+    for (const Eigen::Vector2d& c : truthCorners) {
+      const Eigen::Vector2d m = c + mapOffset;
+      REQUIRE(run.map->addSurveyed(LandmarkKind::Corner, m.x(), m.y(), 0.005, id++).ok());
+    }
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0.diagonal() << priorSigma * priorSigma, priorSigma * priorSigma, 0.01 * 0.01;
+    REQUIRE(run.loc->reset(run.t, run.truth, P0) == Status::Ok);
+  }
+
+  /// One cycle at rest observing `count` of the corners where they are (laser frame, exact).
+  const LocalizerHealth& observe(std::size_t count) {
+    for (int k = 0; k < 10; ++k) {
+      run.t = run.t + Duration::fromMilliseconds(10);
+      OdometryIncrement inc;
+      inc.stamp = run.t;
+      inc.covariance = Eigen::Matrix3d::Identity() * 1e-8;
+      REQUIRE(run.loc->predict(inc) == Status::Ok);
+    }
+    castScan(run.segs, run.truth.compose(run.params.laser.mounting), 0.01, run.rng, *run.scan);
+    run.scan->stamp = run.t;
+    run.obs->stamp = run.t;
+    run.obs->points.clear();
+    const Pose2d laserPose = run.truth.compose(run.params.laser.mounting);
+    for (std::size_t i = 0; i < count && i < world.size(); ++i) {
+      const Eigen::Vector2d p = laserPose.inverse().transformPoint(world[i]);
+      REQUIRE(run.obs->points.push_back(PointObservation{p.x(), p.y(), LandmarkKind::Corner}) == Status::Ok);
+    }
+    return run.loc->correct(*run.obs, *run.scan, *run.map, *run.field);
+  }
+};
+
+// The column's four corners, seen from the vehicle at (2, 2) facing +x.
+const std::vector<Eigen::Vector2d> kColumnCorners = {Eigen::Vector2d(5.0, 3.0), Eigen::Vector2d(5.0, 4.0),
+                                                     Eigen::Vector2d(6.0, 3.0), Eigen::Vector2d(6.0, 4.0)};
+
+}  // namespace
+
+TEST_CASE("localizer with a likelihood field: a landmark correction that moves the scan off the field is undone",
+          "[localization][scanmatch][localizer]") {
+  // The static map's corners sit 0.3 m from where the hall has them (a map that is wrong there, or
+  // the wrong landmarks associated: the same to the filter). The prior is right and 0.15 m
+  // uncertain, so the gate admits them and three corners give support: fused, they pull the pose
+  // 0.3 m off the walls the scan sees, which the field check refuses; without the check they do.
+  AssociationParams checked;
+  AssociationParams unchecked;
+  unchecked.fieldCheckGate = 0.0;
+  const Eigen::Vector2d offset(0.3, 0.0);
+  CornersOnField wrong(kColumnCorners, offset, checked, 0.15);
+  const Pose2d before = wrong.run.loc->pose();
+  const LocalizerHealth h = wrong.observe(3);
+  REQUIRE(h.scanMatch.attempted);
+  REQUIRE_FALSE(h.scanMatch.fused);
+  CHECK(h.used == 0U);
+  CHECK(h.rejectedField == 3U);
+  CHECK(h.sources[static_cast<std::size_t>(LandmarkKind::Corner)].rejected == 3U);
+  CHECK(hasFlag(h.flags, LocalizerFlag::LandmarksContradictField));
+  CHECK(std::hypot(wrong.run.loc->pose().x - before.x, wrong.run.loc->pose().y - before.y) < 1e-9);
+
+  CornersOnField off(kColumnCorners, offset, unchecked, 0.15);
+  const LocalizerHealth u = off.observe(3);
+  CHECK(u.used == 3U);
+  CHECK(u.rejectedField == 0U);
+  CHECK(off.run.loc->pose().x - off.run.truth.x > 0.15);  // pulled toward the offset map
+
+  // Right corners from a prior 0.1 m off: the correction moves the scan onto the walls, kept.
+  CornersOnField right(kColumnCorners, Eigen::Vector2d::Zero(), checked, 0.15);
+  Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+  P0.diagonal() << 0.15 * 0.15, 0.15 * 0.15, 0.01 * 0.01;
+  REQUIRE(right.run.loc->reset(right.run.t, Pose2d{2.1, 2.05, 0.0}, P0) == Status::Ok);
+  const LocalizerHealth r = right.observe(3);
+  CHECK(r.used == 3U);
+  CHECK(r.rejectedField == 0U);
+  CHECK_FALSE(hasFlag(r.flags, LocalizerFlag::LandmarksContradictField));
+  CHECK(std::hypot(right.run.loc->pose().x - right.run.truth.x, right.run.loc->pose().y - right.run.truth.y) < 0.02);
+
+  LocalizerParams bad;
+  bad.association.fieldCheckGate = -1.0;
+  CHECK(bad.validate() == Status::InvalidArgument);
+  bad.association.fieldCheckGate = NAN;
+  CHECK(bad.validate() == Status::NonFiniteInput);
+}
+
+TEST_CASE("localizer with a likelihood field: a lone corner waits for support while the field cannot fix the pose",
+          "[localization][scanmatch][localizer]") {
+  // A confident prior (5 cm, below supportSigma): without a field one corner corrects it. With a
+  // static map and a field whose match is not fused, one corner is held back (fieldSupport), two
+  // correct; with fieldSupport off one corrects again.
+  AssociationParams fieldSupport;
+  CornersOnField one(kColumnCorners, Eigen::Vector2d::Zero(), fieldSupport, 0.05);
+  const LocalizerHealth h1 = one.observe(1);
+  REQUIRE_FALSE(h1.scanMatch.fused);
+  CHECK(h1.used == 0U);
+  CHECK(h1.rejectedSupport == 1U);
+  CHECK(hasFlag(h1.flags, LocalizerFlag::SupportRejected));
+  CornersOnField two(kColumnCorners, Eigen::Vector2d::Zero(), fieldSupport, 0.05);
+  CHECK(two.observe(2).used == 2U);
+  AssociationParams off;
+  off.fieldSupport = false;
+  CornersOnField alone(kColumnCorners, Eigen::Vector2d::Zero(), off, 0.05);
+  const LocalizerHealth h3 = alone.observe(1);
+  CHECK(h3.used == 1U);
+  CHECK(h3.rejectedSupport == 0U);
+}

@@ -7,7 +7,7 @@
 # - the surface map ran and took points;
 # - its mean position and heading errors per metre are below the raw odometry's, the heading by at
 #   least MIN_HEADING_REDUCTION (a fraction of the odometry's; 0 when not given).
-expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;field_contradicted;lost_events;lost_cycles;no_fix_cycles;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
+expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;field_contradicted;lost_events;lost_cycles;no_fix_cycles;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;rejected_field;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
 string(JSON lost GET "${j}" localizer lost_events)
 if(NOT lost EQUAL 0)
   message(FATAL_ERROR "JSON: ${LOG_NAME}: the localizer went lost ${lost} times")

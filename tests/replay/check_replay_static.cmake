@@ -67,8 +67,10 @@ string(JSON odoRms GET "${j}" on_map odometry position_m rms)
 message(STATUS "${LOG_NAME}: on the map ${onMap}/${scans}: localizer median ${medPos} m, RMS ${rmsPos} m (odometry ${odoRms} m); fused ${fused}/${attempts}")
 expect_keys("${j}" "searches;found;ambiguous;weak;confirmed;wrong;unconfirmed;seconds" field_relocalization)
 expect_no_wrong_restart("${j}" "${LOG_NAME}")
-if(medPos GREATER_EQUAL 0.10 OR rmsPos GREATER_EQUAL 1.0)
-  message(FATAL_ERROR "JSON: ${LOG_NAME}: on-map tracking median ${medPos} m / RMS ${rmsPos} m (regression bound 0.10 / 1.0 m)")
+# The regression bound of the RMS: fr079 at F = 0.5 and 0.6 measured 0.54 and 0.58 m before field
+# support and the field check (docs/localization.md), 0.235 and 0.231 m with them.
+if(medPos GREATER_EQUAL 0.10 OR rmsPos GREATER_EQUAL 0.40)
+  message(FATAL_ERROR "JSON: ${LOG_NAME}: on-map tracking median ${medPos} m / RMS ${rmsPos} m (regression bound 0.10 / 0.40 m)")
 endif()
 expect_keys("${j}" "scans;distance_m;localizer;odometry" on_route)
 string(JSON onRoute GET "${j}" on_route scans)

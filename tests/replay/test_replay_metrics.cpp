@@ -126,6 +126,7 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   res.keypoints = 7;
   res.badCycles = 5;
   res.fieldContradicted = 4;
+  res.rejectedField = 3;
   res.mapDeleted = 2;
   res.staticMap = true;
   res.meanTestRatio = 0.5;
@@ -172,11 +173,12 @@ TEST_CASE("replay JSON: parses back with every documented field; SVG text escape
   CHECK(j.at("odometry_per_metre").at("position_m").at("count").get<std::size_t>() ==
         res.odometryRelative.position.count);
   const Json& loc = j.at("localizer");
-  CHECK(loc.size() == 19U);
+  CHECK(loc.size() == 20U);
   CHECK(loc.at("map_restarts") == 0);
   CHECK(loc.at("keypoints") == 7);
   CHECK(loc.at("bad_cycles") == 5);
   CHECK(loc.at("field_contradicted") == 4);
+  CHECK(loc.at("rejected_field") == 3);
   CHECK(loc.at("map_deleted") == 2);
   CHECK(loc.at("mean_test_ratio") == 0.5);
   CHECK(loc.at("occluded_or_no_return") == 0);

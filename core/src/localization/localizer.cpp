@@ -650,7 +650,11 @@ const LocalizerHealth& Localizer::correctWith(const ScanObservations& scan, cons
   health_.noReturn = sat16(view.noReturn);
   health_.unsupported = sat16(view.unsupported);
 
+  const PoseEkf beforeLandmarks = ekf_;
   fuseMatches(scan, map);
+  if (field != nullptr && beams != nullptr && !health_.scanMatch.fused) {
+    checkAgainstField(beforeLandmarks, scan, *beams, points, *field);
+  }
   health_.correction = std::hypot(ekf_.pose().x - prior.x, ekf_.pose().y - prior.y);
   health_.headingCorrection = std::fabs(normalizeAngle(ekf_.pose().theta - prior.theta));
   tallyObservations(scan);
@@ -719,8 +723,9 @@ void Localizer::fuseMatches(const ScanObservations& scan, const LandmarkMap& map
   // Minimum support while uncertain: count the matches that may correct.
   const AssociationParams& ap = params_.association;
   const Eigen::Matrix3d& P0 = ekf_.covariance();
+  const bool fieldOnly = ap.fieldSupport && health_.scanMatch.attempted && map.mode() == MapMode::Static;
   if (ap.minSupport > 1U && !health_.scanMatch.fused &&
-      std::sqrt(largestEigen2(P0(0, 0), P0(0, 1), P0(1, 1))) > ap.supportSigma) {
+      (fieldOnly || std::sqrt(largestEigen2(P0(0, 0), P0(0, 1), P0(1, 1))) > ap.supportSigma)) {
     std::size_t correctable = 0;
     for (std::size_t q = 0; q < matched; ++q) {
       const Landmark* lm = map.at(scratch_[order_[q]].landmark);
@@ -762,6 +767,40 @@ void Localizer::fuseMatches(const ScanObservations& scan, const LandmarkMap& map
       s.state = Assoc::UpdateRejected;
     }
   }
+}
+
+void Localizer::checkAgainstField(const PoseEkf& before, const ScanObservations& scan, const LaserScan& beams,
+                                  const MatchPoints* points, const LikelihoodFieldBase& field) noexcept {
+  const double gate = params_.association.fieldCheckGate;
+  const std::size_t nObs = scan.points.size();
+  bool used = false;
+  for (std::size_t i = 0; i < nObs; ++i) {
+    used = used || scratch_[i].state == Assoc::Used;
+  }
+  if (!(gate > 0.0) || !used) {
+    return;
+  }
+  const ScanMatchParams& sp = params_.scanMatch;
+  matcher_.setParams(sp);  // the fallback's match runs with its own
+  const Pose2d& laser = params_.laser.mounting;
+  const double c0 = points != nullptr ? matcher_.costAt(*points, laser, before.pose(), field)
+                                      : matcher_.costAt(beams, laser, before.pose(), field);
+  const double c1 = points != nullptr ? matcher_.costAt(*points, laser, ekf_.pose(), field)
+                                      : matcher_.costAt(beams, laser, ekf_.pose(), field);
+  if (!std::isfinite(c0) || !std::isfinite(c1)) {
+    return;
+  }
+  const double scale = sp.huber * sp.huber * sp.covarianceInflation;
+  if (2.0 * (c1 - c0) / scale <= gate) {
+    return;
+  }
+  ekf_ = before;
+  for (std::size_t i = 0; i < nObs; ++i) {
+    if (scratch_[i].state == Assoc::Used) {
+      scratch_[i].state = Assoc::FieldRejected;
+    }
+  }
+  health_.flags |= bit(LocalizerFlag::LandmarksContradictField);
 }
 
 void Localizer::tallyObservations(const ScanObservations& scan) noexcept {
@@ -814,6 +853,10 @@ void Localizer::tallyObservations(const ScanObservations& scan) noexcept {
         break;
       case Assoc::Unsupported:
         ++health_.rejectedSupport;
+        ++src.rejected;
+        break;
+      case Assoc::FieldRejected:
+        ++health_.rejectedField;
         ++src.rejected;
         break;
       case Assoc::None:

@@ -59,9 +59,10 @@ Status LaserModel::validate() const noexcept {
 }
 
 Status AssociationParams::validate() const noexcept {
-  return verdict(allFinite({gate, maxSearchRadius, searchLandmarkVariance, ambiguityMargin, supportSigma}),
-                 gate > 0.0 && maxSearchRadius > 0.0 && searchLandmarkVariance >= 0.0 && ambiguityMargin >= 0.0 &&
-                     supportSigma >= 0.0 && minSupport > 0U);
+  return verdict(
+      allFinite({gate, maxSearchRadius, searchLandmarkVariance, ambiguityMargin, supportSigma, fieldCheckGate}),
+      gate > 0.0 && maxSearchRadius > 0.0 && searchLandmarkVariance >= 0.0 && ambiguityMargin >= 0.0 &&
+          supportSigma >= 0.0 && minSupport > 0U && fieldCheckGate >= 0.0);
 }
 
 Status OcclusionParams::validate() const noexcept {

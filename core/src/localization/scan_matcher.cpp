@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "spd3.hpp"
 
@@ -266,6 +267,26 @@ ScanMatchResult ScanMatcher::matchInWindow(const Scan& scan, const Pose2d& laser
     return result;
   }
   return searchAndRefine(prior, window, field, result);
+}
+
+template <typename Scan>
+double ScanMatcher::costOf(const Scan& scan, const Pose2d& laser, const Pose2d& x,
+                           const LikelihoodFieldBase& field) noexcept {
+  ScanMatchResult result;
+  if (!checkInput(laser, x, Eigen::Matrix3d::Zero(), field, result) || !collectPoints(scan, laser, result)) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
+  return cost(x, field);
+}
+
+double ScanMatcher::costAt(const LaserScan& scan, const Pose2d& laser, const Pose2d& x,
+                           const LikelihoodFieldBase& field) noexcept {
+  return costOf(scan, laser, x, field);
+}
+
+double ScanMatcher::costAt(const MatchPoints& points, const Pose2d& laser, const Pose2d& x,
+                           const LikelihoodFieldBase& field) noexcept {
+  return costOf(points, laser, x, field);
 }
 
 SearchWindow ScanMatcher::searchWindow(const Eigen::Matrix3d& priorCovariance) const noexcept {

@@ -83,8 +83,26 @@ struct AssociationParams {
   /// "Minimum support").
   double supportSigma = 0.2;
   std::uint16_t minSupport = 2;
+  /// Against a static map with a likelihood field (`correct` given one), minimum support applies
+  /// whatever the prior's sigma in every cycle whose scan match was not fused: the field is the
+  /// map's main observation, and while it cannot fix the pose (a room that changed since the
+  /// mapping run, a scan off the map) the filter's covariance is checked by nothing, so a single
+  /// corner associated with the wrong landmark keeps the estimate off by metres while it shrinks
+  /// the covariance (fr079: docs/localization.md, "Field support and the field check"). A dynamic
+  /// map's corners are its main observation and keep `supportSigma`. false: `supportSigma` alone.
+  bool fieldSupport = true;
+  /// Cross-check against the likelihood field: when `correct` is given a field and the scan's
+  /// match was not fused, the landmarks' correction is undone (`FieldRejected`) when the scan fits
+  /// the field worse at the corrected pose than at the prior by more than this gate allows. The
+  /// matcher's robust cost (`ScanMatcher::costAt`) is read as a negative log-likelihood of the scan
+  /// with the Huber threshold as the point sigma and the matcher's covariance inflation for the
+  /// correlation of neighbouring points: undone when 2 x (cost after - cost before) / (huber^2 x
+  /// inflation) exceeds the gate. A corner associated with the wrong landmark moves the pose off the
+  /// surfaces the scan sees; a right one moves it onto them, or along a corridor, which the field
+  /// cannot tell and does not refuse. Default: 3 dof, 99 %. 0 disables it.
+  double fieldCheckGate = kChiSquare3Dof99;
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (gate, search radius or variance not positive,
-  /// negative margin or support sigma, minSupport zero).
+  /// negative margin, support sigma or field-check gate, minSupport zero).
   Status validate() const noexcept;
 };
 
@@ -244,6 +262,9 @@ enum class LocalizerFlag : std::uint32_t {
   /// The sweep contradicts the likelihood field at the estimate: its best match in the tracking
   /// window has fewer than `minFieldInlierFraction` of its points on a mapped surface (a bad cycle).
   FieldContradicted = 1U << 21,
+  /// The landmarks' correction made the sweep fit the likelihood field worse than
+  /// `AssociationParams::fieldCheckGate` allows: it was undone (`LocalizerHealth::rejectedField`).
+  LandmarksContradictField = 1U << 22,
 };
 
 /// True when `flag` is set in `flags`.
@@ -306,6 +327,7 @@ struct LocalizerHealth {
   std::uint16_t rejectedUpdate = 0;
   std::uint16_t rejectedAmbiguous = 0;
   std::uint16_t rejectedSupport = 0;  ///< held back: too few to correct an uncertain prior (`minSupport`)
+  std::uint16_t rejectedField = 0;    ///< fused, then undone: they contradicted the field (`fieldCheckGate`)
   std::uint16_t unmatched = 0;        ///< no map candidate at all (new landmark candidates)
   std::uint16_t expectedInView = 0;   ///< landmarks the check expects (see "Occlusion" in the docs)
   double expectedDetections = 0.0;    ///< their detectionRate summed: what the check compares with
@@ -427,7 +449,8 @@ class Localizer {
     Used,
     Tentative,
     UpdateRejected,
-    Unsupported
+    Unsupported,
+    FieldRejected
   };
   struct Scratch {
     Eigen::Matrix2d R = Eigen::Matrix2d::Zero();  // sensor noise, laser frame
@@ -484,6 +507,10 @@ class Localizer {
   bool rewindToScan(const ScanObservations& scan, Rewind& at) noexcept;
   /// The matched observations fused one by one, most certain first, each gated again.
   void fuseMatches(const ScanObservations& scan, const LandmarkMap& map) noexcept;
+  /// The field cross-check of the landmarks' correction (`fieldCheckGate`): back to `before`
+  /// when the sweep fits the field worse at the corrected pose.
+  void checkAgainstField(const PoseEkf& before, const ScanObservations& scan, const LaserScan& beams,
+                         const MatchPoints* points, const LikelihoodFieldBase& field) noexcept;
   /// Counts per outcome and per kind, and the flags they raise.
   void tallyObservations(const ScanObservations& scan) noexcept;
   /// Matched vs expected, and the covariance limits against a static map: true for a bad cycle

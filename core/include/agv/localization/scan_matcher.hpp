@@ -214,6 +214,15 @@ class ScanMatcher {
   ScanMatchResult match(const MatchPoints& points, const Pose2d& laser, const Pose2d& prior, const SearchWindow& window,
                         const LikelihoodFieldBase& field) noexcept;
 
+  /// The robust cost (the refinement's objective: Huber's cost of each thinned point's field
+  /// distance, an outlier at the cost of `inlierDistance`) of `scan` taken at vehicle pose `x`
+  /// through the laser mounting `laser`. It compares poses for one scan: the lower, the better the
+  /// scan lies on the map. NaN when the scan has no point, or an input is not finite or the field
+  /// not built.
+  double costAt(const LaserScan& scan, const Pose2d& laser, const Pose2d& x, const LikelihoodFieldBase& field) noexcept;
+  double costAt(const MatchPoints& points, const Pose2d& laser, const Pose2d& x,
+                const LikelihoodFieldBase& field) noexcept;
+
   /// The tracking window of a prior covariance: +-`searchSigmas` standard deviations per axis,
   /// capped at `maxSearchTranslation` and `maxSearchRotation` (zero for a non-finite covariance).
   SearchWindow searchWindow(const Eigen::Matrix3d& priorCovariance) const noexcept;
@@ -230,6 +239,9 @@ class ScanMatcher {
   bool collectPoints(const MatchPoints& points, const Pose2d& laser, ScanMatchResult& result) noexcept;
   /// Appends a vehicle-frame point unless within pointSpacing of the last one kept.
   void keepPoint(const Eigen::Vector2d& p) noexcept;
+  /// `costAt` for either scan type.
+  template <typename Scan>
+  double costOf(const Scan& scan, const Pose2d& laser, const Pose2d& x, const LikelihoodFieldBase& field) noexcept;
   /// The explicit-window match of either scan type (`LaserScan` or `MatchPoints`).
   template <typename Scan>
   ScanMatchResult matchInWindow(const Scan& scan, const Pose2d& laser, const Pose2d& prior, const SearchWindow& window,
