@@ -138,6 +138,16 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--reloc-confirmations", options.relocConfirmations,
                  "field relocalization: scans after the search that must confirm a candidate before the restart")
       ->check(CLI::PositiveNumber);
+  app.add_option("--reloc-confirm-travel", options.relocalizer.confirmTravel,
+                 "[m] field relocalization: the confirming scans must carry the candidate this far (or turn it "
+                 "--reloc-confirm-turn) before the restart (0 with a zero turn: the scan count alone)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--reloc-confirm-turn", options.relocalizer.confirmTurn,
+                 "[rad] field relocalization: or turn it this much")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--reloc-confirm-max-scans", options.relocalizer.confirmMaxScans,
+                 "field relocalization: the restart after this many confirming scans whatever the motion")
+      ->check(CLI::PositiveNumber);
   app.add_option("--reloc-confirm-sigmas", options.relocalizer.confirmSigmas,
                  "field relocalization: the confirmation window grows to this many standard deviations of the "
                  "odometry noise model over the carry (0: the fixed 0.25 m / 0.08 rad)")

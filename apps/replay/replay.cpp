@@ -475,7 +475,8 @@ class ScanReplay {
         candidate_ = refined;
         traceRelocLabel_ = "confirming";
         traceReloc_.pose = refined;
-        if (++confirmations_ >= options_.relocConfirmations) {
+        confirmation_.add(inc_[i]);
+        if (confirmation_.complete(options_.relocConfirmations, options_.relocalizer)) {
           Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
           // The candidate's fit over the confirmations, loosely: the tracking refines it.
           cov(0, 0) = cov(1, 1) = options_.relocConfirmDistance() * options_.relocConfirmDistance() / 4.0;
@@ -532,7 +533,7 @@ class ScanReplay {
     if (f.outcome == FieldRelocOutcome::Found) {
       ++r_.relocFound;
       candidate_ = f.pose;
-      confirmations_ = 0;
+      confirmation_.restart();
       reloc_ = RelocState::Confirming;
     } else {
       reloc_ = RelocState::Searching;
@@ -727,8 +728,8 @@ class ScanReplay {
   std::unique_ptr<MatchPoints> keptPoints_ = std::make_unique<MatchPoints>();
   std::unique_ptr<MatchPoints> changedPoints_ = std::make_unique<MatchPoints>();
   Pose2d candidate_{};
-  std::size_t confirmations_ = 0;
-  bool localized_ = true;  // false during a cold start until its first restart
+  FieldConfirmation confirmation_;  // the pending candidate's confirming scans and their motion
+  bool localized_ = true;           // false during a cold start until its first restart
   Eigen::Matrix3d p0_ = Eigen::Matrix3d::Zero();
   Timestamp last_;
   double ratioSum_ = 0.0;

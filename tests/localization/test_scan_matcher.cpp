@@ -902,6 +902,74 @@ TEST_CASE("field relocalizer: the confirmation window follows the carry's odomet
   }
 }
 
+TEST_CASE("field confirmation: the scans a candidate needs, and the motion they must span",
+          "[localization][scanmatch][reloc]") {
+  FieldRelocalizerParams p;  // the core's default: no motion asked, the caller's count alone
+  FieldConfirmation c;
+  CHECK_FALSE(c.complete(1, p));
+  c.add(Pose2d{0.0, 0.0, 0.0});  // standing
+  CHECK(c.complete(1, p));
+  CHECK_FALSE(c.complete(2, p));
+  c.add(Pose2d{0.0, 0.0, 0.0});
+  CHECK(c.complete(2, p));
+
+  // Motion asked (a log's robot keeps driving): scans 0.11 m apart need five for 0.5 m.
+  p.confirmTravel = 0.5;
+  p.confirmTurn = 0.5;
+  c.restart();
+  CHECK(c.scans() == 0U);
+  CHECK(c.travel() == 0.0);
+  for (int k = 1; k <= 4; ++k) {
+    c.add(Pose2d{0.066, -0.088, 0.01});  // 0.11 m
+    CHECK_FALSE(c.complete(2, p));
+  }
+  c.add(Pose2d{0.066, -0.088, 0.01});
+  CHECK(c.travel() == Approx(0.55));
+  CHECK(c.complete(2, p));
+  // Scans a metre apart: the count, not the motion, is what they wait for.
+  c.restart();
+  c.add(Pose2d{1.0, 0.2, 0.0});
+  CHECK_FALSE(c.complete(2, p));
+  c.add(Pose2d{1.0, 0.2, 0.0});
+  CHECK(c.complete(2, p));
+  // Turning on the spot: the turn counts, whatever its sign and across the +-pi cut.
+  c.restart();
+  c.add(Pose2d{0.0, 0.0, -0.3});
+  CHECK_FALSE(c.complete(2, p));
+  c.add(Pose2d{0.0, 0.0, 2.0 * kPiD + 0.3});
+  CHECK(c.turn() == Approx(0.6));
+  CHECK(c.complete(2, p));
+  // Standing: the cap ends the wait (a standing vehicle's view does not change).
+  c.restart();
+  for (std::uint32_t k = 1; k < p.confirmMaxScans; ++k) {
+    c.add(Pose2d{0.001, 0.0, 0.0});
+    CHECK_FALSE(c.complete(2, p));
+  }
+  c.add(Pose2d{0.001, 0.0, 0.0});
+  CHECK(c.complete(2, p));
+  // Travel alone asked: turning does not complete it.
+  p.confirmTurn = 0.0;
+  c.restart();
+  c.add(Pose2d{0.0, 0.0, 1.0});
+  c.add(Pose2d{0.0, 0.0, 1.0});
+  CHECK_FALSE(c.complete(2, p));
+  // A non-finite step is no motion.
+  c.restart();
+  c.add(Pose2d{std::nan(""), 0.0, 0.0});
+  c.add(Pose2d{INFINITY, 0.0, std::nan("")});
+  CHECK(c.scans() == 2U);
+  CHECK(c.travel() == 0.0);
+  CHECK(c.turn() == 0.0);
+  CHECK_FALSE(c.complete(2, p));
+  // Validation.
+  FieldRelocalizerParams bad;
+  bad.confirmTravel = -0.1;
+  CHECK(bad.validate() == Status::InvalidArgument);
+  bad = FieldRelocalizerParams{};
+  bad.confirmTurn = std::nan("");
+  CHECK(bad.validate() == Status::NonFiniteInput);
+}
+
 TEST_CASE("scanToMatchPoints: the valid beams within the range limit, in beam order, laser frame", "[scanmatch]") {
   auto scan = std::make_unique<LaserScan>();
   scan->angleMin = -1.0F;

@@ -26,7 +26,8 @@ string(JSON scans GET "${j}" scans)
 string(JSON coldStart GET "${j}" cold_start enabled)
 if(COLD_START)
   # No pose given (--cold-start): the whole-field search must find the vehicle, rightly, within a
-  # few scans (fr079 at 0.4, 0.5 and 0.6: after 2, the search's scan and its two confirmations);
+  # few scans (fr079 at 0.4, 0.5 and 0.6: after 8, 5 and 5, the search's scan and the confirming
+  # scans that span 0.5 m or 0.5 rad, at most 8; after 2 when two scans were enough);
   # the figures below then cover the scans from that restart on.
   expect_true("${j}" cold_start enabled)
   expect_true("${j}" cold_start found)
@@ -68,9 +69,13 @@ message(STATUS "${LOG_NAME}: on the map ${onMap}/${scans}: localizer median ${me
 expect_keys("${j}" "searches;found;ambiguous;weak;confirmed;wrong;unconfirmed;seconds" field_relocalization)
 expect_no_wrong_restart("${j}" "${LOG_NAME}")
 # The regression bound of the RMS: fr079 at F = 0.5 and 0.6 measured 0.54 and 0.58 m before field
-# support and the field check (docs/localization.md), 0.235 and 0.231 m with them.
-if(medPos GREATER_EQUAL 0.10 OR rmsPos GREATER_EQUAL 0.40)
-  message(FATAL_ERROR "JSON: ${LOG_NAME}: on-map tracking median ${medPos} m / RMS ${rmsPos} m (regression bound 0.10 / 0.40 m)")
+# support and the field check (docs/localization.md), 0.235 and 0.231 m with them; at 0.65
+# (RMS_BOUND 0.6) 0.487 m with the confirmation by motion, 3.81 m with its wrong restart before.
+if(NOT DEFINED RMS_BOUND)
+  set(RMS_BOUND 0.40)
+endif()
+if(medPos GREATER_EQUAL 0.10 OR rmsPos GREATER_EQUAL RMS_BOUND)
+  message(FATAL_ERROR "JSON: ${LOG_NAME}: on-map tracking median ${medPos} m / RMS ${rmsPos} m (regression bound 0.10 / ${RMS_BOUND} m)")
 endif()
 expect_keys("${j}" "scans;distance_m;localizer;odometry" on_route)
 string(JSON onRoute GET "${j}" on_route scans)

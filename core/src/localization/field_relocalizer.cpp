@@ -11,7 +11,8 @@ namespace agv {
 Status FieldRelocalizerParams::validate() const noexcept {
   const double values[] = {positionStep,  rotationStep,   minClearance,       minInlierFraction, maxRms,
                            closeDistance, ambiguityRatio, ambiguityDistance,  ambiguityAngle,    confirmDistance,
-                           confirmAngle,  confirmSigmas,  confirmMaxDistance, confirmMaxAngle};
+                           confirmAngle,  confirmSigmas,  confirmMaxDistance, confirmMaxAngle,   confirmTravel,
+                           confirmTurn};
   for (const double v : values) {
     if (!std::isfinite(v)) {
       return Status::NonFiniteInput;
@@ -22,7 +23,7 @@ Status FieldRelocalizerParams::validate() const noexcept {
       minInlierFraction > 1.0 || !(maxRms > 0.0) || !(closeDistance > 0.0) || !(ambiguityRatio > 0.0) ||
       ambiguityRatio > 1.0 || !(ambiguityDistance > 0.0) || !(ambiguityAngle > 0.0) || !(confirmDistance > 0.0) ||
       !(confirmAngle > 0.0) || confirmSigmas < 0.0 || confirmMaxDistance < confirmDistance ||
-      confirmMaxAngle < confirmAngle) {
+      confirmMaxAngle < confirmAngle || confirmTravel < 0.0 || confirmTurn < 0.0) {
     return Status::InvalidArgument;
   }
   return match.validate();
@@ -412,6 +413,24 @@ bool FieldRelocalizer::confirm(const MatchPoints& points, const Pose2d& laser, c
   }
   refined = m.pose;
   return true;
+}
+
+void FieldConfirmation::add(const Pose2d& step) noexcept {
+  ++scans_;
+  const double d = std::hypot(step.x, step.y);
+  const double a = std::fabs(normalizeAngle(step.theta));
+  travel_ += std::isfinite(d) ? d : 0.0;
+  turn_ += std::isfinite(a) ? a : 0.0;
+}
+
+bool FieldConfirmation::complete(std::uint32_t minScans, const FieldRelocalizerParams& params) const noexcept {
+  if (scans_ < minScans) {
+    return false;
+  }
+  const bool noMotionAsked = !(params.confirmTravel > 0.0) && !(params.confirmTurn > 0.0);
+  return noMotionAsked || scans_ >= params.confirmMaxScans ||
+         (params.confirmTravel > 0.0 && travel_ >= params.confirmTravel) ||
+         (params.confirmTurn > 0.0 && turn_ >= params.confirmTurn);
 }
 
 }  // namespace agv

@@ -197,7 +197,7 @@ struct Pipeline::Impl {
   Pose2d fieldAnchor{};
   bool fieldHaveAnchor = false;
   Pose2d fieldCandidate{};
-  std::uint32_t fieldConfirmed = 0;
+  FieldConfirmation fieldConfirmation{};  // the candidate's confirming sweeps and their motion
   RelocRegion fieldRegion{};
 
   PipelineState state = PipelineState::Unconfigured;
@@ -453,7 +453,8 @@ void Pipeline::Impl::relocalizeOnField() noexcept {
     if (!dr.ok() || !fieldHaveAnchor) {
       return;  // nothing to carry the candidate with yet
     }
-    const Pose2d carried = fieldCandidate * between(fieldAnchor, dr.value());
+    const Pose2d step = between(fieldAnchor, dr.value());
+    const Pose2d carried = fieldCandidate * step;
     Pose2d refined;
     if (!fieldReloc->confirm(*matchPoints, mount, carried, *field, refined)) {
       ++counters.unconfirmed;
@@ -461,7 +462,8 @@ void Pipeline::Impl::relocalizeOnField() noexcept {
     } else {
       fieldCandidate = refined;
       fieldAnchor = dr.value();
-      if (++fieldConfirmed >= rp.fieldConfirmSweeps) {
+      fieldConfirmation.add(step);
+      if (fieldConfirmation.complete(rp.fieldConfirmSweeps, rp.field)) {
         fieldStage = FieldStage::Idle;
         restartAt(fieldCandidate, dr, ref);
       }
@@ -494,7 +496,7 @@ void Pipeline::Impl::relocalizeOnField() noexcept {
   }
   ++counters.candidates;
   fieldCandidate = r.pose;  // at the search's sweep, carried from fieldAnchor
-  fieldConfirmed = 0;
+  fieldConfirmation.restart();
   fieldStage = FieldStage::Confirming;
 }
 

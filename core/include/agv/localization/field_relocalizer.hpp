@@ -76,10 +76,21 @@ struct FieldRelocalizerParams {
   /// Upper bounds of that window (the confirmation's match search covers it).
   double confirmMaxDistance = 0.6;  ///< [m], at least confirmDistance
   double confirmMaxAngle = 0.3;     ///< [rad], at least confirmAngle
+  /// The motion a candidate's confirmation must span (`FieldConfirmation`): the caller restarts
+  /// from it only once its confirming scans carried it `confirmTravel` [m] (their odometry steps'
+  /// lengths summed) or turned it `confirmTurn` [rad], or after `confirmMaxScans` confirming scans
+  /// whatever the motion (a standing vehicle's view does not change: more scans add only time).
+  /// Scans a few centimetres apart show the same view, so a twin that fits one fits the next as
+  /// well; a new view refutes it. 0 (the default): no motion asked, the caller's count of scans
+  /// alone. `agvnav-replay` asks 0.5 m / 0.5 rad (docs/localization.md, "Confirmation by motion").
+  double confirmTravel = 0.0;
+  double confirmTurn = 0.0;
+  std::uint32_t confirmMaxScans = 8;
   /// The scan matcher of the refinement and the confirmation (its search window is set here).
   ScanMatchParams match{};
   /// `Ok`, `NonFiniteInput` or `InvalidArgument` (a non-positive step, distance or count, a
-  /// fraction outside (0, 1], more candidates than kMaxCandidates, an invalid `match`).
+  /// fraction outside (0, 1], more candidates than kMaxCandidates, a negative confirmation
+  /// travel or turn, an invalid `match`).
   Status validate() const noexcept;
 };
 
@@ -232,6 +243,29 @@ class FieldRelocalizer {
   ScanMatchResult refined_[kMaxCandidates] = {};
   std::uint16_t close_[kMaxCandidates] = {};
   FieldRelocResult result_{};
+};
+
+/// A candidate's confirmation in progress: how many scans confirmed it (`FieldRelocalizer::confirm`
+/// returned true) and the odometry they spanned, judged against the caller's minimum count and
+/// `FieldRelocalizerParams::confirmTravel` / `confirmTurn` / `confirmMaxScans`.
+class FieldConfirmation {
+ public:
+  /// A new candidate: nothing confirmed yet.
+  void restart() noexcept { *this = FieldConfirmation{}; }
+  /// One more scan confirmed the candidate, carried to it by the odometry `step` (from the scan
+  /// before; a non-finite step counts as no motion).
+  void add(const Pose2d& step) noexcept;
+  /// At least `minScans` confirming scans, and the motion `params` asks for or its
+  /// `confirmMaxScans` of them.
+  bool complete(std::uint32_t minScans, const FieldRelocalizerParams& params) const noexcept;
+  std::uint32_t scans() const noexcept { return scans_; }
+  double travel() const noexcept { return travel_; }  ///< [m] the confirming steps' lengths summed
+  double turn() const noexcept { return turn_; }      ///< [rad] their absolute rotations summed
+
+ private:
+  std::uint32_t scans_ = 0;
+  double travel_ = 0.0;
+  double turn_ = 0.0;
 };
 
 }  // namespace agv

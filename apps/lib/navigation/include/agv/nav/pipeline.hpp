@@ -131,7 +131,9 @@ struct RelocalizationParams {
   /// Grid poses the field search visits per sweep (its time per cycle: about 0.65 us per pose on
   /// the development VM, so 20 000 are ~13 ms; a 41 m x 26 m hall takes ~180 sweeps, 7 s at 25 Hz).
   std::uint32_t fieldPosesPerSweep = 20000;
-  /// Sweeps after the search's whose match must confirm the candidate before the restart.
+  /// Sweeps after the search's whose match must confirm the candidate before the restart (and
+  /// the motion `field.confirmTravel` / `confirmTurn` asks of them: none by default, the vehicle
+  /// stands while lost).
   std::uint32_t fieldConfirmSweeps = 2;
   /// [m] the field search covers this disc around the last estimate when the localizer was lost
   /// (0: the whole field, also at start, where there is no estimate).
