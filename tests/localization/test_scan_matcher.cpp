@@ -123,6 +123,82 @@ TEST_CASE("likelihood field: bad parameters, capacity, points outside and an emp
   CHECK(small.sample(0.26, 0.25).gradient.x() == Approx(1.0).margin(0.1));
 }
 
+TEST_CASE("likelihood field: every cell is the nearest segment's quantized distance, as a brute force computes it",
+          "[localization][field]") {
+  // 16 random segments (points, short pieces, long walls, any direction, some near the edges) in
+  // a 4 m x 3 m area with its origin off the cell grid: few enough that each one's rim is the
+  // nearest surface somewhere (a field that skipped the outer tenth of each segment's reach fails
+  // here in 29 cells). The reference visits every cell for every
+  // segment, in the same order, with the rule of addSegment's documentation (the Euclidean
+  // distance to the nearest point of the segment, rounded half away from zero to the stored
+  // quantum, kept when nearer to zero, negative within 45 deg of straight behind the normal).
+  const LikelihoodFieldParams p;  // 5 cm, 0.5 m
+  constexpr std::size_t kW = 80;
+  constexpr std::size_t kH = 60;
+  const double ox = -1.013;
+  const double oy = 0.377;
+  auto field = std::make_unique<LikelihoodField<kW * kH>>();
+  REQUIRE(field->configure(p, ox, oy, kW, kH) == Status::Ok);
+  const double quantum = p.maxDistance / 127.0;
+  std::vector<int> ref(kW * kH, 127);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> ux(ox + 0.001, ox + kW * p.resolution - 0.001);
+  std::uniform_real_distribution<double> uy(oy + 0.001, oy + kH * p.resolution - 0.001);
+  std::uniform_real_distribution<double> angle(-kPiD, kPiD);
+  std::uniform_real_distribution<double> len(0.0, 1.5);
+  std::size_t added = 0;
+  for (int k = 0; k < 16; ++k) {
+    const double ax = ux(rng);
+    const double ay = uy(rng);
+    const double a = angle(rng);
+    const double l = k % 5 == 0 ? 0.0 : len(rng);  // every fifth a point
+    const double bx = ax + l * std::cos(a);
+    const double by = ay + l * std::sin(a);
+    const double na = angle(rng);
+    const double nx = std::cos(na);
+    const double ny = std::sin(na);
+    if (field->addSegment(ax, ay, bx, by, nx, ny) != Status::Ok) {
+      continue;  // an end outside the area: nothing added (checked below by the reference's absence)
+    }
+    ++added;
+    const double ex = bx - ax;
+    const double ey = by - ay;
+    const double e2 = ex * ex + ey * ey;
+    for (std::size_t iy = 0; iy < kH; ++iy) {
+      for (std::size_t ix = 0; ix < kW; ++ix) {
+        const double cx = ox + (static_cast<double>(ix) + 0.5) * p.resolution;
+        const double cy = oy + (static_cast<double>(iy) + 0.5) * p.resolution;
+        const double t = e2 > 0.0 ? std::clamp(((cx - ax) * ex + (cy - ay) * ey) / e2, 0.0, 1.0) : 0.0;
+        const double dx = cx - (ax + t * ex);
+        const double dy = cy - (ay + t * ey);
+        const double d = std::sqrt(dx * dx + dy * dy);
+        if (d >= p.maxDistance) {
+          continue;
+        }
+        const long q = std::lround(d / quantum);
+        int& cell = ref[ix + iy * kW];
+        if (q < std::abs(cell)) {
+          const bool behind = dx * nx + dy * ny < -std::cos(kPiD / 4.0) * d;
+          cell = static_cast<int>(behind ? -q : q);
+        }
+      }
+    }
+  }
+  REQUIRE(added > 8U);
+  REQUIRE(field->build() == Status::Ok);
+  std::size_t near = 0;
+  std::size_t mismatched = 0;
+  for (std::size_t iy = 0; iy < kH; ++iy) {
+    for (std::size_t ix = 0; ix < kW; ++ix) {
+      const int expected = ref[ix + iy * kW];
+      near += expected != 127 ? 1U : 0U;
+      mismatched += field->cellDistance(ix, iy) == static_cast<double>(expected) * quantum ? 0U : 1U;
+    }
+  }
+  CHECK(near > kW * kH / 8U);  // the segments reach a good part of the area
+  CHECK(mismatched == 0U);
+}
+
 TEST_CASE("scan matcher: a ray-cast scan is aligned to the pose it was taken from", "[localization][scanmatch]") {
   auto field = std::make_unique<HallField>();
   const std::vector<Segment> segs = hall();

@@ -98,21 +98,50 @@ Status LikelihoodFieldBase::addSegment(double ax, double ay, double bx, double b
   const double ex = bx - ax;
   const double ey = by - ay;
   const double e2 = ex * ex + ey * ey;
+  // Squared distances at or beyond this are beyond maxDistance whatever the rounding of the root
+  // (a margin of 1e-9, far above it): such cells are skipped without the square root.
+  const double farSquared = params_.maxDistance * params_.maxDistance * (1.0 + 1e-9);
+  // Per row, the cells that can lie within maxDistance: a point within it of the segment is within
+  // sqrt(maxDistance^2 - dy^2) in x of the segment's x-range, dy the row's distance from its
+  // y-range (one cell of margin for the cell centres; the distance test below decides).
+  const double segXMin = std::min(px, px + ex);
+  const double segXMax = std::max(px, px + ex);
+  const double segYMin = std::min(py, py + ey);
+  const double segYMax = std::max(py, py + ey);
   for (long iy = y0; iy <= y1; ++iy) {
     const double cy = (static_cast<double>(iy) + 0.5) * params_.resolution;
-    for (long ix = x0; ix <= x1; ++ix) {
+    const double dyRow = cy < segYMin ? segYMin - cy : (cy > segYMax ? cy - segYMax : 0.0);
+    if (dyRow >= params_.maxDistance) {
+      continue;
+    }
+    const double reach = std::sqrt(params_.maxDistance * params_.maxDistance - dyRow * dyRow);
+    const long rx0 = std::max(x0, static_cast<long>(std::floor((segXMin - reach) / params_.resolution)) - 1);
+    const long rx1 = std::min(x1, static_cast<long>(std::floor((segXMax + reach) / params_.resolution)) + 1);
+    std::int8_t* const row = &cells_[static_cast<std::size_t>(iy * iw)];
+    for (long ix = rx0; ix <= rx1; ++ix) {
+      std::int8_t& cell = row[ix];
+      if (cell == 0) {
+        continue;  // a surface passes through the cell already: nothing is nearer
+      }
       const double cx = (static_cast<double>(ix) + 0.5) * params_.resolution;
       // The nearest point of the segment to the cell centre.
       double t = e2 > 0.0 ? ((cx - px) * ex + (cy - py) * ey) / e2 : 0.0;
       t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
       const double dx = cx - (px + t * ex);
       const double dy = cy - (py + t * ey);
-      const double d = std::sqrt(dx * dx + dy * dy);
+      const double d2 = dx * dx + dy * dy;
+      if (d2 >= farSquared) {
+        continue;
+      }
+      const double d = std::sqrt(d2);
       if (d >= params_.maxDistance) {
         continue;
       }
-      const long q = std::lround(d / quantum_);
-      std::int8_t& cell = cells_[static_cast<std::size_t>(ix + iy * iw)];
+      // d / quantum rounded half away from zero (std::lround for a non-negative value, inline:
+      // the fraction of a double below 2^52 is exact).
+      const double r = d / quantum_;
+      long q = static_cast<long>(r);
+      q += r - static_cast<double>(q) >= 0.5 ? 1L : 0L;
       if (q < (cell < 0 ? -cell : cell)) {
         // Behind only when clearly so (within 45 deg of straight behind): beyond the end of a face
         // (the corner of a box seen from outside) the nearest point's own normal says nothing.

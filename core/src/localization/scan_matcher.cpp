@@ -130,7 +130,7 @@ double ScanMatcher::effectiveInlierDistance(const LikelihoodFieldBase& field) co
   return params_.inlierDistance < field.params().maxDistance ? params_.inlierDistance : field.params().maxDistance;
 }
 
-double ScanMatcher::cost(const Pose2d& x, const LikelihoodFieldBase& field) const noexcept {
+double ScanMatcher::cost(const Pose2d& x, const LikelihoodFieldBase& field, double bound) const noexcept {
   const double inlierDistance = effectiveInlierDistance(field);
   const double outlierCost = huberCost(inlierDistance, params_.huber);
   const double c = std::cos(x.theta);
@@ -142,6 +142,9 @@ double ScanMatcher::cost(const Pose2d& x, const LikelihoodFieldBase& field) cons
     const FieldSample f = field.sample(x.x + c * px - s * py, x.y + s * px + c * py);
     const double ar = std::fabs(f.distance);
     total += f.inside && ar < inlierDistance ? huberCost(ar, params_.huber) : outlierCost;
+    if (total >= bound) {
+      break;  // cannot beat the bound any more: the terms are non-negative
+    }
   }
   return total;
 }
@@ -178,7 +181,7 @@ Pose2d ScanMatcher::search(const Pose2d& prior, double wx, double wy, double wt,
         const Pose2d x = Pose2d(prior.x + static_cast<double>(ix) * stepT, prior.y + static_cast<double>(iy) * stepT,
                                 prior.theta + static_cast<double>(it) * stepR)
                              .normalized();
-        const double c = cost(x, field);
+        const double c = cost(x, field, bestCost);
         ++scored;
         if (c < bestCost) {
           bestCost = c;

@@ -252,7 +252,11 @@ class ScanMatcher {
   /// `inlierDistance`, capped at the field's saturation distance.
   double effectiveInlierDistance(const LikelihoodFieldBase& field) const noexcept;
   /// Robust cost of the points at pose `x` (the refinement's objective, without derivatives).
-  double cost(const Pose2d& x, const LikelihoodFieldBase& field) const noexcept;
+  /// Every point adds a non-negative term, so the sum is abandoned once it reaches `bound`: the
+  /// value returned is then a partial sum at least `bound` (the search only asks whether a pose
+  /// beats the best so far, and gets the same answer).
+  double cost(const Pose2d& x, const LikelihoodFieldBase& field,
+              double bound = std::numeric_limits<double>::infinity()) const noexcept;
   /// The coarse search around `prior` over +-(wx, wy, wt); the best pose (prior when no better).
   Pose2d search(const Pose2d& prior, double wx, double wy, double wt, const LikelihoodFieldBase& field,
                 std::uint32_t& scored) const noexcept;
