@@ -1044,6 +1044,9 @@ TEST_CASE("field confirmation: the scans a candidate needs, and the motion they 
   bad = FieldRelocalizerParams{};
   bad.confirmTurn = std::nan("");
   CHECK(bad.validate() == Status::NonFiniteInput);
+  bad = FieldRelocalizerParams{};
+  bad.confirmMaxScans = 0;
+  CHECK(bad.validate() == Status::InvalidArgument);
 }
 
 TEST_CASE("scanToMatchPoints: the valid beams within the range limit, in beam order, laser frame", "[scanmatch]") {

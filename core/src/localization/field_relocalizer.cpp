@@ -23,7 +23,7 @@ Status FieldRelocalizerParams::validate() const noexcept {
       minInlierFraction > 1.0 || !(maxRms > 0.0) || !(closeDistance > 0.0) || !(ambiguityRatio > 0.0) ||
       ambiguityRatio > 1.0 || !(ambiguityDistance > 0.0) || !(ambiguityAngle > 0.0) || !(confirmDistance > 0.0) ||
       !(confirmAngle > 0.0) || confirmSigmas < 0.0 || confirmMaxDistance < confirmDistance ||
-      confirmMaxAngle < confirmAngle || confirmTravel < 0.0 || confirmTurn < 0.0) {
+      confirmMaxAngle < confirmAngle || confirmTravel < 0.0 || confirmTurn < 0.0 || confirmMaxScans == 0) {
     return Status::InvalidArgument;
   }
   return match.validate();

@@ -90,7 +90,7 @@ struct FieldRelocalizerParams {
   ScanMatchParams match{};
   /// `Ok`, `NonFiniteInput` or `InvalidArgument` (a non-positive step, distance or count, a
   /// fraction outside (0, 1], more candidates than kMaxCandidates, a negative confirmation
-  /// travel or turn, an invalid `match`).
+  /// travel or turn, confirmMaxScans zero, an invalid `match`).
   Status validate() const noexcept;
 };
 
