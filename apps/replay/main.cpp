@@ -107,6 +107,9 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_flag("!--no-surface-map", options.surfaceMap,
                "map-less runs: no scan matching against the surface map of the earlier scans (corners alone)");
   app.add_option("--surface-max-range", options.surface.maxRange, "[m] farthest beam the surface map takes");
+  app.add_flag("--surface-shift,!--no-surface-shift", options.surface.recentreByShift,
+               "surface maps (and the laser odometry's) move by whole cells at a recentre, refilling only the "
+               "uncovered strips, instead of a rebuild centred on the sensor");
   app.add_option("--surface-new-distance", options.surface.newSurfaceDistance,
                  "[m] a beam farther than this from the surface map's surfaces is a new surface");
   app.add_option("--field-min-scans", options.fieldMinScans, "mapping scans a field surface cell needs");

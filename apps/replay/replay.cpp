@@ -762,7 +762,9 @@ void markRoute(const datasets::CarmenLog& log, std::size_t mapping, double dista
 /// from the first corrected pose over the wheel steps `inc`; its figures into `r`.
 void laserOdometrySteps(const datasets::CarmenLog& log, std::size_t start, std::size_t n, const ReplayOptions& options,
                         const std::vector<Pose2d>& inc, std::vector<Pose2d>& steps, ReplayResult& r) {
-  mapping::ScanOdometry odometry(options.laserMounting);
+  SurfaceMapParams surface;  // the default map, moved as the replay's surface maps are
+  surface.recentreByShift = options.surface.recentreByShift;
+  mapping::ScanOdometry odometry(options.laserMounting, ScanMatchParams{}, surface);
   auto scan = std::make_unique<LaserScan>();
   std::vector<Pose2d> track(n);
   steps.assign(n, Pose2d{});

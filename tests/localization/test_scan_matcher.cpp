@@ -199,6 +199,96 @@ TEST_CASE("likelihood field: every cell is the nearest segment's quantized dista
   CHECK(mismatched == 0U);
 }
 
+TEST_CASE("likelihood field: a window of a larger field, moved by whole cells and completed, equals it cell for cell",
+          "[localization][field]") {
+  // A 6 m x 4.5 m field holds 24 random segments, many crossing the edges of a 4 m x 3 m window
+  // inside it. The window, configured 10 x 5 cells in, takes every segment clipped to it
+  // (addSegmentIn), then moves 7 cells right and 4 down (shift) and takes them again in the
+  // strips it uncovered: each time every cell equals the large field's cell under it.
+  const LikelihoodFieldParams p;
+  constexpr std::size_t kBigW = 120;
+  constexpr std::size_t kBigH = 90;
+  constexpr std::size_t kW = 80;
+  constexpr std::size_t kH = 60;
+  const double ox = -1.013;
+  const double oy = 0.377;
+  auto big = std::make_unique<LikelihoodField<kBigW * kBigH>>();
+  auto window = std::make_unique<LikelihoodField<kW * kH>>();
+  REQUIRE(big->configure(p, ox, oy, kBigW, kBigH) == Status::Ok);
+  struct Piece {
+    double ax, ay, bx, by, nx, ny;
+  };
+  std::vector<Piece> pieces;
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> ux(ox + 0.3, ox + kBigW * p.resolution - 0.3);
+  std::uniform_real_distribution<double> uy(oy + 0.3, oy + kBigH * p.resolution - 0.3);
+  std::uniform_real_distribution<double> angle(-kPiD, kPiD);
+  std::uniform_real_distribution<double> len(0.0, 2.0);
+  for (int k = 0; k < 24; ++k) {
+    Piece s{};
+    s.ax = ux(rng);
+    s.ay = uy(rng);
+    const double a = angle(rng);
+    const double l = k % 6 == 0 ? 0.0 : len(rng);
+    s.bx = std::clamp(s.ax + l * std::cos(a), ox + 0.01, ox + kBigW * p.resolution - 0.01);
+    s.by = std::clamp(s.ay + l * std::sin(a), oy + 0.01, oy + kBigH * p.resolution - 0.01);
+    const double na = angle(rng);
+    s.nx = std::cos(na);
+    s.ny = std::sin(na);
+    REQUIRE(big->addSegment(s.ax, s.ay, s.bx, s.by, s.nx, s.ny) == Status::Ok);
+    pieces.push_back(s);
+  }
+  REQUIRE(big->build() == Status::Ok);
+  const auto compare = [&](std::size_t offX, std::size_t offY) {
+    std::size_t near = 0;
+    std::size_t mismatched = 0;
+    for (std::size_t iy = 0; iy < kH; ++iy) {
+      for (std::size_t ix = 0; ix < kW; ++ix) {
+        const double expected = big->cellDistance(ix + offX, iy + offY);
+        near += expected < p.maxDistance ? 1U : 0U;
+        mismatched += window->cellDistance(ix, iy) == expected ? 0U : 1U;
+      }
+    }
+    CHECK(near > kW * kH / 4U);
+    CHECK(mismatched == 0U);
+  };
+  REQUIRE(window->configure(p, ox + 10 * p.resolution, oy + 5 * p.resolution, kW, kH) == Status::Ok);
+  std::size_t crossing = 0;  // segments with an end outside the window: addSegment would refuse them
+  for (const Piece& s : pieces) {
+    REQUIRE(window->addSegmentIn(CellRange{0, 0, kW, kH}, s.ax, s.ay, s.bx, s.by, s.nx, s.ny) == Status::Ok);
+    const double ua = (s.ax - window->originX()) / p.resolution;
+    const double ub = (s.bx - window->originX()) / p.resolution;
+    const double va = (s.ay - window->originY()) / p.resolution;
+    const double vb = (s.by - window->originY()) / p.resolution;
+    crossing += std::min({ua, ub, va, vb}) < 0.0 || std::max(ua, ub) >= kW || std::max(va, vb) >= kH ? 1U : 0U;
+  }
+  CHECK(crossing >= 8U);
+  REQUIRE(window->build() == Status::Ok);
+  compare(10, 5);
+  // Move by (7, -4) cells: columns 73..79 and rows 0..3 are uncovered.
+  REQUIRE(window->shift(7, -4, ox + 17 * p.resolution, oy + 1 * p.resolution) == Status::Ok);
+  CHECK(window->built());
+  CHECK(window->cellDistance(kW - 1, kH / 2) == p.maxDistance);  // uncovered: free until filled
+  for (const Piece& s : pieces) {
+    REQUIRE(window->addSegmentIn(CellRange{kW - 7, 0, kW, kH}, s.ax, s.ay, s.bx, s.by, s.nx, s.ny) == Status::Ok);
+    REQUIRE(window->addSegmentIn(CellRange{0, 0, kW - 7, 4}, s.ax, s.ay, s.bx, s.by, s.nx, s.ny) == Status::Ok);
+  }
+  compare(17, 1);
+  // A range beyond the area is clipped to it; refusals leave the field as it was.
+  CHECK(window->addSegmentIn(CellRange{0, 0, 10 * kW, 10 * kH}, pieces[0].ax, pieces[0].ay, pieces[0].bx, pieces[0].by,
+                             pieces[0].nx, pieces[0].ny) == Status::Ok);
+  CHECK(window->addSegmentIn(CellRange{0, 0, kW, kH}, std::numeric_limits<double>::quiet_NaN(), 0.0, 0.0, 0.0, 1.0,
+                             0.0) == Status::NonFiniteInput);
+  CHECK(window->addSegmentIn(CellRange{0, 0, kW, kH}, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0) == Status::InvalidArgument);
+  CHECK(window->shift(static_cast<long>(kW), 0, ox, oy) == Status::OutOfRange);
+  CHECK(window->shift(0, -static_cast<long>(kH), ox, oy) == Status::OutOfRange);
+  CHECK(window->shift(1, 0, std::numeric_limits<double>::infinity(), oy) == Status::NonFiniteInput);
+  compare(17, 1);
+  auto empty = std::make_unique<LikelihoodField<16>>();
+  CHECK(empty->shift(0, 0, 0.0, 0.0) == Status::NotInitialized);
+  CHECK(empty->addSegmentIn(CellRange{0, 0, 4, 4}, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0) == Status::NotInitialized);
+}
+
 TEST_CASE("scan matcher: a ray-cast scan is aligned to the pose it was taken from", "[localization][scanmatch]") {
   auto field = std::make_unique<HallField>();
   const std::vector<Segment> segs = hall();

@@ -146,6 +146,91 @@ TEST_CASE("surface map: the field follows the sensor and keeps what it saw", "[l
   CHECK(std::fabs(f.distance) < 0.03);
 }
 
+TEST_CASE("surface map: a recentre moves the field by whole cells and equals a rebuild from every kept piece",
+          "[localization][surface][alloc]") {
+  // A Lissajous path over the hall and the corridor (up to 0.9 m and 0.3 rad per scan), so that
+  // the field moves in x and y, both ways, often diagonally. With `recentreByShift`; After every recentre the field is
+  // copied, rebuilt from the kept pieces where it stands, and compared cell for cell; its origin stays on the grid of
+  // the first insert. With a ring of 600 pieces the oldest are dropped and the next recentre rebuilds the whole field
+  // (the same comparison). Without it (the default), every recentre is such a rebuild, centred on the sensor exactly.
+  SurfaceMapParams p;
+  p.side = 16.0;
+  p.recentreMargin = 5.0;
+  p.maxRange = 8.0;
+  std::vector<Segment> segs = hall();
+  for (const Segment& s : corridor()) {
+    segs.push_back(s);
+  }
+  const std::size_t cells = 320;
+  std::vector<double> before(cells * cells);
+  for (const int mode : {0, 1, 2}) {
+    const std::size_t ring = mode == 1 ? 600 : 20000;
+    p.recentreByShift = mode != 2;
+    CAPTURE(ring, p.recentreByShift);
+    auto big = std::make_unique<TestSurfaceMap>(p);
+    auto small = std::make_unique<SurfaceMap<800 * 800, 600>>(p);
+    SurfaceMapBase& map = ring == 600 ? static_cast<SurfaceMapBase&>(*small) : *big;
+    auto scan = std::make_unique<LaserScan>();
+    auto empty = std::make_unique<LaserScan>();
+    std::mt19937_64 rng(21);
+    double x0 = 0.0;
+    double y0 = 0.0;
+    std::size_t compared = 0;
+    std::size_t near = 0;
+    for (int k = 0; k < 90; ++k) {
+      const Pose2d laser{6.0 + 14.0 * std::sin(0.06 * k), 4.0 + 9.0 * std::sin(0.09 * k), 0.3 * k};
+      // An empty scan first: it moves the field if the pose asks for it and adds nothing (a full
+      // ring drops pieces in the same insert that adds them, after the recentre).
+      SurfaceInsert moved;
+      AGV_CHECK_NO_ALLOCATIONS(moved = map.insert(*empty, laser));  // a recentre: moved or rebuilt
+      REQUIRE(moved.status == Status::Ok);
+      if (k == 0) {
+        x0 = map.field().originX();
+        y0 = map.field().originY();
+      } else if (moved.recentred) {
+        const double res = p.field.resolution;
+        const double cx = (map.field().originX() - x0) / res;
+        const double cy = (map.field().originY() - y0) / res;
+        if (p.recentreByShift) {
+          CHECK(std::fabs(cx - std::round(cx)) < 1e-6);
+          CHECK(std::fabs(cy - std::round(cy)) < 1e-6);
+          CHECK(std::fabs(map.field().originX() + 0.5 * p.side - laser.x) <= 0.5 * res + 1e-9);
+          CHECK(std::fabs(map.field().originY() + 0.5 * p.side - laser.y) <= 0.5 * res + 1e-9);
+        } else {
+          CHECK(map.field().originX() == laser.x - 0.5 * p.side);
+          CHECK(map.field().originY() == laser.y - 0.5 * p.side);
+        }
+        REQUIRE(map.field().width() == cells);
+        for (std::size_t i = 0; i < cells * cells; ++i) {
+          before[i] = map.field().cellDistance(i % cells, i / cells);
+        }
+        Status rebuilt = Status::NotInitialized;
+        AGV_CHECK_NO_ALLOCATIONS(rebuilt = map.rebuild());
+        REQUIRE(rebuilt == Status::Ok);
+        std::size_t mismatched = 0;
+        for (std::size_t i = 0; i < cells * cells; ++i) {
+          const double d = map.field().cellDistance(i % cells, i / cells);
+          mismatched += d == before[i] ? 0U : 1U;
+          near += d < p.field.maxDistance ? 1U : 0U;
+        }
+        CHECK(mismatched == 0U);
+        ++compared;
+      }
+      castScan(segs, laser, 0.01, rng, *scan);
+      REQUIRE(map.insert(*scan, laser).status == Status::Ok);
+    }
+    CHECK(compared >= 6U);
+    CHECK(near > compared * cells * 4U);  // walls in the field, not an empty comparison
+    if (mode == 1) {
+      CHECK(map.dropped() > 0U);
+    } else {
+      CHECK(map.dropped() == 0U);
+    }
+  }
+  auto fresh = std::make_unique<TestSurfaceMap>();
+  CHECK(fresh->rebuild() == Status::NotInitialized);
+}
+
 TEST_CASE("surface map: a full ring drops its oldest points, counted", "[localization][surface]") {
   auto map = std::make_unique<SurfaceMap<800 * 800, 100>>();
   auto scan = std::make_unique<LaserScan>();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 namespace agv {
 
@@ -80,18 +81,34 @@ Status LikelihoodFieldBase::addSegment(double ax, double ay, double bx, double b
     ++pointsOutside_;
     return Status::OutOfRange;
   }
+  paintSegment(ax, ay, bx, by, normalX, normalY, 0L, static_cast<long>(width_) - 1, 0L, static_cast<long>(height_) - 1);
+  ++surfacePoints_;
+  return Status::Ok;
+}
+
+void LikelihoodFieldBase::paintSegment(double ax, double ay, double bx, double by, double normalX, double normalY,
+                                       long cx0, long cx1, long cy0, long cy1) noexcept {
+  const double ua = (ax - originX_) / params_.resolution;
+  const double va = (ay - originY_) / params_.resolution;
+  const double ub = (bx - originX_) / params_.resolution;
+  const double vb = (by - originY_) / params_.resolution;
   const double normalLength = std::hypot(normalX, normalY);
   const auto w = static_cast<long>(std::ceil(params_.maxDistance / params_.resolution));
   const long iw = static_cast<long>(width_);
-  const long ih = static_cast<long>(height_);
-  const long xa = static_cast<long>(ua);
-  const long xb = static_cast<long>(ub);
-  const long ya = static_cast<long>(va);
-  const long yb = static_cast<long>(vb);
-  const long x0 = std::max(0L, std::min(xa, xb) - w);
-  const long x1 = std::min(iw - 1, std::max(xa, xb) + w);
-  const long y0 = std::max(0L, std::min(ya, yb) - w);
-  const long y1 = std::min(ih - 1, std::max(ya, yb) + w);
+  // The cells within w of the ends' cells (floor: the ends may lie outside the area here), clipped
+  // to the range asked for; in double first, so that a far segment cannot overflow a long.
+  const double fx0 = std::floor(std::min(ua, ub)) - static_cast<double>(w);
+  const double fx1 = std::floor(std::max(ua, ub)) + static_cast<double>(w);
+  const double fy0 = std::floor(std::min(va, vb)) - static_cast<double>(w);
+  const double fy1 = std::floor(std::max(va, vb)) + static_cast<double>(w);
+  if (fx1 < static_cast<double>(cx0) || fx0 > static_cast<double>(cx1) || fy1 < static_cast<double>(cy0) ||
+      fy0 > static_cast<double>(cy1)) {
+    return;  // no cell of the range within reach
+  }
+  const long x0 = std::max(cx0, static_cast<long>(std::max(fx0, static_cast<double>(cx0))));
+  const long x1 = std::min(cx1, static_cast<long>(std::min(fx1, static_cast<double>(cx1))));
+  const long y0 = std::max(cy0, static_cast<long>(std::max(fy0, static_cast<double>(cy0))));
+  const long y1 = std::min(cy1, static_cast<long>(std::min(fy1, static_cast<double>(cy1))));
   // In the area's frame (metres from the origin).
   const double px = ax - originX_;
   const double py = ay - originY_;
@@ -115,8 +132,10 @@ Status LikelihoodFieldBase::addSegment(double ax, double ay, double bx, double b
       continue;
     }
     const double reach = std::sqrt(params_.maxDistance * params_.maxDistance - dyRow * dyRow);
-    const long rx0 = std::max(x0, static_cast<long>(std::floor((segXMin - reach) / params_.resolution)) - 1);
-    const long rx1 = std::min(x1, static_cast<long>(std::floor((segXMax + reach) / params_.resolution)) + 1);
+    const double fr0 = std::floor((segXMin - reach) / params_.resolution) - 1.0;
+    const double fr1 = std::floor((segXMax + reach) / params_.resolution) + 1.0;
+    const long rx0 = fr0 > static_cast<double>(x0) ? static_cast<long>(fr0) : x0;
+    const long rx1 = fr1 < static_cast<double>(x1) ? static_cast<long>(fr1) : x1;
     std::int8_t* const row = &cells_[static_cast<std::size_t>(iy * iw)];
     for (long ix = rx0; ix <= rx1; ++ix) {
       std::int8_t& cell = row[ix];
@@ -150,7 +169,61 @@ Status LikelihoodFieldBase::addSegment(double ax, double ay, double bx, double b
       }
     }
   }
+}
+
+Status LikelihoodFieldBase::addSegmentIn(const CellRange& cells, double ax, double ay, double bx, double by,
+                                         double normalX, double normalY) noexcept {
+  if (width_ == 0) {
+    return Status::NotInitialized;
+  }
+  if (!std::isfinite(ax) || !std::isfinite(ay) || !std::isfinite(bx) || !std::isfinite(by) || !std::isfinite(normalX) ||
+      !std::isfinite(normalY)) {
+    return Status::NonFiniteInput;
+  }
+  if (normalX == 0.0 && normalY == 0.0) {
+    return Status::InvalidArgument;
+  }
+  const std::size_t x1 = std::min(cells.x1, width_);
+  const std::size_t y1 = std::min(cells.y1, height_);
+  if (cells.x0 < x1 && cells.y0 < y1) {
+    paintSegment(ax, ay, bx, by, normalX, normalY, static_cast<long>(cells.x0), static_cast<long>(x1) - 1,
+                 static_cast<long>(cells.y0), static_cast<long>(y1) - 1);
+  }
   ++surfacePoints_;
+  return Status::Ok;
+}
+
+Status LikelihoodFieldBase::shift(long dx, long dy, double originX, double originY) noexcept {
+  if (width_ == 0) {
+    return Status::NotInitialized;
+  }
+  if (!std::isfinite(originX) || !std::isfinite(originY)) {
+    return Status::NonFiniteInput;
+  }
+  const long iw = static_cast<long>(width_);
+  const long ih = static_cast<long>(height_);
+  if (dx <= -iw || dx >= iw || dy <= -ih || dy >= ih) {
+    return Status::OutOfRange;
+  }
+  // Rows in the order that reads each source row before it is overwritten.
+  for (long k = 0; k < ih; ++k) {
+    const long iy = dy >= 0 ? k : ih - 1 - k;
+    std::int8_t* const row = &cells_[static_cast<std::size_t>(iy * iw)];
+    const long sy = iy + dy;
+    if (sy < 0 || sy >= ih) {
+      std::memset(row, kSaturated, width_);
+      continue;
+    }
+    const std::int8_t* const src = &cells_[static_cast<std::size_t>(sy * iw)];
+    // Columns [c0, c1) take the source's [c0 + dx, c1 + dx); the rest is free.
+    const long c0 = dx < 0 ? -dx : 0;
+    const long c1 = dx > 0 ? iw - dx : iw;
+    std::memmove(row + c0, src + c0 + dx, static_cast<std::size_t>(c1 - c0));
+    std::memset(row, kSaturated, static_cast<std::size_t>(c0));
+    std::memset(row + c1, kSaturated, static_cast<std::size_t>(iw - c1));
+  }
+  originX_ = originX;
+  originY_ = originY;
   return Status::Ok;
 }
 

@@ -56,27 +56,100 @@ void SurfaceMapBase::clear() noexcept {
   added_ = 0;
   dropped_ = 0;
   recentres_ = 0;
+  droppedAtRebuild_ = 0;
+  anchored_ = false;
   // An unconfigured field: the next insert centres it on its sensor.
   static_cast<void>(field_.configure(LikelihoodFieldParams{}, 0.0, 0.0, 0, 0));
 }
 
-Status SurfaceMapBase::recentre(double x, double y) noexcept {
-  const auto cells = static_cast<std::size_t>(std::ceil(params_.side / params_.field.resolution));
-  const double half = 0.5 * static_cast<double>(cells) * params_.field.resolution;
-  const Status s = field_.configure(params_.field, x - half, y - half, cells, cells);
+void SurfaceMapBase::fill(const CellRange& cells) noexcept {
+  for (std::size_t k = 0; k < size_; ++k) {
+    const SurfacePiece& p = pieces_[(head_ + k) % capacity_];
+    const auto ax = static_cast<double>(p.ax);
+    const auto ay = static_cast<double>(p.ay);
+    const auto bx = static_cast<double>(p.bx);
+    const auto by = static_cast<double>(p.by);
+    const auto nx = static_cast<double>(p.nx);
+    const auto ny = static_cast<double>(p.ny);
+    // Pieces outside the area stay in the ring (they return when the vehicle does). Without
+    // `recentreByShift`, a piece with an end outside the area is left out whole.
+    static_cast<void>(params_.recentreByShift ? field_.addSegmentIn(cells, ax, ay, bx, by, nx, ny)
+                                              : field_.addSegment(ax, ay, bx, by, nx, ny));
+  }
+}
+
+Status SurfaceMapBase::rebuild() noexcept {
+  if (field_.width() == 0) {
+    return Status::NotInitialized;
+  }
+  const Status s = field_.configure(params_.field, field_.originX(), field_.originY(), field_.width(), field_.height());
   if (s != Status::Ok) {
     return s;
   }
-  for (std::size_t k = 0; k < size_; ++k) {
-    const SurfacePiece& p = pieces_[(head_ + k) % capacity_];
-    // Pieces outside the new area stay in the ring (they return when the vehicle does).
-    static_cast<void>(field_.addSegment(static_cast<double>(p.ax), static_cast<double>(p.ay), static_cast<double>(p.bx),
-                                        static_cast<double>(p.by), static_cast<double>(p.nx),
-                                        static_cast<double>(p.ny)));
-  }
+  fill(CellRange{0, 0, field_.width(), field_.height()});
   if (size_ > 0) {
     static_cast<void>(field_.build());
   }
+  droppedAtRebuild_ = dropped_;
+  return Status::Ok;
+}
+
+Status SurfaceMapBase::recentre(double x, double y) noexcept {
+  const double res = params_.field.resolution;
+  const auto cells = static_cast<std::size_t>(std::ceil(params_.side / res));
+  const double half = 0.5 * static_cast<double>(cells) * res;
+  if (!anchored_ || !params_.recentreByShift) {
+    // The first insert, or every recentre without moving by cells: centred on (x, y) exactly.
+    anchorX_ = x - half;
+    anchorY_ = y - half;
+    anchored_ = true;
+  }
+  // The grid's cell nearest to centring the square on (x, y); origins computed from the anchor,
+  // never accumulated.
+  const double cx = std::round((x - half - anchorX_) / res);
+  const double cy = std::round((y - half - anchorY_) / res);
+  const double originX = anchorX_ + cx * res;
+  const double originY = anchorY_ + cy * res;
+  const double dx = cx - cellX_;
+  const double dy = cy - cellY_;
+  const double n = static_cast<double>(cells);
+  const bool movable = params_.recentreByShift && field_.width() == cells && field_.height() == cells &&
+                       dropped_ == droppedAtRebuild_ && std::fabs(dx) < n && std::fabs(dy) < n;
+  if (movable) {
+    const auto ix = static_cast<long>(dx);
+    const auto iy = static_cast<long>(dy);
+    const Status s = field_.shift(ix, iy, originX, originY);
+    if (s != Status::Ok) {
+      return s;
+    }
+    cellX_ = cx;
+    cellY_ = cy;
+    // The uncovered strips: the columns that came in (full height), then the rows that came in
+    // (the other columns).
+    const std::size_t ax = static_cast<std::size_t>(ix < 0 ? -ix : ix);
+    const std::size_t ay = static_cast<std::size_t>(iy < 0 ? -iy : iy);
+    const std::size_t c0 = ix < 0 ? ax : 0;
+    const std::size_t c1 = ix > 0 ? cells - ax : cells;
+    if (ax > 0) {
+      fill(ix > 0 ? CellRange{c1, 0, cells, cells} : CellRange{0, 0, c0, cells});
+    }
+    if (ay > 0) {
+      fill(iy > 0 ? CellRange{c0, cells - ay, c1, cells} : CellRange{c0, 0, c1, ay});
+    }
+    ++recentres_;
+    return Status::Ok;
+  }
+  const Status s = field_.configure(params_.field, originX, originY, cells, cells);
+  if (s != Status::Ok) {
+    return s;
+  }
+  cellX_ = cx;
+  cellY_ = cy;
+  fill(CellRange{0, 0, cells, cells});
+  if (size_ > 0) {
+    static_cast<void>(field_.build());
+  }
+  droppedAtRebuild_ = dropped_;
   ++recentres_;
   return Status::Ok;
 }

@@ -23,8 +23,8 @@ Eigen::Matrix3d StepSigmas::covariance(const Pose2d& step) const noexcept {
   return c;
 }
 
-ScanOdometry::ScanOdometry(const Pose2d& mount, const ScanMatchParams& match)
-    : map_(std::make_unique<HallSurfaceMap>()), matcher_(match), mount_(mount) {}
+ScanOdometry::ScanOdometry(const Pose2d& mount, const ScanMatchParams& match, const SurfaceMapParams& surface)
+    : map_(std::make_unique<HallSurfaceMap>(surface)), matcher_(match), mount_(mount) {}
 
 ScanOdometry::~ScanOdometry() = default;
 

@@ -22,6 +22,7 @@
 /// `addPoint` updates the (2 w + 1)^2 cells around the point, w = ceil(maxDistance / resolution).
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 
@@ -49,6 +50,14 @@ struct FieldSample {
   double distance = 0.0;
   Eigen::Vector2d gradient = Eigen::Vector2d::Zero();  ///< d distance / d (x, y) [1]
   bool inside = false;  ///< false outside the field or out of reach of every surface (distance = maxDistance)
+};
+
+/// A rectangle of cells: columns [x0, x1), rows [y0, y1).
+struct CellRange {
+  std::size_t x0 = 0;
+  std::size_t y0 = 0;
+  std::size_t x1 = 0;
+  std::size_t y1 = 0;
 };
 
 /// The field over caller-provided storage (see `LikelihoodField<MaxCells>` for the owning type).
@@ -80,6 +89,22 @@ class LikelihoodFieldBase {
   /// one surface point. Work: the cells within maxDistance of the segment's bounding box.
   Status addSegment(double ax, double ay, double bx, double by, double normalX, double normalY) noexcept;
 
+  /// The same restricted to the cells of `cells` (within the area), whether or not the segment's
+  /// ends lie inside the area: for rebuilding a field whose area moved (a surface that crosses the
+  /// area's edge is kept up to the edge). Counted as one surface point. `NonFiniteInput`,
+  /// `InvalidArgument` (zero normal), `NotInitialized`.
+  Status addSegmentIn(const CellRange& cells, double ax, double ay, double bx, double by, double normalX,
+                      double normalY) noexcept;
+
+  /// Moves the area by whole cells: the cell (ix, iy) takes the value of the cell (ix + dx, iy + dy)
+  /// where that one exists and is free (saturated) elsewhere; the origin becomes (`originX`,
+  /// `originY`), which the caller computes as the old origin plus (dx, dy) cells (passed, not
+  /// accumulated here, so that repeated moves do not drift). The cells that came from the old
+  /// area are exactly what adding the same surfaces anew would give them; the others must be
+  /// added again (`addSegmentIn`). Built state and counts are kept. `NotInitialized`,
+  /// `NonFiniteInput` (origin), `OutOfRange` (|dx| >= width or |dy| >= height: nothing overlaps).
+  Status shift(long dx, long dy, double originX, double originY) noexcept;
+
   /// Makes the field ready for `sample`. `NotInitialized` (not configured), `EmptyInput` (no
   /// surface point). Points may still be added afterwards (the field stays usable).
   Status build() noexcept;
@@ -89,6 +114,15 @@ class LikelihoodFieldBase {
   /// one of the four cells has no surface within maxDistance: `inside = false` and the saturated
   /// distance.
   FieldSample sample(double x, double y) const noexcept;
+
+  /// `sample(x, y).distance` alone, without the gradient (the same value, bit for bit): the
+  /// saturated maxDistance wherever `sample` says not inside. For the loops that only score poses.
+  double distance(double x, double y) const noexcept;
+
+  /// The same at grid coordinates u = (x - originX) / resolution - 0.5, v likewise (cell centres
+  /// at whole values): for loops that move many points by one offset, which then costs an addition
+  /// per point. Non-finite coordinates give the saturated distance.
+  double distanceAtGrid(double u, double v) const noexcept;
 
   /// The stored signed distance of cell (ix, iy) [m] (maxDistance outside or before build).
   double cellDistance(std::size_t ix, std::size_t iy) const noexcept;
@@ -108,6 +142,11 @@ class LikelihoodFieldBase {
   ~LikelihoodFieldBase() = default;
 
  private:
+  /// Writes the segment's distances into the cells of columns [cx0, cx1] and rows [cy0, cy1]
+  /// (inclusive, within the area) that lie within maxDistance of it.
+  void paintSegment(double ax, double ay, double bx, double by, double normalX, double normalY, long cx0, long cx1,
+                    long cy0, long cy1) noexcept;
+
   std::int8_t* cells_;
   std::size_t capacity_;
   LikelihoodFieldParams params_{};
@@ -120,6 +159,36 @@ class LikelihoodFieldBase {
   std::size_t pointsOutside_ = 0;
   bool built_ = false;
 };
+
+inline double LikelihoodFieldBase::distance(double x, double y) const noexcept {
+  if (!std::isfinite(x) || !std::isfinite(y)) {
+    return params_.maxDistance;
+  }
+  return distanceAtGrid((x - originX_) / params_.resolution - 0.5, (y - originY_) / params_.resolution - 0.5);
+}
+
+inline double LikelihoodFieldBase::distanceAtGrid(double u, double v) const noexcept {
+  // NaN fails every comparison below; an infinity fails the upper bounds.
+  if (!built_ || !(u >= 0.0) || !(v >= 0.0) || u >= static_cast<double>(width_ - 1) ||
+      v >= static_cast<double>(height_ - 1)) {
+    return params_.maxDistance;
+  }
+  const auto i = static_cast<std::size_t>(u);
+  const auto j = static_cast<std::size_t>(v);
+  const double fx = u - static_cast<double>(i);
+  const double fy = v - static_cast<double>(j);
+  const std::int8_t* row0 = cells_ + j * width_ + i;
+  const std::int8_t* row1 = row0 + width_;
+  constexpr std::int8_t saturated = 127;
+  if (row0[0] == saturated || row0[1] == saturated || row1[0] == saturated || row1[1] == saturated) {
+    return params_.maxDistance;
+  }
+  const double d00 = static_cast<double>(row0[0]) * quantum_;
+  const double d10 = static_cast<double>(row0[1]) * quantum_;
+  const double d01 = static_cast<double>(row1[0]) * quantum_;
+  const double d11 = static_cast<double>(row1[1]) * quantum_;
+  return (1.0 - fy) * ((1.0 - fx) * d00 + fx * d10) + fy * ((1.0 - fx) * d01 + fx * d11);
+}
 
 /// A likelihood field with room for `MaxCells` cells (one byte each) inside the object: give it
 /// static storage or allocate it once.

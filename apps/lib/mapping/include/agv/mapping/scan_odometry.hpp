@@ -42,8 +42,10 @@ struct StepSigmas {
 
 class ScanOdometry {
  public:
-  /// `mount`: the laser in the poses' frame (identity when the poses are the laser's).
-  explicit ScanOdometry(const Pose2d& mount, const ScanMatchParams& match = ScanMatchParams{});
+  /// `mount`: the laser in the poses' frame (identity when the poses are the laser's); `surface`:
+  /// the map of the scans before.
+  explicit ScanOdometry(const Pose2d& mount, const ScanMatchParams& match = ScanMatchParams{},
+                        const SurfaceMapParams& surface = SurfaceMapParams{});
   ScanOdometry(const ScanOdometry&) = delete;
   ScanOdometry& operator=(const ScanOdometry&) = delete;
   ~ScanOdometry();
