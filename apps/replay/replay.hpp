@@ -201,6 +201,7 @@ struct ReplayResult {
   std::size_t fieldSurfaceCells = 0;
   bool surfaceMap = false;               ///< a map-less run matched against its `SurfaceMap`
   std::size_t surfaceAdded = 0;          ///< surface pieces the map took
+  bool surfaceShift = false;             ///< surface maps recentred by shift (`recentreByShift`)
   double fieldWidth = 0.0;               ///< [m]
   double fieldHeight = 0.0;              ///< [m]
   std::size_t matchAttempts = 0;         ///< scans matched against the field

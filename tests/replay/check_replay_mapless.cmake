@@ -4,7 +4,7 @@
 # - the localizer never declared itself lost: a map-less localizer has nothing to reset to, and the
 #   covariance growth of dead reckoning must not latch it (aces went lost 135 times in a loop), and
 #   no cycle contradicts a field (the field check is for static maps);
-# - the surface map ran and took points;
+# - the surface map ran and took points (and moved by shift when SURFACE_SHIFT says so);
 # - its mean position and heading errors per metre are below the raw odometry's, the heading by at
 #   least MIN_HEADING_REDUCTION (a fraction of the odometry's; 0 when not given).
 expect_keys("${j}" "keypoints;used;fix_cycles;bad_cycles;field_contradicted;lost_events;lost_cycles;no_fix_cycles;map_restarts;rejected_gate;rejected_ambiguous;rejected_duplicate;rejected_update;rejected_field;mean_test_ratio;map_size;map_inserted;map_deleted;expected_in_view;occluded_or_no_return" localizer)
@@ -21,6 +21,13 @@ if(NOT surface)
   message(FATAL_ERROR "JSON: ${LOG_NAME}: the map-less run did not use the surface map")
 endif()
 expect_number_in("${j}" 1000 1000000000 surface_map pieces)
+# With SURFACE_SHIFT the run must say its surface map moved by whole cells (--surface-shift).
+if(DEFINED SURFACE_SHIFT)
+  string(JSON shift GET "${j}" surface_map recentre_by_shift)
+  if(NOT shift STREQUAL "${SURFACE_SHIFT}")
+    message(FATAL_ERROR "JSON: ${LOG_NAME}: surface_map.recentre_by_shift is ${shift}, expected ${SURFACE_SHIFT}")
+  endif()
+endif()
 string(JSON odoPos GET "${j}" odometry_per_metre position_m mean)
 string(JSON locPos GET "${j}" localizer_per_metre position_m mean)
 if(NOT locPos LESS odoPos)
