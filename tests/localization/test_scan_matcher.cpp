@@ -239,18 +239,26 @@ TEST_CASE("likelihood field: a window of a larger field, moved by whole cells an
     pieces.push_back(s);
   }
   REQUIRE(big->build() == Status::Ok);
+  // The window's cells are computed from its own origin, the large field's from another: a
+  // distance on a rounding boundary of the quantum may round the other way (one quantum, in a
+  // rare cell; every cell is equal here on x86-64 and aarch64).
+  const double quantum = p.maxDistance / 127.0;
   const auto compare = [&](std::size_t offX, std::size_t offY) {
     std::size_t near = 0;
-    std::size_t mismatched = 0;
+    std::size_t differing = 0;
+    std::size_t beyondQuantum = 0;
     for (std::size_t iy = 0; iy < kH; ++iy) {
       for (std::size_t ix = 0; ix < kW; ++ix) {
         const double expected = big->cellDistance(ix + offX, iy + offY);
+        const double got = window->cellDistance(ix, iy);
         near += expected < p.maxDistance ? 1U : 0U;
-        mismatched += window->cellDistance(ix, iy) == expected ? 0U : 1U;
+        differing += got == expected ? 0U : 1U;
+        beyondQuantum += std::fabs(got - expected) <= 1.001 * quantum ? 0U : 1U;
       }
     }
     CHECK(near > kW * kH / 4U);
-    CHECK(mismatched == 0U);
+    CHECK(beyondQuantum == 0U);
+    CHECK(differing <= 2U);
   };
   REQUIRE(window->configure(p, ox + 10 * p.resolution, oy + 5 * p.resolution, kW, kH) == Status::Ok);
   std::size_t crossing = 0;  // segments with an end outside the window: addSegment would refuse them

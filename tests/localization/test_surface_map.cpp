@@ -149,10 +149,12 @@ TEST_CASE("surface map: the field follows the sensor and keeps what it saw", "[l
 TEST_CASE("surface map: a recentre moves the field by whole cells and equals a rebuild from every kept piece",
           "[localization][surface][alloc]") {
   // A Lissajous path over the hall and the corridor (up to 0.9 m and 0.3 rad per scan), so that
-  // the field moves in x and y, both ways, often diagonally. With `recentreByShift`; After every recentre the field is
-  // copied, rebuilt from the kept pieces where it stands, and compared cell for cell; its origin stays on the grid of
-  // the first insert. With a ring of 600 pieces the oldest are dropped and the next recentre rebuilds the whole field
-  // (the same comparison). Without it (the default), every recentre is such a rebuild, centred on the sensor exactly.
+  // the field moves in x and y, both ways, often diagonally. With `recentreByShift`: after every
+  // recentre the field is copied, rebuilt from the kept pieces where it stands and compared cell
+  // for cell (to the rounding of a quantum in rare cells), and its origin stays on the grid of the
+  // first insert; with a ring of 600 pieces the oldest are dropped and the next recentre rebuilds
+  // the whole field (the same comparison). Without it (the default), every recentre is such a
+  // rebuild, centred on the sensor.
   SurfaceMapParams p;
   p.side = 16.0;
   p.recentreMargin = 5.0;
@@ -197,8 +199,8 @@ TEST_CASE("surface map: a recentre moves the field by whole cells and equals a r
           CHECK(std::fabs(map.field().originX() + 0.5 * p.side - laser.x) <= 0.5 * res + 1e-9);
           CHECK(std::fabs(map.field().originY() + 0.5 * p.side - laser.y) <= 0.5 * res + 1e-9);
         } else {
-          CHECK(map.field().originX() == laser.x - 0.5 * p.side);
-          CHECK(map.field().originY() == laser.y - 0.5 * p.side);
+          CHECK(map.field().originX() == Approx(laser.x - 0.5 * p.side).margin(1e-9));
+          CHECK(map.field().originY() == Approx(laser.y - 0.5 * p.side).margin(1e-9));
         }
         REQUIRE(map.field().width() == cells);
         for (std::size_t i = 0; i < cells * cells; ++i) {
@@ -207,13 +209,21 @@ TEST_CASE("surface map: a recentre moves the field by whole cells and equals a r
         Status rebuilt = Status::NotInitialized;
         AGV_CHECK_NO_ALLOCATIONS(rebuilt = map.rebuild());
         REQUIRE(rebuilt == Status::Ok);
-        std::size_t mismatched = 0;
+        // The moved cells were computed from the old origin, the rebuilt ones from the new: the
+        // same distances, but one that falls on a rounding boundary of the quantum may round the
+        // other way (seen: 1 of 102 400 cells, on aarch64, where multiply-adds are fused; none on
+        // x86-64). Never more than one quantum, and rare.
+        const double quantum = p.field.maxDistance / 127.0;
+        std::size_t differing = 0;
+        std::size_t beyondQuantum = 0;
         for (std::size_t i = 0; i < cells * cells; ++i) {
           const double d = map.field().cellDistance(i % cells, i / cells);
-          mismatched += d == before[i] ? 0U : 1U;
+          differing += d == before[i] ? 0U : 1U;
+          beyondQuantum += std::fabs(d - before[i]) <= 1.001 * quantum ? 0U : 1U;
           near += d < p.field.maxDistance ? 1U : 0U;
         }
-        CHECK(mismatched == 0U);
+        CHECK(beyondQuantum == 0U);
+        CHECK(differing * 10000U <= cells * cells);
         ++compared;
       }
       castScan(segs, laser, 0.01, rng, *scan);

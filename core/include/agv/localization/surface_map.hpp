@@ -70,10 +70,11 @@ struct SurfaceMapParams {
   /// piece, centred on the sensor exactly, a piece with an end outside the new area left out whole.
   /// true: the field moves by whole cells of the grid fixed at the first insert, keeps the cells
   /// both areas share and fills only the uncovered strips, a piece that crosses the edge kept up
-  /// to it; the same field cell for cell as its own full rebuild (`rebuild`), for a fraction of
-  /// the work (intel: 0.36 s instead of 1.03 s for the map-less replay). Not the default yet: the
-  /// static-map replay's laser odometry runs on a surface map, and its figures move with where the
-  /// grid falls (docs/localization.md, "Surface map", recentring).
+  /// to it; the same field as its own full rebuild (`rebuild`; a cell on a rounding boundary of the
+  /// quantum may differ by one) for a fraction of the work (intel: 0.42 s instead of 1.21 s for the
+  /// map-less replay). Not the default yet: the static-map replay's laser odometry runs on a
+  /// surface map, and its figures move with where the grid falls (docs/localization.md,
+  /// "Recentring by shift").
   bool recentreByShift = false;
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (invalid field, a non-positive side, distance
   /// or range, a margin of half the side or more).
@@ -121,7 +122,8 @@ class SurfaceMapBase {
   void clear() noexcept;
 
   /// Rebuilds the field where it stands from every piece kept (what a recentre does after a piece
-  /// was dropped). With `recentreByShift`, a recentre's moved field equals this cell for cell.
+  /// was dropped). With `recentreByShift`, a recentre's moved field equals this (to one quantum in
+  /// a rare cell whose distance falls on a rounding boundary).
   /// `NotInitialized` before the first insert.
   Status rebuild() noexcept;
 
