@@ -149,23 +149,6 @@ double ScanMatcher::cost(const Pose2d& x, const LikelihoodFieldBase& field, doub
   return total;
 }
 
-double ScanMatcher::gridCost(double u0, double v0, double c, double s, const LikelihoodFieldBase& field,
-                             double bound) const noexcept {
-  const double inlierDistance = effectiveInlierDistance(field);
-  const double outlierCost = huberCost(inlierDistance, params_.huber);
-  double total = 0.0;
-  for (const MatchPoint& pt : points_) {
-    const double px = static_cast<double>(pt.x);
-    const double py = static_cast<double>(pt.y);
-    const double ar = std::fabs(field.distanceAtGrid(u0 + (c * px - s * py), v0 + (s * px + c * py)));
-    total += ar < inlierDistance ? huberCost(ar, params_.huber) : outlierCost;
-    if (total >= bound) {
-      break;
-    }
-  }
-  return total;
-}
-
 Pose2d ScanMatcher::search(const Pose2d& prior, double wx, double wy, double wt, const LikelihoodFieldBase& field,
                            std::uint32_t& scored) const noexcept {
   // Steps per axis each way, grown together until the grid fits maxSearchPoses.
@@ -189,26 +172,19 @@ Pose2d ScanMatcher::search(const Pose2d& prior, double wx, double wy, double wt,
   Pose2d best = prior;
   double bestCost = cost(prior, field);
   scored = 1;
-  // In grid coordinates: the rotation scaled to cells once per rotation, the translation's
-  // coordinates once per translation, so that a point costs two products and two sums per axis.
-  const double inverse = 1.0 / field.params().resolution;
   for (long it = -nt; it <= nt; ++it) {
-    const double theta = normalizeAngle(prior.theta + static_cast<double>(it) * stepR);
-    const double c = std::cos(theta) * inverse;
-    const double s = std::sin(theta) * inverse;
     for (long ix = -nx; ix <= nx; ++ix) {
-      const double tx = prior.x + static_cast<double>(ix) * stepT;
-      const double u0 = (tx - field.originX()) * inverse - 0.5;
       for (long iy = -ny; iy <= ny; ++iy) {
         if (it == 0 && ix == 0 && iy == 0) {
           continue;
         }
-        const double ty = prior.y + static_cast<double>(iy) * stepT;
-        const Pose2d x(tx, ty, theta);
-        const double score = gridCost(u0, (ty - field.originY()) * inverse - 0.5, c, s, field, bestCost);
+        const Pose2d x = Pose2d(prior.x + static_cast<double>(ix) * stepT, prior.y + static_cast<double>(iy) * stepT,
+                                prior.theta + static_cast<double>(it) * stepR)
+                             .normalized();
+        const double c = cost(x, field, bestCost);
         ++scored;
-        if (score < bestCost) {
-          bestCost = score;
+        if (c < bestCost) {
+          bestCost = c;
           best = x;
         }
       }

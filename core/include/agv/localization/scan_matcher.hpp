@@ -260,11 +260,6 @@ class ScanMatcher {
   /// The coarse search around `prior` over +-(wx, wy, wt); the best pose (prior when no better).
   Pose2d search(const Pose2d& prior, double wx, double wy, double wt, const LikelihoodFieldBase& field,
                 std::uint32_t& scored) const noexcept;
-  /// `cost` in the field's grid coordinates: the points turned by (c, s) (cosine and sine divided
-  /// by the resolution) and moved by (u0, v0) (the translation's grid coordinates), abandoned at
-  /// `bound` likewise.
-  double gridCost(double u0, double v0, double c, double s, const LikelihoodFieldBase& field,
-                  double bound) const noexcept;
   /// Gauss-Newton from `start`; `prior` and `allowed` for the maxCorrection check.
   ScanMatchResult refine(const Pose2d& prior, const Pose2d& start, double allowedTranslation, double allowedRotation,
                          const LikelihoodFieldBase& field) noexcept;
