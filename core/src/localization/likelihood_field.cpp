@@ -58,8 +58,8 @@ Status LikelihoodFieldBase::addPoint(double x, double y, double normalX, double 
   return addSegment(x, y, x, y, normalX, normalY);
 }
 
-Status LikelihoodFieldBase::addSegment(double ax, double ay, double bx, double by, double normalX,
-                                       double normalY) noexcept {
+Status LikelihoodFieldBase::checkSegment(double ax, double ay, double bx, double by, double normalX,
+                                         double normalY) const noexcept {
   if (width_ == 0) {
     return Status::NotInitialized;
   }
@@ -69,6 +69,15 @@ Status LikelihoodFieldBase::addSegment(double ax, double ay, double bx, double b
   }
   if (normalX == 0.0 && normalY == 0.0) {
     return Status::InvalidArgument;
+  }
+  return Status::Ok;
+}
+
+Status LikelihoodFieldBase::addSegment(double ax, double ay, double bx, double by, double normalX,
+                                       double normalY) noexcept {
+  const Status valid = checkSegment(ax, ay, bx, by, normalX, normalY);
+  if (valid != Status::Ok) {
+    return valid;
   }
   // Grid coordinates of both ends; both must lie inside the area.
   const double ua = (ax - originX_) / params_.resolution;
@@ -173,15 +182,9 @@ void LikelihoodFieldBase::paintSegment(double ax, double ay, double bx, double b
 
 Status LikelihoodFieldBase::addSegmentIn(const CellRange& cells, double ax, double ay, double bx, double by,
                                          double normalX, double normalY) noexcept {
-  if (width_ == 0) {
-    return Status::NotInitialized;
-  }
-  if (!std::isfinite(ax) || !std::isfinite(ay) || !std::isfinite(bx) || !std::isfinite(by) || !std::isfinite(normalX) ||
-      !std::isfinite(normalY)) {
-    return Status::NonFiniteInput;
-  }
-  if (normalX == 0.0 && normalY == 0.0) {
-    return Status::InvalidArgument;
+  const Status valid = checkSegment(ax, ay, bx, by, normalX, normalY);
+  if (valid != Status::Ok) {
+    return valid;
   }
   const std::size_t x1 = std::min(cells.x1, width_);
   const std::size_t y1 = std::min(cells.y1, height_);

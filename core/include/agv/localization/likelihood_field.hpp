@@ -142,6 +142,8 @@ class LikelihoodFieldBase {
   ~LikelihoodFieldBase() = default;
 
  private:
+  /// `NotInitialized`, `NonFiniteInput` or `InvalidArgument` (zero normal) for a segment to add.
+  Status checkSegment(double ax, double ay, double bx, double by, double normalX, double normalY) const noexcept;
   /// Writes the segment's distances into the cells of columns [cx0, cx1] and rows [cy0, cy1]
   /// (inclusive, within the area) that lie within maxDistance of it.
   void paintSegment(double ax, double ay, double bx, double by, double normalX, double normalY, long cx0, long cx1,
