@@ -157,6 +157,10 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--widen-after", options.localizer.scanMatch.widenAfter,
                  "failed matches before the search widens (0: off)");
+  app.add_option("--match-fit-scatter", options.localizer.scanMatch.fitScatter,
+                 "a fused match's pose is known no better than this times its inliers' RMS residual (0: its "
+                 "covariance alone; default 0.5)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--match-inflation", options.localizer.scanMatch.covarianceInflation,
                  "scan-match covariance inflation");
   app.add_option("--static-cluster-radius", options.staticClusterRadius, "[m] static corner clustering radius");

@@ -216,6 +216,7 @@ struct ReplayResult {
   std::size_t fallbackFused = 0;         ///< of which moved the estimate
   std::size_t fallbackPieces = 0;        ///< surface pieces it took
   std::size_t fallbackClears = 0;        ///< times it was dropped at a restart
+  double fitScatter = 0.0;               ///< `ScanMatchParams::fitScatter` of the run
   std::size_t matchResyncs = 0;          ///< resets of the filter to a confirmed hypothesis (`resyncAfter`)
   std::size_t resyncWrong = 0;           ///< of which more than 0.3 m / 5 deg from the corrected pose
   std::size_t lostCycles = 0;            ///< cycles whose health said lost

@@ -566,6 +566,88 @@ TEST_CASE("localizer with a likelihood field: holds 2 cm / 0.1 deg on biased odo
   // The same drive on dead reckoning would be 18 cm short: the matches did the work.
 }
 
+TEST_CASE(
+    "localizer with a likelihood field: the fit scatter keeps a map that is off from making the filter overconfident",
+    "[localization][scanmatch][localizer]") {
+  // The map's east wall is 8 cm east of where the world has it (a surface that moved since the
+  // mapping run, or the mapping run's own pose error): every point on it pulls the match the same
+  // way, and no number of points averages that out. The match's covariance (how well the points
+  // fit) shrinks with their number; the fit scatter adds what their residual says.
+  std::vector<Segment> mapped = hall();
+  for (Segment& sg : mapped) {
+    if (sg.a.x() == 12.0 && sg.b.x() == 12.0) {
+      sg.a.x() = 12.08;
+      sg.b.x() = 12.08;
+    }
+  }
+  struct Outcome {
+    double d2 = 0.0;   // position error against the filter's own position covariance
+    double rms = 0.0;  // the match's inlier residual
+    bool fused = false;
+  };
+  const auto once = [&mapped](double fitScatter) {
+    ScanMatchParams sp;
+    sp.fitScatter = fitScatter;
+    FieldRun run(sp);
+    buildField(*run.field, mapped, 0.0, 0.0, 12.1, 8.0);
+    Eigen::Matrix3d P0 = Eigen::Matrix3d::Zero();
+    P0.diagonal() << 0.05 * 0.05, 0.05 * 0.05, 0.01 * 0.01;
+    REQUIRE(run.loc->reset(run.t, run.truth, P0) == Status::Ok);
+    const LocalizerHealth& h = run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0});
+    Outcome o;
+    o.fused = h.scanMatch.fused;
+    o.rms = h.scanMatch.rmsResidual;
+    const Eigen::Vector2d e(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y);
+    o.d2 = e.dot(run.loc->covariance().topLeftCorner<2, 2>().inverse() * e);
+    return o;
+  };
+  const Outcome plain = once(0.0);
+  const Outcome scatter = once(1.0);
+  INFO("rms " << plain.rms << " m, d2 " << plain.d2 << " (covariance alone) / " << scatter.d2 << " (fit scatter 1)");
+  REQUIRE(plain.fused);
+  REQUIRE(scatter.fused);
+  // The same scan against the same map: the same match, the same residual (above the 1 cm noise).
+  CHECK(plain.rms == scatter.rms);
+  CHECK(plain.rms > 0.015);
+  // The covariance alone: the biased pose is far outside it (chi-square 2 dof, 99.9 %: 13.8).
+  CHECK(plain.d2 > 13.8);
+  // With the fit scatter the same error is within it (99 %: 9.2).
+  CHECK(scatter.d2 < 9.2);
+}
+
+TEST_CASE("scan matcher: the fit scatter must be finite and not negative; the lever is the points' RMS distance",
+          "[localization][scanmatch]") {
+  ScanMatchParams p;
+  CHECK(p.fitScatter == 0.0);
+  p.fitScatter = -0.1;
+  CHECK(p.validate() == Status::InvalidArgument);
+  p.fitScatter = std::numeric_limits<double>::quiet_NaN();
+  CHECK(p.validate() == Status::NonFiniteInput);
+  p.fitScatter = 0.5;
+  CHECK(p.validate() == Status::Ok);
+  // Every valid beam kept (no thinning), the laser at the vehicle's origin: the lever is the RMS
+  // range of the scan.
+  p.pointSpacing = 0.0;
+  auto field = std::make_unique<HallField>();
+  buildField(*field, hall(), 0.0, 0.0, 12.0, 8.0);
+  auto scan = std::make_unique<LaserScan>();
+  std::mt19937_64 rng{5};
+  const Pose2d truth{6.0, 4.0, 0.3};
+  castScan(hall(), truth, 0.0, rng, *scan);
+  ScanMatcher matcher(p);
+  const ScanMatchResult m = matcher.match(*scan, Pose2d{}, truth, *field);
+  REQUIRE(m.status == Status::Ok);
+  MatchPoints points;
+  scanToMatchPoints(*scan, points);
+  REQUIRE(points.size() == m.points);
+  double sum = 0.0;
+  for (const MatchPoint& q : points) {
+    sum += static_cast<double>(q.x) * static_cast<double>(q.x) + static_cast<double>(q.y) * static_cast<double>(q.y);
+  }
+  CHECK(m.lever == Approx(std::sqrt(sum / static_cast<double>(points.size()))).epsilon(1e-12));
+  CHECK(m.lever > 1.0);
+}
+
 TEST_CASE("localizer with a likelihood field: a slip beyond the odometry model is gated, then re-synchronised",
           "[localization][scanmatch][localizer]") {
   FieldRun run;

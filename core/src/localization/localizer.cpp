@@ -438,8 +438,15 @@ void Localizer::matchScan(const Rewind& at, const LaserScan& beams, const MatchP
   h.inliers = m.inliers;
   h.rmsResidual = m.rmsResidual;
   if (m.status == Status::Ok) {
-    h.mahalanobis2 = ekf_.poseMahalanobis2(m.pose, m.covariance);
-    const Status u = ekf_.updatePose(m.pose, m.covariance, params_.scanMatchGate);
+    Eigen::Matrix3d R = m.covariance;
+    if (sp.fitScatter > 0.0 && m.lever > 0.0) {
+      const double e2 = sp.fitScatter * sp.fitScatter * m.rmsResidual * m.rmsResidual;
+      R(0, 0) += e2;
+      R(1, 1) += e2;
+      R(2, 2) += e2 / (m.lever * m.lever);
+    }
+    h.mahalanobis2 = ekf_.poseMahalanobis2(m.pose, R);
+    const Status u = ekf_.updatePose(m.pose, R, params_.scanMatchGate);
     if (u == Status::Ok) {
       h.fused = true;
       h.correction = std::hypot(ekf_.pose().x - before.x, ekf_.pose().y - before.y);
@@ -451,7 +458,7 @@ void Localizer::matchScan(const Rewind& at, const LaserScan& beams, const MatchP
       // The innovation covariance scaled so that the match lies just inside the gate:
       // S' = k S, i.e. R' = k R + (k - 1) P.
       const double k = h.mahalanobis2 / (kSoftGateMargin * params_.scanMatchGate);
-      const Eigen::Matrix3d soft = k * m.covariance + (k - 1.0) * ekf_.covariance();
+      const Eigen::Matrix3d soft = k * R + (k - 1.0) * ekf_.covariance();
       if (ekf_.updatePose(m.pose, soft, params_.scanMatchGate) == Status::Ok) {
         h.fused = true;
         h.softGated = true;

@@ -28,6 +28,7 @@ Status ScanMatchParams::validate() const noexcept {
                            resyncMaxRms,
                            resyncMatchSigma,
                            resyncMatchSigmaAngle,
+                           fitScatter,
                            recoveryTranslation,
                            recoveryRotation,
                            maxRecoveryTranslation,
@@ -40,9 +41,9 @@ Status ScanMatchParams::validate() const noexcept {
   if (maxIterations == 0 || pointSpacing < 0.0 || !(inlierDistance > 0.0) || !(huber > 0.0) || !(sigmaFloor > 0.0) ||
       !(covarianceInflation > 0.0) || !(stepTranslation > 0.0) || !(stepRotation > 0.0) || !(maxCorrection > 0.0) ||
       !(maxRotation > 0.0) || searchSigmas < 0.0 || !(maxRmsResidual > 0.0) || !(resyncMaxRms > 0.0) ||
-      resyncMatchSigma < 0.0 || resyncMatchSigmaAngle < 0.0 || maxSearchTranslation < 0.0 || maxSearchRotation < 0.0 ||
-      !(searchStepTranslation > 0.0) || !(searchStepRotation > 0.0) || maxSearchPoses == 0 || minInlierFraction < 0.0 ||
-      minInlierFraction > 1.0 || recoveryTranslation < 0.0 || recoveryRotation < 0.0 ||
+      resyncMatchSigma < 0.0 || resyncMatchSigmaAngle < 0.0 || fitScatter < 0.0 || maxSearchTranslation < 0.0 ||
+      maxSearchRotation < 0.0 || !(searchStepTranslation > 0.0) || !(searchStepRotation > 0.0) || maxSearchPoses == 0 ||
+      minInlierFraction < 0.0 || minInlierFraction > 1.0 || recoveryTranslation < 0.0 || recoveryRotation < 0.0 ||
       maxRecoveryTranslation < recoveryTranslation || maxRecoveryRotation < recoveryRotation) {
     return Status::InvalidArgument;
   }
@@ -461,6 +462,12 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
     sigma2 = params_.sigmaFloor * params_.sigmaFloor;
   }
   const Eigen::Matrix3d cov = sigma2 * params_.covarianceInflation * Hinv;
+  double lever2 = 0.0;
+  for (const MatchPoint& pt : points_) {
+    lever2 +=
+        static_cast<double>(pt.x) * static_cast<double>(pt.x) + static_cast<double>(pt.y) * static_cast<double>(pt.y);
+  }
+  result.lever = std::sqrt(lever2 / static_cast<double>(points_.size()));
   if (!cov.allFinite()) {
     result.status = Status::NonFiniteInput;
     return result;

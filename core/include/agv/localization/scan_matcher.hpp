@@ -81,6 +81,16 @@ struct ScanMatchParams {
   /// Multiplier of the covariance for the correlation of neighbouring points (see the file
   /// comment); docs/localization.md gives the NEES it yields on real logs.
   double covarianceInflation = 4.0;
+  /// Fit scatter (used by the localizer): the covariance above says how well the points fit the
+  /// map, and shrinks with their number; a map that is off where the scan looks (surfaces that
+  /// moved, a mapping run's own pose error) moves every point the same way, and no number of
+  /// points averages that out. The pose of a match is then known no better than its inliers fit:
+  /// the localizer adds (fitScatter x rmsResidual)^2 to each position variance and
+  /// (fitScatter x rmsResidual / lever)^2 to the heading variance of the match it fuses
+  /// (`ScanMatchResult::lever`). 0 (the default): the covariance alone, as on a vehicle whose map
+  /// was surveyed with it; the real-log replay uses 0.5 (docs/localization.md, "Fit scatter").
+  /// The re-synchronisation's hypothesis keeps its own scatter (`resyncMatchSigma*`).
+  double fitScatter = 0.0;
   /// Convergence: stop when a step is below both [m] and [rad] (a tenth of the 2 cm / 0.1 deg
   /// requirement), or when no step along the Gauss-Newton direction (halved up to 5 times) lowers
   /// the robust cost.
@@ -154,7 +164,7 @@ struct ScanMatchParams {
   double maxRecoveryRotation = 0.6;     ///< [rad] (34 deg)
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (zero iterations, a negative spacing,
   /// non-positive distances, sigma, inflation, step bounds or agreement bounds, a fraction outside
-  /// [0, 1]).
+  /// [0, 1], a negative fit scatter).
   Status validate() const noexcept;
 };
 
@@ -179,6 +189,7 @@ struct ScanMatchResult {
   Pose2d pose{};                                             ///< vehicle pose (world frame)
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< of `pose` [m^2, rad^2]
   double rmsResidual = 0.0;                                  ///< [m] over the inliers at the end
+  double lever = 0.0;  ///< [m] RMS distance of the points used from the vehicle origin (heading's lever arm)
 };
 
 /// The matcher (scratch only; holds no map).
