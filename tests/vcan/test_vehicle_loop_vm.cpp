@@ -503,10 +503,19 @@ TEST_CASE(
 
   // --- 6. The PLC asks for a calibration: refused (bit 8, last status `unsupported`), the
   // localization goes on; a Stop is carried out and clears the refusal (idle: the sweeps
-  // that follow correct nothing, so this comes after the counts above).
+  // that follow correct nothing, so this comes after the counts above). The vehicle stands with
+  // its encoders streaming (every 10 ms, as their cyclic TPDOs do): with silent encoders the
+  // odometry history stops, a sweep more than `maxScanLead` (100 ms) after its newest sample is
+  // rejected as too new, and the localizer's `Rejected` outranks the refusal in `lastStatus` (how
+  // this check failed on loaded CI hosts, where the three publications took longer than that).
+  Timestamp nextPositions{};
   const auto awaitPublications = [&](std::uint64_t more) {
     const std::uint64_t target = plc.count + more;
     for (int i = 0; i < 3000 && plc.count < target; ++i) {
+      if (monotonicNow() >= nextPositions) {
+        REQUIRE(nodes.sendPositions(ticks, arcCounts));
+        nextPositions = monotonicNow() + Duration::fromMilliseconds(10);
+      }
       pump();
     }
     return plc.count >= target;
