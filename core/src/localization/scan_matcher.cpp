@@ -462,12 +462,14 @@ ScanMatchResult ScanMatcher::refine(const Pose2d& prior, const Pose2d& start, do
     sigma2 = params_.sigmaFloor * params_.sigmaFloor;
   }
   const Eigen::Matrix3d cov = sigma2 * params_.covarianceInflation * Hinv;
-  double lever2 = 0.0;
-  for (const MatchPoint& pt : points_) {
-    lever2 +=
-        static_cast<double>(pt.x) * static_cast<double>(pt.x) + static_cast<double>(pt.y) * static_cast<double>(pt.y);
+  if (params_.fitScatter > 0.0) {  // the lever is only read to apply the fit scatter
+    double lever2 = 0.0;
+    for (const MatchPoint& pt : points_) {
+      lever2 +=
+          static_cast<double>(pt.x) * static_cast<double>(pt.x) + static_cast<double>(pt.y) * static_cast<double>(pt.y);
+    }
+    result.lever = std::sqrt(lever2 / static_cast<double>(points_.size()));
   }
-  result.lever = std::sqrt(lever2 / static_cast<double>(points_.size()));
   if (!cov.allFinite()) {
     result.status = Status::NonFiniteInput;
     return result;

@@ -189,7 +189,9 @@ struct ScanMatchResult {
   Pose2d pose{};                                             ///< vehicle pose (world frame)
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< of `pose` [m^2, rad^2]
   double rmsResidual = 0.0;                                  ///< [m] over the inliers at the end
-  double lever = 0.0;  ///< [m] RMS distance of the points used from the vehicle origin (heading's lever arm)
+  /// [m] RMS distance of the points used from the vehicle origin (the heading's lever arm for
+  /// `ScanMatchParams::fitScatter`); computed only when that is above 0, else 0.
+  double lever = 0.0;
 };
 
 /// The matcher (scratch only; holds no map).
