@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include "agv/datasets/carmen_log.hpp"
 #include "agv/report/json.hpp"
@@ -110,6 +111,15 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_flag("--surface-shift,!--no-surface-shift", options.surface.recentreByShift,
                "surface maps (and the laser odometry's) move by whole cells at a recentre, refilling only the "
                "uncovered strips, instead of a rebuild centred on the sensor");
+  app.add_option_function<std::vector<double>>(
+         "--surface-grid-offset",
+         [&options](const std::vector<double>& xy) {
+           options.surface.gridOffsetX = xy.at(0);
+           options.surface.gridOffsetY = xy.at(1);
+         },
+         "[m] X Y: move the grid of the surface maps (and the laser odometry's) by this from centring on the "
+         "sensor; a sub-cell offset draws another grid (a sensitivity check)")
+      ->expected(2);
   app.add_option("--surface-new-distance", options.surface.newSurfaceDistance,
                  "[m] a beam farther than this from the surface map's surfaces is a new surface");
   app.add_option("--field-min-scans", options.fieldMinScans, "mapping scans a field surface cell needs");
@@ -118,6 +128,8 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_option("--resync-after", options.localizer.scanMatch.resyncAfter,
                  "agreeing gated matches that resync (0: off)");
   app.add_option("--resync-max-rms", options.localizer.scanMatch.resyncMaxRms, "[m] RMS limit of a match that resyncs");
+  app.add_option("--resync-min-inliers", options.localizer.scanMatch.resyncMinInliers,
+                 "inliers a match needs to count for the resync (0: the matcher's minimum)");
   app.add_option("--on-route-distance", options.onRouteDistance,
                  "[m] a localized scan within this of a mapping scan is on the mapping run's route")
       ->check(CLI::PositiveNumber);
@@ -136,6 +148,10 @@ void addExperimentOptions(CLI::App& app, agv::replay::ReplayOptions& options) {
   app.add_flag("--scan-odometry,!--no-scan-odometry", options.scanOdometry,
                "with --map-fraction: predict with the laser odometry (wheel steps corrected by scan matching; "
                "default on)");
+  app.add_option("--scan-odometry-retry", options.scanOdometryRetry,
+                 "a laser-odometry match refused over its window is tried again over a window this many times as "
+                 "wide before the wheel step is taken (0: no retry)")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--cold-start", options.coldStart,
                "with --map-fraction: no pose at the start; the whole-field relocalization finds it");
   app.add_option("--reloc-confirmations", options.relocConfirmations,

@@ -67,6 +67,12 @@ struct ReplayOptions {
   /// The search window of each laser-odometry match: the wheel step's sigmas (the pose graph's
   /// odometry edges by default).
   mapping::StepSigmas scanOdometryWindow{};
+  /// A laser-odometry match refused over `scanOdometryWindow` is tried again over a window this
+  /// many times as wide before the wheel step is taken (`mapping::ScanOdometry`; 0: no retry).
+  /// The wheel step of a refused match is as wrong as the wheels (intel: 9.4 deg in one turn), and
+  /// the prediction's noise model, fitted to the laser steps, does not expect it; 2 since
+  /// 2026-12-07 (docs/localization.md, "Laser odometry: the wider retry").
+  double scanOdometryRetry = 2.0;
   LocalizerParams localizer{};
   LandmarkMapParams map{};
   FalkoParams falko{};
@@ -202,6 +208,8 @@ struct ReplayResult {
   bool surfaceMap = false;               ///< a map-less run matched against its `SurfaceMap`
   std::size_t surfaceAdded = 0;          ///< surface pieces the map took
   bool surfaceShift = false;             ///< surface maps recentred by shift (`recentreByShift`)
+  double gridOffsetX = 0.0;              ///< [m] the surface maps' grid offset (`gridOffsetX`)
+  double gridOffsetY = 0.0;              ///< [m] (`gridOffsetY`)
   double fieldWidth = 0.0;               ///< [m]
   double fieldHeight = 0.0;              ///< [m]
   std::size_t matchAttempts = 0;         ///< scans matched against the field
@@ -223,6 +231,8 @@ struct ReplayResult {
   bool scanOdometry = false;             ///< the prediction's steps were the laser odometry's
   std::size_t scanOdometryMatched = 0;   ///< scans of the log the laser odometry matched
   std::size_t scanOdometryScans = 0;     ///< of the scans it saw (the mapping run's included)
+  double scanOdometryRetry = 0.0;        ///< its retry's widening (`scanOdometryRetry`; 0: none)
+  std::size_t scanOdometryRetried = 0;   ///< of the matched, found only by the wider retry
   RelativeError scanOdometryRelative;    ///< its steps against the corrected poses, localized scans
   UnicycleNoiseParams odometryNoise{};   ///< the model used (fitted on the mapping run, or given)
   std::size_t odometryNoiseSteps = 0;    ///< mapping-run steps it was fitted on (0: given, not fitted)

@@ -3,6 +3,10 @@
 // a surface map that has already seen the place (the steady state of a vehicle at 2 m/s and
 // 25 Hz: every beam sampled, few new points), and matching a sweep against it from a prior 2 cm /
 // 0.1 deg off with a 1 cm / 0.05 deg covariance (the refinement alone, as on the vehicle).
+// BM_SurfaceMap/recentre/{rebuild,shift}: an insert that moves the field (the sweep 9.6 m from the
+// field's centre, beyond the 8 m a 40 m field with a 12 m margin allows), with every piece of the
+// lane's sweeps kept: the longest insert of a vehicle's cycle, once per 8 m driven, by
+// `SurfaceMapParams::recentreByShift`.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -28,6 +32,10 @@ struct LaneSweeps {
   std::vector<std::unique_ptr<MatchPoints>> points;
   std::unique_ptr<HallSurfaceMap> map = std::make_unique<HallSurfaceMap>();
 
+  /// A sweep 9.6 m along the lane from the first (`BM_SurfaceMap/recentre`).
+  std::unique_ptr<hal::LaserMeasurement> far = std::make_unique<hal::LaserMeasurement>();
+  Pose2d farPose{29.6, 10.0, 0.0};
+
   LaneSweeps() {
     sim::World world;
     sim::WorldParseError e;
@@ -36,6 +44,7 @@ struct LaneSweeps {
     sim::SimLaserParams p;
     p.angularResolution = kTwoPi<double> / 1440.0;
     sim::SimLaser laser(caster, p, 1);
+    static_cast<void>(laser.scan(farPose, Timestamp{}, *far));
     for (int k = 0; k < kSweeps; ++k) {
       const Pose2d pose{20.0 + 0.08 * k, 10.0, 0.002 * std::sin(0.3 * k)};
       auto m = std::make_unique<hal::LaserMeasurement>();
@@ -87,5 +96,31 @@ void BM_SurfaceMapMatch(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_SurfaceMapMatch)->Name("BM_SurfaceMap/match")->Unit(benchmark::kMicrosecond);
+
+void BM_SurfaceMapRecentre(benchmark::State& state) {
+  LaneSweeps& l = lane();
+  SurfaceMapParams p;
+  p.recentreByShift = state.range(0) != 0;
+  auto map = std::make_unique<HallSurfaceMap>(p);
+  for (int k = 0; k < LaneSweeps::kSweeps; ++k) {
+    static_cast<void>(map->insert(l.sweeps[static_cast<std::size_t>(k)]->scan, l.poses[static_cast<std::size_t>(k)]));
+  }
+  static_cast<void>(map->insert(l.far->scan, l.farPose));
+  // Two places 9.6 m apart along the lane: every insert moves the field to the sensor.
+  const Pose2d places[2] = {l.poses.front(), l.farPose};
+  const hal::LaserMeasurement* sweeps[2] = {l.sweeps.front().get(), l.far.get()};
+  int k = 0;
+  std::size_t recentred = 0;
+  for (auto _ : state) {
+    const SurfaceInsert in = map->insert(sweeps[k]->scan, places[k]);
+    recentred += in.recentred ? 1U : 0U;
+    k = 1 - k;
+  }
+  state.counters["pieces"] = static_cast<double>(map->size());
+  state.counters["recentred_fraction"] = static_cast<double>(recentred) / static_cast<double>(state.iterations());
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_SurfaceMapRecentre)->Name("BM_SurfaceMap/recentre/rebuild")->Arg(0)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_SurfaceMapRecentre)->Name("BM_SurfaceMap/recentre/shift")->Arg(1)->Unit(benchmark::kMicrosecond);
 
 }  // namespace

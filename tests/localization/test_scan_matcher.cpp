@@ -677,6 +677,42 @@ TEST_CASE("localizer with a likelihood field: a slip beyond the odometry model i
   CHECK_FALSE(after.scanMatch.resynced);
 }
 
+TEST_CASE("localizer with a likelihood field: a match counts for the re-synchronisation only with resyncMinInliers",
+          "[localization][scanmatch][localizer]") {
+  // The slip of the test above, with the re-synchronisation asking for more inliers than the
+  // matches have: the right matches are refused and the 25 cm stay; with the limit at half their
+  // count, the reset comes as before.
+  const auto slip = [](std::size_t minInliers, std::uint16_t& fewest) {
+    ScanMatchParams settings;
+    settings.resyncMinInliers = minInliers;
+    FieldRun run(settings);
+    for (int c = 0; c < 5; ++c) {
+      REQUIRE(run.step(Pose2d{0.1, 0.0, 0.0}, Pose2d{0.1, 0.0, 0.0}).scanMatch.fused);
+    }
+    const LocalizerHealth& first = run.step(Pose2d{0.0, 0.25, 0.0}, Pose2d{0.0, 0.0, 0.0});
+    REQUIRE(first.scanMatch.status == Status::Rejected);
+    fewest = first.scanMatch.inliers;
+    bool resynced = false;
+    for (int c = 0; c < 10 && !resynced; ++c) {
+      const LocalizerHealth& h = run.step(Pose2d{0.05, 0.0, 0.0}, Pose2d{0.05, 0.0, 0.0});
+      fewest = h.scanMatch.inliers < fewest ? h.scanMatch.inliers : fewest;
+      resynced = h.scanMatch.resynced;
+    }
+    return resynced ? std::hypot(run.loc->pose().x - run.truth.x, run.loc->pose().y - run.truth.y) : -1.0;
+  };
+  CHECK(ScanMatchParams{}.resyncMinInliers == 0U);  // the default: the matcher's own minimum
+  std::uint16_t fewest = 0;
+  const double plain = slip(0, fewest);
+  CHECK(plain >= 0.0);
+  CHECK(plain < 0.02);
+  REQUIRE(fewest > 2U * ScanMatchParams{}.minInliers);
+  std::uint16_t unused = 0;
+  const double half = slip(fewest / 2U, unused);
+  CHECK(half >= 0.0);
+  CHECK(half < 0.02);
+  CHECK(slip(std::size_t{fewest} * 2U, unused) < 0.0);  // never reset
+}
+
 TEST_CASE(
     "localizer with a likelihood field: a turn the odometry under-reports is re-synchronised by a hypothesis it "
     "carries",

@@ -260,6 +260,51 @@ TEST_CASE("surface map: a full ring drops its oldest points, counted", "[localiz
   CHECK_FALSE(map->field().built());
 }
 
+TEST_CASE("surface map: a grid offset moves the field's grid by it and keeps its distances",
+          "[localization][surface]") {
+  auto scan = std::make_unique<LaserScan>();
+  std::mt19937_64 rng(3);
+  const Pose2d laser{2.5, 2.0, 0.3};
+  castScan(hall(), laser, 0.0, rng, *scan);
+  const std::vector<Eigen::Vector2d> points = worldPoints(*scan, laser);
+  REQUIRE(points.size() > 100U);
+  for (const bool shift : {false, true}) {
+    CAPTURE(shift);
+    SurfaceMapParams p;
+    p.recentreByShift = shift;
+    auto centred = std::make_unique<TestSurfaceMap>(p);
+    p.gridOffsetX = 0.3 * p.field.resolution;
+    p.gridOffsetY = -0.7 * p.field.resolution;
+    auto offset = std::make_unique<TestSurfaceMap>(p);
+    REQUIRE(centred->insert(*scan, laser).status == Status::Ok);
+    REQUIRE(offset->insert(*scan, laser).status == Status::Ok);
+    // The origin moves by the offset up to whole cells: the grid's cell nearest to centring.
+    const double res = p.field.resolution;
+    const double dx = offset->field().originX() - centred->field().originX();
+    const double dy = offset->field().originY() - centred->field().originY();
+    CHECK(std::fabs(dx) <= 0.5 * res + 1e-9);
+    CHECK(std::fabs(dy) <= 0.5 * res + 1e-9);
+    CHECK((dx - p.gridOffsetX) / res == Approx(std::round((dx - p.gridOffsetX) / res)).margin(1e-6));
+    CHECK((dy - p.gridOffsetY) / res == Approx(std::round((dy - p.gridOffsetY) / res)).margin(1e-6));
+    CHECK(std::fabs(dx) > 0.1 * res);  // moved: 0.3 and 0.3 cells here
+    CHECK(std::fabs(dy) > 0.1 * res);
+    // Another grid over the same surfaces: each beam's point lies on a surface in both fields, to
+    // within the sampling of a cell (half a cell's diagonal).
+    const double tolerance = 0.5 * std::sqrt(2.0) * p.field.resolution;
+    for (const Eigen::Vector2d& q : points) {
+      const FieldSample a = centred->field().sample(q.x(), q.y());
+      const FieldSample b = offset->field().sample(q.x(), q.y());
+      REQUIRE(a.inside);
+      REQUIRE(b.inside);
+      CHECK(std::fabs(a.distance) <= tolerance);
+      CHECK(std::fabs(b.distance) <= tolerance);
+    }
+  }
+  SurfaceMapParams bad;
+  bad.gridOffsetY = std::numeric_limits<double>::infinity();
+  CHECK(bad.validate() == Status::NonFiniteInput);
+}
+
 TEST_CASE("surface map: refusals (parameters, a non-finite pose, a field too small, bad points)",
           "[localization][surface]") {
   auto scan = std::make_unique<LaserScan>();

@@ -156,3 +156,38 @@ TEST_CASE("scan odometry: the step sigmas grow with the distance driven and the 
   CHECK(c(2, 2) == Approx(std::pow(s.sigmaTheta(Pose2d{1.0, 0.0, 0.5}), 2)));
   CHECK(c(0, 1) == 0.0);
 }
+
+TEST_CASE("scan odometry: a match refused over the step's window is found over the wider retry",
+          "[mapping][scan_odometry]") {
+  const Drive d = roomDrive();
+  // A wheel step 14 deg off in heading (a slip in a turn) with a 3 deg sigma: the truth lies
+  // beyond the window's 3 sigmas and the refinement's 0.2 rad from the prior.
+  Pose2d step = agv::between(d.truth[0], d.truth[1]);
+  step.theta += agv::deg2rad(14.0);
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  covariance.diagonal() << 0.02 * 0.02, 0.02 * 0.02, agv::deg2rad(3.0) * agv::deg2rad(3.0);
+  const Pose2d prior = d.truth[0].compose(step);
+
+  agv::mapping::ScanOdometry plain(Pose2d{});
+  plain.start(*d.scans[0], d.truth[0]);
+  const Pose2d p = plain.next(*d.scans[1], step, covariance);
+  CHECK_FALSE(plain.lastMatched());
+  CHECK(p.theta == prior.theta);  // the wheel step, 14 deg off
+  CHECK(plain.retried() == 0);
+
+  agv::mapping::ScanOdometry retrying(Pose2d{}, agv::ScanMatchParams{}, agv::SurfaceMapParams{}, 2.0);
+  retrying.start(*d.scans[0], d.truth[0]);
+  const Pose2d q = retrying.next(*d.scans[1], step, covariance);
+  CHECK(retrying.lastMatched());
+  CHECK(retrying.retried() == 1);
+  CHECK(std::hypot(q.x - d.truth[1].x, q.y - d.truth[1].y) < 0.03);
+  CHECK(std::fabs(agv::normalizeAngle(q.theta - d.truth[1].theta)) < agv::deg2rad(0.5));
+  // A step within its window is matched at the first try.
+  const Pose2d r = retrying.next(*d.scans[2], d.wheelSteps[2], agv::mapping::StepSigmas{}.covariance(d.wheelSteps[2]));
+  CHECK(retrying.lastMatched());
+  CHECK(retrying.retried() == 1);
+  CHECK(std::hypot(r.x - d.truth[2].x, r.y - d.truth[2].y) < 0.03);
+  // A restart clears the count.
+  retrying.start(*d.scans[3], d.truth[3]);
+  CHECK(retrying.retried() == 0);
+}

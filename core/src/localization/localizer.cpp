@@ -482,7 +482,8 @@ void Localizer::resync(const ScanMatchResult& m, const Pose2d& before, const Rew
                        const MatchPoints* points, const LikelihoodFieldBase& field) noexcept {
   const ScanMatchParams& sp = params_.scanMatch;
   ScanMatchHealth& h = health_.scanMatch;
-  const bool gatedGood = h.status == Status::Rejected && m.rmsResidual <= sp.resyncMaxRms;
+  const bool gatedGood =
+      h.status == Status::Rejected && m.rmsResidual <= sp.resyncMaxRms && m.inliers >= sp.resyncMinInliers;
   Pose2d odo;
   Eigen::Matrix3d odoCov;
   odometryAt(at, odo, odoCov);
@@ -519,7 +520,7 @@ void Localizer::resync(const ScanMatchResult& m, const Pose2d& before, const Rew
       h.hypothesisChecked = true;
       const bool consistent =
           c.status == Status::Ok && hyp_.poseMahalanobis2(c.pose, c.covariance + scatter) <= params_.scanMatchGate;
-      if (consistent && c.rmsResidual <= sp.resyncMaxRms &&
+      if (consistent && c.rmsResidual <= sp.resyncMaxRms && c.inliers >= sp.resyncMinInliers &&
           hyp_.updatePose(c.pose, c.covariance + scatter, params_.scanMatchGate) == Status::Ok) {
         confirmed = true;
         h.pose = c.pose;

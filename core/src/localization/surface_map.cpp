@@ -10,7 +10,8 @@ Status SurfaceMapParams::validate() const noexcept {
     return f;
   }
   if (!std::isfinite(side) || !std::isfinite(recentreMargin) || !std::isfinite(newSurfaceDistance) ||
-      !std::isfinite(maxRange) || !std::isfinite(normalSpan)) {
+      !std::isfinite(maxRange) || !std::isfinite(normalSpan) || !std::isfinite(gridOffsetX) ||
+      !std::isfinite(gridOffsetY)) {
     return Status::NonFiniteInput;
   }
   if (!(side > 0.0) || recentreMargin < 0.0 || !(recentreMargin < 0.5 * side) || !(newSurfaceDistance > 0.0) ||
@@ -100,8 +101,8 @@ Status SurfaceMapBase::recentre(double x, double y) noexcept {
   const double half = 0.5 * static_cast<double>(cells) * res;
   if (!anchored_ || !params_.recentreByShift) {
     // The first insert, or every recentre without moving by cells: centred on (x, y) exactly.
-    anchorX_ = x - half;
-    anchorY_ = y - half;
+    anchorX_ = x - half + params_.gridOffsetX;
+    anchorY_ = y - half + params_.gridOffsetY;
     anchored_ = true;
   }
   // The grid's cell nearest to centring the square on (x, y); origins computed from the anchor,

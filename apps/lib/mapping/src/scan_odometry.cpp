@@ -23,8 +23,12 @@ Eigen::Matrix3d StepSigmas::covariance(const Pose2d& step) const noexcept {
   return c;
 }
 
-ScanOdometry::ScanOdometry(const Pose2d& mount, const ScanMatchParams& match, const SurfaceMapParams& surface)
-    : map_(std::make_unique<HallSurfaceMap>(surface)), matcher_(match), mount_(mount) {}
+ScanOdometry::ScanOdometry(const Pose2d& mount, const ScanMatchParams& match, const SurfaceMapParams& surface,
+                           double retryWiden)
+    : map_(std::make_unique<HallSurfaceMap>(surface)),
+      matcher_(match),
+      mount_(mount),
+      retryWiden_(retryWiden > 1.0 ? retryWiden : 0.0) {}
 
 ScanOdometry::~ScanOdometry() = default;
 
@@ -34,6 +38,7 @@ void ScanOdometry::start(const LaserScan& scan, const Pose2d& pose) {
   started_ = true;
   lastMatched_ = false;
   matched_ = 0;
+  retried_ = 0;
   scans_ = 1;
   (void)map_->insert(scan, pose_.compose(mount_));
 }
@@ -46,7 +51,15 @@ const Pose2d& ScanOdometry::next(const LaserScan& scan, const Pose2d& step, cons
   ++scans_;
   const Pose2d prior = pose_.compose(step);
   const bool built = map_->field().built();
-  const ScanMatchResult r = built ? matcher_.match(scan, mount_, prior, covariance, map_->field()) : ScanMatchResult{};
+  ScanMatchResult r = built ? matcher_.match(scan, mount_, prior, covariance, map_->field()) : ScanMatchResult{};
+  if (built && retryWiden_ > 0.0 && r.status != Status::Ok && r.status != Status::NotEnoughData) {
+    const ScanMatchResult wide =
+        matcher_.match(scan, mount_, prior, (retryWiden_ * retryWiden_) * covariance, map_->field());
+    if (wide.status == Status::Ok) {
+      r = wide;
+      ++retried_;
+    }
+  }
   lastMatched_ = built && r.status == Status::Ok;
   pose_ = lastMatched_ ? r.pose : prior;
   matched_ += lastMatched_ ? 1U : 0U;

@@ -141,6 +141,10 @@ struct ScanMatchParams {
   /// [m] a match bypasses the gate only through the resync, and only when its inliers fit at
   /// least this well (RMS): far stricter than `maxRmsResidual`, which the gate backs up.
   double resyncMaxRms = 0.06;
+  /// A match counts for the re-synchronisation only with at least this many inliers: a match
+  /// that overrules the filter needs more support than one the filter agrees with. 0 (the
+  /// default): `minInliers`, as for tracking.
+  std::size_t resyncMinInliers = 0;
   /// Soft gate (used by the localizer): a match the gate refuses that fits within `resyncMaxRms`
   /// is fused with the innovation covariance scaled up to just inside the gate instead of being
   /// dropped, so it moves the pose by the gated correction times gate / d^2: a few of the

@@ -44,8 +44,11 @@ class ScanOdometry {
  public:
   /// `mount`: the laser in the poses' frame (identity when the poses are the laser's); `surface`:
   /// the map of the scans before.
+  /// `retryWiden`: a scan whose match is refused (not for lack of points) is matched again over a
+  /// window this many times as wide (the covariance times its square) before the track falls back
+  /// on the wheel step; 0 or 1: no retry (the pose graph's front end).
   explicit ScanOdometry(const Pose2d& mount, const ScanMatchParams& match = ScanMatchParams{},
-                        const SurfaceMapParams& surface = SurfaceMapParams{});
+                        const SurfaceMapParams& surface = SurfaceMapParams{}, double retryWiden = 0.0);
   ScanOdometry(const ScanOdometry&) = delete;
   ScanOdometry& operator=(const ScanOdometry&) = delete;
   ~ScanOdometry();
@@ -61,11 +64,14 @@ class ScanOdometry {
   bool lastMatched() const noexcept { return lastMatched_; }
   std::size_t matched() const noexcept { return matched_; }  ///< scans matched since `start`
   std::size_t scans() const noexcept { return scans_; }      ///< scans since `start`, the first included
+  std::size_t retried() const noexcept { return retried_; }  ///< scans matched only by the wider retry
 
  private:
   std::unique_ptr<HallSurfaceMap> map_;
   ScanMatcher matcher_;
   Pose2d mount_;
+  double retryWiden_ = 0.0;
+  std::size_t retried_ = 0;
   Pose2d pose_{};
   bool started_ = false;
   bool lastMatched_ = false;
