@@ -78,9 +78,9 @@ struct SurfaceMapParams {
   bool recentreByShift = false;
   /// [m] where the grid falls: the field's grid is moved by this (its origin by this up to whole
   /// cells) from centring on the sensor (at every recentre, or with `recentreByShift` at the first
-  /// insert). 0 for a vehicle; a
-  /// sub-cell offset draws another of the equally valid grids, which is how a result's
-  /// dependence on the grid is measured (docs/localization.md, "Laser odometry: the wider retry").
+  /// insert). 0 for a vehicle; a sub-cell offset draws another of the equally valid grids, which
+  /// is how a result's dependence on the grid is measured (docs/localization.md, "Laser
+  /// odometry: the wider retry").
   double gridOffsetX = 0.0;
   double gridOffsetY = 0.0;
   /// `Ok`, `NonFiniteInput`, or `InvalidArgument` (invalid field, a non-positive side, distance
