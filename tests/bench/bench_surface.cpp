@@ -3,6 +3,9 @@
 // a surface map that has already seen the place (the steady state of a vehicle at 2 m/s and
 // 25 Hz: every beam sampled, few new points), and matching a sweep against it from a prior 2 cm /
 // 0.1 deg off with a 1 cm / 0.05 deg covariance (the refinement alone, as on the vehicle).
+// BM_SurfaceMap/search: the same match from a wide prior (10 cm / 3 deg off, 10 cm / 3 deg sigmas:
+// the coarse search scores the +-30 cm / +-9 deg window's 1 519 poses first), the sparse logs'
+// case: one scan per 0.3-1 m of odometry.
 // BM_SurfaceMap/recentre/{rebuild,shift}: an insert that moves the field (the sweep 9.6 m from the
 // field's centre, beyond the 8 m a 40 m field with a 12 m margin allows), with every piece of the
 // lane's sweeps kept: the longest insert of a vehicle's cycle, once per 8 m driven, by
@@ -10,6 +13,7 @@
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -96,6 +100,31 @@ void BM_SurfaceMapMatch(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_SurfaceMapMatch)->Name("BM_SurfaceMap/match")->Unit(benchmark::kMicrosecond);
+
+void BM_SurfaceMapSearch(benchmark::State& state) {
+  LaneSweeps& l = lane();
+  auto matcher = std::make_unique<ScanMatcher>();
+  const double sigmaT = 0.1;
+  const double sigmaR = 3.0 * kPi<double> / 180.0;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  cov.diagonal() << sigmaT * sigmaT, sigmaT * sigmaT, sigmaR * sigmaR;
+  int k = 0;
+  int fused = 0;
+  std::uint64_t scored = 0;
+  for (auto _ : state) {
+    const Pose2d truth = l.poses[static_cast<std::size_t>(k)];
+    const Pose2d prior{truth.x + 0.1, truth.y - 0.1, truth.theta + sigmaR};
+    const ScanMatchResult m =
+        matcher->match(*l.points[static_cast<std::size_t>(k)], Pose2d{}, prior, cov, l.map->field());
+    fused += m.status == Status::Ok ? 1 : 0;
+    scored += m.searched;
+    k = (k + 1) % LaneSweeps::kSweeps;
+  }
+  state.counters["ok_fraction"] = static_cast<double>(fused) / static_cast<double>(state.iterations());
+  state.counters["poses"] = static_cast<double>(scored) / static_cast<double>(state.iterations());
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_SurfaceMapSearch)->Name("BM_SurfaceMap/search")->Unit(benchmark::kMicrosecond);
 
 void BM_SurfaceMapRecentre(benchmark::State& state) {
   LaneSweeps& l = lane();
