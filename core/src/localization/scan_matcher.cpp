@@ -151,7 +151,7 @@ double ScanMatcher::cost(const Pose2d& x, const LikelihoodFieldBase& field, doub
 }
 
 Pose2d ScanMatcher::search(const Pose2d& prior, double wx, double wy, double wt, const LikelihoodFieldBase& field,
-                           std::uint32_t& scored) noexcept {
+                           std::uint32_t& scored) const noexcept {
   // Steps per axis each way, grown together until the grid fits maxSearchPoses.
   double stepT = params_.searchStepTranslation;
   double stepR = params_.searchStepRotation;
@@ -173,22 +173,16 @@ Pose2d ScanMatcher::search(const Pose2d& prior, double wx, double wy, double wt,
   Pose2d best = prior;
   double bestCost = cost(prior, field);
   scored = 1;
-  // In the field's grid units (cell centres at whole values, `distanceAtGrid`): per heading the
-  // points are rotated once, and each translation of the window then adds one offset to them.
+  // In the field's grid units (cell centres at whole values, `distanceAtGrid`): the rotation is
+  // scaled to cells once per heading and the translation once per pose, so that a point costs
+  // four products and four sums (no division by the resolution).
   const double res = field.params().resolution;
   const double inlierDistance = effectiveInlierDistance(field);
   const double outlierCost = huberCost(inlierDistance, params_.huber);
-  const std::size_t n = points_.size();
   for (long it = -nt; it <= nt; ++it) {
     const double theta = normalizeAngle(prior.theta + static_cast<double>(it) * stepR);
-    const double c = std::cos(theta);
-    const double s = std::sin(theta);
-    for (std::size_t i = 0; i < n; ++i) {
-      const double px = static_cast<double>(points_[i].x);
-      const double py = static_cast<double>(points_[i].y);
-      rotatedU_[i] = (c * px - s * py) / res;
-      rotatedV_[i] = (s * px + c * py) / res;
-    }
+    const double c = std::cos(theta) / res;
+    const double s = std::sin(theta) / res;
     for (long ix = -nx; ix <= nx; ++ix) {
       const double x = prior.x + static_cast<double>(ix) * stepT;
       const double u0 = (x - field.originX()) / res - 0.5;
@@ -200,8 +194,10 @@ Pose2d ScanMatcher::search(const Pose2d& prior, double wx, double wy, double wt,
         const double v0 = (y - field.originY()) / res - 0.5;
         // As `cost`: abandoned once the partial sum reaches the best pose's (it cannot win).
         double total = 0.0;
-        for (std::size_t i = 0; i < n; ++i) {
-          const double ar = std::fabs(field.distanceAtGrid(u0 + rotatedU_[i], v0 + rotatedV_[i]));
+        for (const MatchPoint& pt : points_) {
+          const double px = static_cast<double>(pt.x);
+          const double py = static_cast<double>(pt.y);
+          const double ar = std::fabs(field.distanceAtGrid(u0 + (c * px - s * py), v0 + (s * px + c * py)));
           total += ar < inlierDistance ? huberCost(ar, params_.huber) : outlierCost;
           if (total >= bestCost) {
             break;

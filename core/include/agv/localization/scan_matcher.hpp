@@ -16,9 +16,9 @@
 /// error, so they are not independent measurements: the points are thinned to `pointSpacing`
 /// apart (two cells of the default field) and the inflation covers the correlation left.
 ///
-/// Heap-free; the matcher holds its point scratch inline (kMaxScanBeams points, 16 KB, and the coarse
-/// search's rotated copy of them, 32 KB). Work per call: at most kMaxScanBeams points x
-/// `maxIterations` field samples, plus the coarse search's `maxSearchPoses` x points.
+/// Heap-free; the matcher holds its point scratch inline (kMaxScanBeams points, 16 KB). Work per
+/// call: at most kMaxScanBeams points x `maxIterations` field samples, plus the coarse search's
+/// `maxSearchPoses` x points.
 
 #include <Eigen/Core>
 #include <cstddef>
@@ -277,7 +277,7 @@ class ScanMatcher {
               double bound = std::numeric_limits<double>::infinity()) const noexcept;
   /// The coarse search around `prior` over +-(wx, wy, wt); the best pose (prior when no better).
   Pose2d search(const Pose2d& prior, double wx, double wy, double wt, const LikelihoodFieldBase& field,
-                std::uint32_t& scored) noexcept;
+                std::uint32_t& scored) const noexcept;
   /// Gauss-Newton from `start`; `prior` and `allowed` for the maxCorrection check.
   ScanMatchResult refine(const Pose2d& prior, const Pose2d& start, double allowedTranslation, double allowedRotation,
                          const LikelihoodFieldBase& field) noexcept;
@@ -288,8 +288,6 @@ class ScanMatcher {
   ScanMatchParams params_{};
   MatchPoints points_;                             // vehicle frame, thinned
   FixedVector<float, kMaxScanBeams> residuals_{};  // |residual| of the inliers, for the band
-  double rotatedU_[kMaxScanBeams] = {};            // the search's points rotated, in field cells
-  double rotatedV_[kMaxScanBeams] = {};
 };
 
 }  // namespace agv
