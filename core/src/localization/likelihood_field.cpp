@@ -134,6 +134,10 @@ void LikelihoodFieldBase::paintSegment(double ax, double ay, double bx, double b
   const double segXMax = std::max(px, px + ex);
   const double segYMin = std::min(py, py + ey);
   const double segYMax = std::max(py, py + ey);
+  // [1/m] the stored units per metre, for the bound below; the margin (half a quantum for the
+  // rounding, and far more than this product's rounding error) keeps the skip conservative.
+  const double perQuantum = 1.0 / quantum_;
+  constexpr double kSkipMargin = 0.5 + 1e-6;
   for (long iy = y0; iy <= y1; ++iy) {
     const double cy = (static_cast<double>(iy) + 0.5) * params_.resolution;
     const double dyRow = cy < segYMin ? segYMin - cy : (cy > segYMax ? cy - segYMax : 0.0);
@@ -152,6 +156,15 @@ void LikelihoodFieldBase::paintSegment(double ax, double ay, double bx, double b
         continue;  // a surface passes through the cell already: nothing is nearer
       }
       const double cx = (static_cast<double>(ix) + 0.5) * params_.resolution;
+      // The segment's distance is at least the cell centre's distance to its bounding box (the
+      // larger of the row's and the column's); when the cell already holds a distance at most
+      // that bound less half a quantum, the segment's rounded distance cannot be smaller: the
+      // projection and the root are skipped (the cell stays as the full test would leave it).
+      const double dxCol = cx < segXMin ? segXMin - cx : (cx > segXMax ? cx - segXMax : 0.0);
+      const double bound = (dxCol > dyRow ? dxCol : dyRow) * perQuantum - kSkipMargin;
+      if (static_cast<double>(cell < 0 ? -cell : cell) <= bound) {
+        continue;
+      }
       // The nearest point of the segment to the cell centre.
       double t = e2 > 0.0 ? ((cx - px) * ex + (cy - py) * ey) / e2 : 0.0;
       t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
